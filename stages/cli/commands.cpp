@@ -1,0 +1,11 @@
+#include "commands.hpp"
+
+namespace gcpipe::cli {
+
+// Order: the main job first, then the stages in pipeline order, then tools.
+const std::vector<Command> kCommands = {
+    kBatchCommand,
+    kParseCommand,
+};
+
+}  // namespace gcpipe::cli

@@ -1,0 +1,16 @@
+// The list of subcommands. To add one: define `constinit const Command kFooCommand` in
+// cmd_foo.cpp, declare it here and list it in commands.cpp.
+#pragma once
+
+#include <vector>
+
+#include "command.hpp"
+
+namespace gcpipe::cli {
+
+extern const Command kBatchCommand;
+extern const Command kParseCommand;
+
+extern const std::vector<Command> kCommands;
+
+}  // namespace gcpipe::cli

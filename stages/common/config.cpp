@@ -1,0 +1,228 @@
+#include "gcpipe/config.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <sstream>
+
+namespace gcpipe {
+
+struct Config::Impl {
+  YAML::Node node;   // a mapping (or null for an empty section)
+  std::string file;
+  std::string path;  // dotted, from the root
+};
+
+namespace {
+
+std::string join(const std::string& path, std::string_view key) {
+  return path.empty() ? std::string(key) : path + "." + std::string(key);
+}
+
+std::string where(const std::string& file, const YAML::Node& n) {
+  std::ostringstream s;
+  s << file;
+  if (n.IsDefined() && n.Mark().line >= 0) s << ':' << n.Mark().line + 1 << ':' << n.Mark().column + 1;
+  return s.str();
+}
+
+std::string shown(const YAML::Node& n) {
+  if (n.IsScalar()) return "'" + n.Scalar() + "'";
+  if (n.IsSequence()) return "a list";
+  if (n.IsMap()) return "a mapping";
+  return "nothing";
+}
+
+}  // namespace
+
+Config::Config() : impl_(std::make_shared<Impl>()) {}
+Config::~Config() = default;
+Config::Config(const Config&) = default;
+Config& Config::operator=(const Config&) = default;
+Config::Config(std::shared_ptr<const Impl> impl) : impl_(std::move(impl)) {}
+
+Config Config::load_file(const std::filesystem::path& path) {
+  auto impl = std::make_shared<Impl>();
+  impl->file = path.string();
+  try {
+    impl->node = YAML::LoadFile(path.string());
+  } catch (const YAML::BadFile&) {
+    throw ConfigError(path.string() + ": cannot open config file (check the path given with --config)");
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(path.string() + ":" + std::to_string(e.mark.line + 1) + ":" +
+                      std::to_string(e.mark.column + 1) + ": not valid YAML: " + e.msg);
+  }
+  if (impl->node.IsDefined() && !impl->node.IsNull() && !impl->node.IsMap())
+    throw ConfigError(path.string() + ": the top level must be a mapping of keys to values");
+  return Config(std::move(impl));
+}
+
+Config Config::from_string(std::string_view yaml, std::string name) {
+  auto impl = std::make_shared<Impl>();
+  impl->file = std::move(name);
+  try {
+    impl->node = YAML::Load(std::string(yaml));
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(impl->file + ":" + std::to_string(e.mark.line + 1) + ":" +
+                      std::to_string(e.mark.column + 1) + ": not valid YAML: " + e.msg);
+  }
+  if (impl->node.IsDefined() && !impl->node.IsNull() && !impl->node.IsMap())
+    throw ConfigError(impl->file + ": the top level must be a mapping of keys to values");
+  return Config(std::move(impl));
+}
+
+ConfigError Config::error(std::string_view key, const std::string& reason) const {
+  // Assigning to a Node obtained from operator[] of a missing key throws InvalidNode in yaml-cpp,
+  // so choose the node to point at before constructing it.
+  const bool present = impl_->node.IsMap() && impl_->node[std::string(key)].IsDefined();
+  YAML::Node n = present ? impl_->node[std::string(key)] : impl_->node;
+  return ConfigError(where(impl_->file, n) + ": key '" + join(impl_->path, key) + "': " + reason);
+}
+
+bool Config::has(std::string_view key) const {
+  return impl_->node.IsMap() && impl_->node[std::string(key)].IsDefined() &&
+         !impl_->node[std::string(key)].IsNull();
+}
+
+Config Config::section(std::string_view key) const {
+  auto impl = std::make_shared<Impl>();
+  impl->file = impl_->file;
+  impl->path = join(impl_->path, key);
+  if (has(key)) {
+    YAML::Node n = impl_->node[std::string(key)];
+    if (!n.IsMap()) throw error(key, "expected a mapping of keys to values, found " + shown(n));
+    impl->node = n;
+  }
+  return Config(std::move(impl));
+}
+
+std::vector<std::string> Config::keys() const {
+  std::vector<std::string> out;
+  if (!impl_->node.IsMap()) return out;
+  for (const auto& kv : impl_->node) out.push_back(kv.first.as<std::string>());
+  return out;
+}
+
+void Config::reject_unknown(std::initializer_list<std::string_view> known) const {
+  for (const auto& k : keys()) {
+    bool ok = false;
+    for (auto kn : known) ok = ok || kn == k;
+    if (!ok) {
+      std::string list;
+      for (auto kn : known) list += (list.empty() ? "" : ", ") + std::string(kn);
+      throw error(k, "unknown key (known here: " + list + ")");
+    }
+  }
+}
+
+namespace {
+
+bool parse_double(const YAML::Node& n, double& out) {
+  if (!n.IsScalar()) return false;
+  try {
+    out = n.as<double>();
+  } catch (const YAML::Exception&) {
+    return false;
+  }
+  return true;
+}
+
+std::string range_text(double min, double max, std::string_view unit) {
+  std::ostringstream s;
+  s.precision(10);
+  s << "[" << min << ", " << max << "]" << (unit.empty() ? "" : " ") << unit;
+  return s.str();
+}
+
+}  // namespace
+
+double Config::number(std::string_view key, double fallback, std::string_view unit, double min,
+                      double max) const {
+  if (!has(key)) return fallback;
+  return number(key, unit, min, max);
+}
+
+double Config::number(std::string_view key, std::string_view unit, double min, double max) const {
+  if (!has(key)) throw error(key, "required number (" + range_text(min, max, unit) + ") is missing");
+  YAML::Node n = impl_->node[std::string(key)];
+  double v = 0;
+  if (!parse_double(n, v)) throw error(key, "value " + shown(n) + " is not a number");
+  if (!std::isfinite(v)) throw error(key, "value " + shown(n) + " is not finite");
+  if (v < min || v > max)
+    throw error(key, "value " + shown(n) + " is outside the valid range " + range_text(min, max, unit));
+  return v;
+}
+
+std::int64_t Config::integer(std::string_view key, std::int64_t fallback, std::int64_t min,
+                             std::int64_t max) const {
+  if (!has(key)) return fallback;
+  YAML::Node n = impl_->node[std::string(key)];
+  std::int64_t v = 0;
+  try {
+    v = n.as<std::int64_t>();
+  } catch (const YAML::Exception&) {
+    throw error(key, "value " + shown(n) + " is not a whole number");
+  }
+  if (v < min || v > max)
+    throw error(key, "value " + shown(n) + " is outside the valid range [" + std::to_string(min) +
+                         ", " + std::to_string(max) + "]");
+  return v;
+}
+
+bool Config::boolean(std::string_view key, bool fallback) const {
+  if (!has(key)) return fallback;
+  YAML::Node n = impl_->node[std::string(key)];
+  try {
+    return n.as<bool>();
+  } catch (const YAML::Exception&) {
+    throw error(key, "value " + shown(n) + " is not true or false");
+  }
+}
+
+std::string Config::string(std::string_view key, std::string fallback) const {
+  if (!has(key)) return fallback;
+  YAML::Node n = impl_->node[std::string(key)];
+  if (!n.IsScalar()) throw error(key, "expected text, found " + shown(n));
+  return n.Scalar();
+}
+
+std::string Config::choice(std::string_view key, std::string fallback,
+                           std::initializer_list<std::string_view> allowed) const {
+  std::string v = string(key, fallback);
+  for (auto a : allowed)
+    if (a == v) return v;
+  std::string list;
+  for (auto a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
+  throw error(key, "value '" + v + "' is not one of: " + list);
+}
+
+std::vector<double> Config::numbers(std::string_view key, std::size_t n, std::string_view unit,
+                                    double min, double max) const {
+  if (!has(key)) throw error(key, "required list of numbers is missing");
+  YAML::Node node = impl_->node[std::string(key)];
+  if (!node.IsSequence()) throw error(key, "expected a list of numbers, found " + shown(node));
+  if (n != 0 && node.size() != n)
+    throw error(key, "expected " + std::to_string(n) + " numbers, found " + std::to_string(node.size()));
+  std::vector<double> out;
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    double v = 0;
+    if (!parse_double(node[i], v) || !std::isfinite(v))
+      throw error(key, "element " + std::to_string(i + 1) + " (" + shown(node[i]) + ") is not a finite number");
+    if (v < min || v > max)
+      throw error(key, "element " + std::to_string(i + 1) + " (" + shown(node[i]) +
+                           ") is outside the valid range " + range_text(min, max, unit));
+    out.push_back(v);
+  }
+  return out;
+}
+
+const std::string& Config::path() const { return impl_->path; }
+const std::string& Config::file() const { return impl_->file; }
+
+std::filesystem::path Config::resolve(const std::string& relative) const {
+  std::filesystem::path p(relative);
+  if (p.is_absolute()) return p;
+  return std::filesystem::path(impl_->file).parent_path() / p;
+}
+
+}  // namespace gcpipe

@@ -1,0 +1,46 @@
+#include "gcpipe/machine.hpp"
+
+#include "gcpipe/config.hpp"
+
+namespace gcpipe {
+
+MachineConfig load_machine(const Config& m) {
+  MachineConfig out;
+  out.name = m.string("name", "unnamed");
+  if (m.has("work_offsets")) {
+    Config wo = m.section("work_offsets");
+    wo.reject_unknown({"G54", "G55", "G56", "G57", "G58", "G59"});
+    static const char* names[6] = {"G54", "G55", "G56", "G57", "G58", "G59"};
+    for (int i = 0; i < 6; ++i) {
+      if (!wo.has(names[i])) continue;
+      auto v = wo.numbers(names[i], kNumAxes, "mm or deg (X Y Z A C)", -1e5, 1e5);
+      for (int a = 0; a < kNumAxes; ++a) out.work_offsets[static_cast<std::size_t>(i)][static_cast<std::size_t>(a)] = v[static_cast<std::size_t>(a)];
+    }
+  }
+  if (m.has("tools")) {
+    Config tools = m.section("tools");
+    for (const auto& key : tools.keys()) {
+      int number = 0;
+      try {
+        std::size_t used = 0;
+        number = std::stoi(key, &used);
+        if (used != key.size() || number < 1 || number > 9999) throw std::invalid_argument(key);
+      } catch (const std::exception&) {
+        throw tools.error(key, "tool numbers are whole numbers from 1 to 9999");
+      }
+      Config t = tools.section(key);
+      t.reject_unknown({"length", "diameter", "name"});
+      ToolEntry e;
+      e.length = t.number("length", "mm", 0, 1000);
+      e.diameter = t.number("diameter", "mm", 0.01, 500);
+      out.tools[number] = e;
+    }
+  }
+  if (m.has("initial_position")) {
+    auto v = m.numbers("initial_position", kNumAxes, "mm or deg (X Y Z A C)", -1e5, 1e5);
+    for (int a = 0; a < kNumAxes; ++a) out.initial_position[static_cast<std::size_t>(a)] = v[static_cast<std::size_t>(a)];
+  }
+  return out;
+}
+
+}  // namespace gcpipe

@@ -1,0 +1,23 @@
+#include "gcpipe/pipeline_config.hpp"
+
+#include <cstdlib>
+
+namespace gcpipe {
+
+PipelineConfig load_pipeline_config(const std::filesystem::path& path) {
+  PipelineConfig pc;
+  pc.root = Config::load_file(path);
+  if (!pc.root.has("machine"))
+    throw pc.root.error("machine", "missing: name the machine file, e.g. 'machine: machines/mx330.yaml'");
+  auto machine_path = pc.root.resolve(pc.root.string("machine", ""));
+  pc.machine_section = Config::load_file(machine_path);
+  pc.machine = load_machine(pc.machine_section);
+  return pc;
+}
+
+std::filesystem::path default_pipeline_config() {
+  if (const char* env = std::getenv("GCPIPE_CONFIG")) return env;
+  return std::filesystem::path(GCPIPE_SOURCE_DIR) / "pipeline_configs" / "default.yaml";
+}
+
+}  // namespace gcpipe

@@ -1,0 +1,404 @@
+// The parse stage: syntax, modal resolution, every class of error with its column, LinuxCNC's
+// golden arc files and every real program under ../shared/data.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <regex>
+
+#include "parse_helpers.hpp"
+
+using namespace gcpipe;
+using namespace gcpipe::test;
+
+namespace {
+
+const ResolvedBlock& last(const Parsed& p) { return p.blocks.back(); }
+
+// Parses `text`, expects exactly one rejected line whose message contains `what` at `col`.
+void expect_error(const std::string& text, const std::string& what, std::uint32_t col,
+                  ParseOptions opt = {}) {
+  SCOPED_TRACE(text);
+  Parsed p = parse_text(text, opt);
+  const Diagnostic* d = p.first_error();
+  ASSERT_NE(d, nullptr) << "no error for: " << text;
+  EXPECT_NE(d->message.find(what), std::string::npos) << d->message;
+  EXPECT_EQ(d->column, col) << format(*d);
+  EXPECT_EQ(d->file, "t.nc");
+}
+
+}  // namespace
+
+TEST(ParseSyntax, WordsCaseSpacesSignsAndShortNumbers) {
+  Parsed p = parse_text("g 1 x 1 0 . 5 y+.5 z-.25 f 1 0 0\n");
+  ASSERT_EQ(p.blocks.size(), 1u) << (p.diags.empty() ? "" : format(p.diags[0]));
+  const auto& b = last(p);
+  EXPECT_EQ(b.motion, Motion::kLinear);
+  EXPECT_DOUBLE_EQ(b.target[kX], 10.5);
+  EXPECT_DOUBLE_EQ(b.target[kY], 0.5);
+  EXPECT_DOUBLE_EQ(b.target[kZ], -0.25);
+  EXPECT_DOUBLE_EQ(b.feed, 100);
+  EXPECT_EQ(b.axis_words, (1u << kX) | (1u << kY) | (1u << kZ));
+}
+
+TEST(ParseSyntax, CommentsAreCollectedAndKept) {
+  Parsed p = parse_text("(first) G0 X1 ( second ) ; third (with parens)\n");
+  ASSERT_EQ(p.blocks.size(), 1u);
+  EXPECT_EQ(last(p).comment, "first | second | third (with parens)");
+  EXPECT_DOUBLE_EQ(last(p).target[kX], 1);
+}
+
+TEST(ParseSyntax, ProgramStructure) {
+  Parsed p = parse_text("%\nO1234 (NAME)\n:77\nN10 G0 X1\n\n%\n");
+  ASSERT_EQ(p.blocks.size(), 6u);
+  EXPECT_TRUE(p.blocks[0].percent);
+  EXPECT_EQ(p.blocks[1].program_number, 1234);
+  EXPECT_EQ(p.blocks[1].comment, "NAME");
+  EXPECT_EQ(p.blocks[2].program_number, 77);
+  EXPECT_EQ(p.blocks[3].motion, Motion::kRapid);
+  EXPECT_EQ(p.blocks[4].motion, Motion::kNone);
+  EXPECT_TRUE(p.blocks[5].percent);
+}
+
+TEST(ParseSyntax, FanucDecimalPointRule) {
+  ParseOptions o;
+  o.decimal_point_increments = true;
+  Parsed p = parse_text("G1 Z50 F100\nG1 Z50.\nG1 A90\nG20\nG1 X1\n", o);
+  ASSERT_EQ(p.blocks.size(), 5u);
+  EXPECT_DOUBLE_EQ(p.blocks[0].target[kZ], 0.050);      // increments of 0.001 mm
+  EXPECT_DOUBLE_EQ(p.blocks[0].feed, 100);              // F is never scaled by the rule
+  EXPECT_DOUBLE_EQ(p.blocks[1].target[kZ], 50);
+  EXPECT_DOUBLE_EQ(p.blocks[2].target[kA], 0.090);      // 0.001 deg
+  EXPECT_NEAR(p.blocks[4].target[kX], 0.0001 * 25.4, 1e-15);  // 0.0001 inch
+  Parsed plain = parse_text("G1 Z50 F100\n");
+  EXPECT_DOUBLE_EQ(plain.blocks[0].target[kZ], 50);
+}
+
+TEST(ParseSyntax, BlockDeleteSwitch) {
+  Parsed on = parse_text("G0 X1\n/G0 X2\n");
+  EXPECT_EQ(on.summary.lines_deleted, 1u);
+  EXPECT_DOUBLE_EQ(last(on).target[kX], 1);
+  ASSERT_EQ(on.diags.size(), 1u);
+  EXPECT_EQ(on.diags[0].severity, Severity::kNote);
+  ParseOptions o;
+  o.block_delete = false;
+  Parsed off = parse_text("G0 X1\n/G0 X2\n", o);
+  EXPECT_EQ(off.summary.lines_deleted, 0u);
+  EXPECT_DOUBLE_EQ(last(off).target[kX], 2);
+}
+
+TEST(ParseModal, IncrementalUnitsAndOffsets) {
+  Parsed p = parse_text("G91 G1 X1 F100\nX1\nG90 G20 X1\nG55 G21 X1 Y1 Z1\n");
+  ASSERT_EQ(p.blocks.size(), 4u);
+  EXPECT_DOUBLE_EQ(p.blocks[0].target[kX], 1);
+  EXPECT_DOUBLE_EQ(p.blocks[1].target[kX], 2);
+  EXPECT_DOUBLE_EQ(p.blocks[2].target[kX], 25.4);
+  EXPECT_DOUBLE_EQ(p.blocks[2].feed, 100);  // F was given in mm/min; G20 does not rescale it
+  EXPECT_EQ(p.blocks[2].source_units, Units::kInch);
+  // G55 origin (100, 50, -20) from the machine config.
+  EXPECT_DOUBLE_EQ(p.blocks[3].target[kX], 101);
+  EXPECT_DOUBLE_EQ(p.blocks[3].target[kY], 51);
+  EXPECT_DOUBLE_EQ(p.blocks[3].target[kZ], -19);
+  EXPECT_EQ(p.blocks[3].work_offset, 55);
+  EXPECT_DOUBLE_EQ(p.blocks[3].start[kX], 25.4);
+}
+
+TEST(ParseModal, InchFeedIsConverted) {
+  Parsed p = parse_text("G20 G1 X1 F10\n");
+  EXPECT_DOUBLE_EQ(last(p).feed, 254);
+}
+
+TEST(ParseModal, ToolLengthTcpSpindleCoolant) {
+  Parsed p = parse_text("T1 M6\nG43 H1 S1200 M3 M8\nG43.4 H1\nG49\nM7 M8\nM9 M8\nM5 M9\n");
+  ASSERT_EQ(p.blocks.size(), 7u) << format(p.diags.at(0));
+  EXPECT_TRUE(p.blocks[0].tool_change);
+  EXPECT_EQ(p.blocks[0].tool_in_spindle, 1);
+  EXPECT_TRUE(p.blocks[1].tool_length_active);
+  EXPECT_DOUBLE_EQ(p.blocks[1].tool_length, 100);
+  EXPECT_EQ(p.blocks[1].spindle, Spindle::kCW);
+  EXPECT_DOUBLE_EQ(p.blocks[1].spindle_speed, 1200);
+  EXPECT_EQ(p.blocks[1].coolant, kCoolantFlood);
+  EXPECT_TRUE(p.blocks[2].tcp);
+  EXPECT_FALSE(p.blocks[3].tcp);
+  EXPECT_FALSE(p.blocks[3].tool_length_active);
+  EXPECT_EQ(p.blocks[4].coolant, kCoolantFlood | kCoolantMist);
+  EXPECT_EQ(p.blocks[5].coolant, kCoolantFlood);
+  EXPECT_EQ(p.blocks[6].coolant, 0);
+  EXPECT_EQ(p.blocks[6].spindle, Spindle::kOff);
+}
+
+TEST(ParseModal, TcpSpellingsPerDialect) {
+  ParseOptions lc;
+  lc.dialect = Dialect::kLinuxCnc;
+  Parsed p = parse_text("M428\nG43 H1\nM429\n", lc);
+  EXPECT_TRUE(p.blocks[0].tcp);
+  EXPECT_TRUE(p.blocks[1].tcp);  // LinuxCNC: G43 is only the length
+  EXPECT_FALSE(p.blocks[2].tcp);
+  Parsed f = parse_text("G43.4 H1\nG43 H1\n");
+  EXPECT_TRUE(f.blocks[0].tcp);
+  EXPECT_FALSE(f.blocks[1].tcp);  // Fanuc: G43 replaces G43.4 (one modal group)
+}
+
+TEST(ParseModal, DwellPerDialect) {
+  Parsed f = parse_text("G4 P500\nG4 X1.5\n");
+  EXPECT_EQ(f.blocks[0].motion, Motion::kDwell);
+  EXPECT_DOUBLE_EQ(f.blocks[0].dwell, 0.5);
+  EXPECT_DOUBLE_EQ(f.blocks[1].dwell, 1.5);
+  EXPECT_DOUBLE_EQ(f.blocks[1].target[kX], 0);  // X is time here, not a move
+  ParseOptions lc;
+  lc.dialect = Dialect::kLinuxCnc;
+  Parsed l = parse_text("G4 P1.5\n", lc);
+  EXPECT_DOUBLE_EQ(l.blocks[0].dwell, 1.5);
+}
+
+TEST(ParseModal, G80CancelsMotionMode) {
+  Parsed p = parse_text("G1 X1 F100\nG80\nX2\n");
+  const Diagnostic* d = p.first_error();
+  ASSERT_NE(d, nullptr);
+  EXPECT_NE(d->message.find("without a motion mode"), std::string::npos);
+}
+
+TEST(ParseArcs, CentreFormatInEachPlane) {
+  Parsed p = parse_text("G1 X0 Y0 Z0 F100\nG2 X10 Y0 I5 J0\nG18 G3 Z0 X20 K0 I5\nG19 G2 Y10 Z0 J5 K0\n");
+  ASSERT_EQ(p.blocks.size(), 4u) << format(p.diags.at(0));
+  const auto& a = p.blocks[1];
+  EXPECT_EQ(a.motion, Motion::kArcCW);
+  EXPECT_EQ(a.plane, Plane::kXY);
+  EXPECT_DOUBLE_EQ(a.centre[0], 5);
+  EXPECT_DOUBLE_EQ(a.centre[1], 0);
+  EXPECT_DOUBLE_EQ(a.radius, 5);
+  const auto& b = p.blocks[2];
+  EXPECT_EQ(b.plane, Plane::kZX);
+  EXPECT_DOUBLE_EQ(b.centre[0], 15);
+  EXPECT_DOUBLE_EQ(b.centre[2], 0);
+  const auto& c = p.blocks[3];
+  EXPECT_EQ(c.plane, Plane::kYZ);
+  EXPECT_DOUBLE_EQ(c.centre[1], 5);
+  EXPECT_DOUBLE_EQ(c.centre[0], 20);  // normal-axis coordinate of the start
+}
+
+TEST(ParseArcs, RadiusFormatPicksTheRightCentre) {
+  // CW from (0,0) to (2,0): R>0 takes the short arc, centre below the chord; R<0 the long arc.
+  const double r = std::sqrt(2.0);
+  for (auto [code, sign, cy] : {std::tuple{"G2", 1, -1.0}, {"G2", -1, 1.0}, {"G3", 1, 1.0}, {"G3", -1, -1.0}}) {
+    std::string prog = "G1 X0 Y0 F100\n" + std::string(code) + " X2 Y0 R" + std::to_string(sign * r) + "\n";
+    Parsed p = parse_text(prog);
+    ASSERT_EQ(p.blocks.size(), 2u) << prog;
+    EXPECT_NEAR(p.blocks[1].centre[0], 1, 1e-6) << prog;
+    EXPECT_NEAR(p.blocks[1].centre[1], cy, 1e-6) << prog;
+  }
+}
+
+TEST(ParseArcs, FullCircleHelixAndTurns) {
+  ParseOptions lc;
+  lc.dialect = Dialect::kLinuxCnc;
+  Parsed p = parse_text("G1 X0 Y0 Z0 F100\nG2 I5\nG3 Z-3 I5 P3\n", lc);
+  ASSERT_EQ(p.blocks.size(), 3u) << format(p.diags.at(0));
+  EXPECT_EQ(p.blocks[1].target, p.blocks[1].start);  // end = start: a full circle
+  EXPECT_DOUBLE_EQ(p.blocks[1].radius, 5);
+  EXPECT_DOUBLE_EQ(p.blocks[2].target[kZ], -3);
+  EXPECT_EQ(p.blocks[2].turns, 3);
+}
+
+TEST(ParseArcs, AbsoluteCentresByConfigAndG901) {
+  ParseOptions o;
+  o.absolute_arc_centres = true;
+  Parsed p = parse_text("G1 X10 Y0 F100\nG3 X0 Y10 I0 J0\n", o);
+  ASSERT_EQ(p.blocks.size(), 2u);
+  EXPECT_DOUBLE_EQ(p.blocks[1].centre[0], 0);
+  Parsed q = parse_text("G1 X10 Y0 F100\nG90.1 G3 X0 Y10 I0 J0\n");
+  ASSERT_EQ(q.blocks.size(), 2u);
+  EXPECT_DOUBLE_EQ(q.blocks[1].radius, 10);
+}
+
+TEST(ParseErrors, EachClassNamesWordValueAndColumn) {
+  expect_error("G0 X1 B2\n", "unknown word 'B2'", 7);
+  expect_error("G0 X1 E2\n", "'E' is not a word", 7);
+  expect_error("G0 X1 X2\n", "word X appears twice", 7);
+  expect_error("G0 G1 X1 F1\n", "G0 and G1 in one block", 4);
+  expect_error("G20 G21\n", "same modal group", 5);
+  expect_error("M3 M4\n", "M3 and M4", 4);
+  expect_error("G1 X1\n", "G1 without a feed", 1);
+  expect_error("G1 X[sqrt[-1]] F1\n", "not a finite number", 6);
+  expect_error("G1 X[10**400] F1\n", "overflow", 8);
+  expect_error("G1 X99999999 F1\n", "out of range", 4);
+  expect_error("G1 X1e5 F1\n", "'E' is not a word", 6);
+  expect_error("G41 X1\n", "cutter radius compensation", 1);
+  expect_error("M98 P100\n", "subprogram", 1);
+  expect_error("M123\n", "not a supported M code", 1);
+  expect_error("G12.5\n", "not a supported G code", 1);
+  expect_error("G1.55 X1\n", "not a valid G code", 1);
+  expect_error("H1\n", "without G43", 1);
+  expect_error("G43 H9\n", "tool 9 is not in the machine config", 5);
+  expect_error("G1 X1 I2 F1\n", "word I2 has no meaning here", 7);
+  expect_error("G0 X\n", "has no value", 5);
+  expect_error("G0 X1.2.3\n", "two decimal points", 8);
+  expect_error("G0 (open\n", "not closed", 4);
+  expect_error("G0 (a (b) )\n", "comment inside a comment", 7);
+  expect_error("G4 P1 X1\n", "G4 with both X", 4);
+  expect_error("G93 G1 X1\n", "inverse-time", 5);
+  expect_error("X1\n", "without a motion mode", 1);
+  expect_error("o100 sub\n", "o-word", 1);
+  expect_error("o<x> call\n", "o-word", 1);
+  expect_error("G1 X0 Y0 F1\nG2 X10 Y0 R4\n", "cannot exist", 11);
+  expect_error("G1 X0 Y0 F1\nG2 X10 Y0 I4 J0\n", "radius to end of arc differs", 11);
+  expect_error("G1 X0 Y0 F1\nG2 X10 Y0 K4\n", "K in a G2 block", 11);
+  expect_error("G0 X#<nope>\n", "used before it is set", 5);
+  expect_error("G0 X1 G1 @\n", "unexpected '@'", 10);
+  expect_error("G0 X1 /\n", "only allowed at the start", 7);
+  expect_error("S-5\n", "out of range", 1);
+  expect_error("T1.5\n", "not a whole number", 1);
+  expect_error("F-1\n", "negative", 1);
+  ParseOptions shortline;
+  shortline.max_line_length = 16;
+  expect_error("G0 X1 Y2 Z3 A4 C5 (long)\n", "the limit is 16", 17, shortline);
+}
+
+TEST(ParseErrors, ControlBytesAndNulOutsideComments) {
+  Parsed p = parse_text(std::string("G0 X1\x01\n", 8));
+  ASSERT_NE(p.first_error(), nullptr);
+  EXPECT_NE(p.first_error()->message.find("0x01"), std::string::npos);
+  Parsed q = parse_text(std::string("G0 X1 (\xb0 is fine here)\n"));
+  EXPECT_EQ(q.first_error(), nullptr);
+}
+
+TEST(ParseErrors, RejectedLineLeavesNoTraceAndTheRestGoesOn) {
+  Parsed p = parse_text("G91 G1 X1 F100\nG90 X5 B1\nX1\n#1=7 G0 B2\nG0 X#1\n");
+  ASSERT_EQ(p.summary.lines_rejected, 2u);
+  ASSERT_EQ(p.blocks.size(), 3u);
+  EXPECT_DOUBLE_EQ(p.blocks[1].target[kX], 2);  // still incremental: line 2 never happened
+  EXPECT_DOUBLE_EQ(p.blocks[2].target[kX], 2 + 0);  // #1 was not set by the rejected line 4
+  EXPECT_EQ(p.summary.lines_read, p.summary.blocks_emitted + p.summary.lines_rejected + p.summary.lines_deleted);
+}
+
+TEST(ParseErrors, StrictModeIsTheCallersStop) {
+  // The parser reports; stream_program stops in strict mode (tested through the CLI in cli_test).
+  ParseOptions o;
+  o.strict = true;
+  Parsed p = parse_text("G0 X1\nG0 B1\nG0 X2\n", o);
+  EXPECT_EQ(p.summary.lines_rejected, 1u);
+}
+
+TEST(ParseExpressions, ParametersFunctionsAndPrecedence) {
+  Parsed p = parse_text(
+      "#1 = 5\n#<Abc> = [#1 * 2]\nG0 X#1 Y#<aBC>\nG0 X[2 + 3 * 4] Y[atan[1]/[1]] Z[sqrt[16] + abs[-1]]\n"
+      "G0 X[7 mod 4] Y[-7 mod 4] Z[2 ** 3]\n#2 = 1 #3 = #2\nG0 X#3\nG0 X-#1 Y[fix[2.7]] Z[fup[2.2]]\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  const auto& b = p.blocks;
+  EXPECT_DOUBLE_EQ(b[2].target[kX], 5);
+  EXPECT_DOUBLE_EQ(b[2].target[kY], 10);
+  EXPECT_DOUBLE_EQ(b[3].target[kX], 14);
+  EXPECT_NEAR(b[3].target[kY], 45, 1e-12);
+  EXPECT_DOUBLE_EQ(b[3].target[kZ], 5);
+  EXPECT_DOUBLE_EQ(b[4].target[kX], 3);
+  EXPECT_DOUBLE_EQ(b[4].target[kY], 1);  // LinuxCNC: non-negative remainder
+  EXPECT_DOUBLE_EQ(b[4].target[kZ], 8);
+  EXPECT_DOUBLE_EQ(b[6].target[kX], 0);  // #3 = #2 read the old #2 (0): assignments apply after the line
+  EXPECT_DOUBLE_EQ(b[7].target[kX], -5);
+  EXPECT_DOUBLE_EQ(b[7].target[kY], 2);
+  EXPECT_DOUBLE_EQ(b[7].target[kZ], 3);
+}
+
+TEST(ParseCycle, TrochoidSlotResolves) {
+  Parsed p = parse_text("T2 M6\nG0 X0 Y0 Z5\nG1 F800 Z5\nG275 X120 Y0 Z-10 R5 W28 K1.5 Q5 P-1\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  const auto& b = last(p);
+  EXPECT_EQ(b.motion, Motion::kTrochoidSlot);
+  EXPECT_DOUBLE_EQ(b.slot.tool_diameter, 20);  // from T2 in the tool table
+  EXPECT_DOUBLE_EQ(b.slot.width, 28);
+  EXPECT_DOUBLE_EQ(b.slot.step, 1.5);
+  EXPECT_DOUBLE_EQ(b.slot.depth_step, 5);
+  EXPECT_DOUBLE_EQ(b.slot.bottom, -10);
+  EXPECT_DOUBLE_EQ(b.slot.clearance, 5);
+  EXPECT_FALSE(b.slot.climb);
+  EXPECT_DOUBLE_EQ(b.target[kX], 120);
+  EXPECT_DOUBLE_EQ(b.target[kZ], 5);
+  expect_error("G1 F800 X0\nG275 X10 Z-1 R5 W0 K1 D10\n", "slot width must be positive", 17);
+  expect_error("G1 F800 X0\nG275 X10 Z-1 R5 W12 K1\n", "needs the tool diameter", 1);
+  expect_error("G1 F800 X0\nG275 X10 Z-1 W12 K1 D10\n", "needs R", 1);
+}
+
+// LinuxCNC's canonical output for its own arc tests: the end point and centre of each good arc.
+TEST(ParseGolden, LinuxCncArcToleranceFiles) {
+  const auto dir = shared_data() / "gcode/linuxcnc/interp_arc_tolerance";
+  if (!std::filesystem::exists(dir)) GTEST_SKIP() << dir << " is absent: LinuxCNC golden files not checked";
+  int good = 0, bad = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    if (e.path().extension() != ".ngc") continue;
+    SCOPED_TRACE(name);
+    ParseOptions o;
+    o.dialect = Dialect::kLinuxCnc;
+    Parsed p = parse_text(read_file(e.path()), o);
+    if (name.rfind("good__", 0) == 0) {
+      ++good;
+      ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+      const std::string expected = read_file(e.path().string() + ".expected");
+      std::smatch m;
+      const std::regex arc(R"(ARC_FEED\(([-0-9.]+), ([-0-9.]+), ([-0-9.]+), ([-0-9.]+), (-?\d+),)");
+      ASSERT_TRUE(std::regex_search(expected, m, arc));
+      const double k = name.find("imperial") != std::string::npos ? 1 / 25.4 : 1.0;  // canon units
+      const ResolvedBlock* a = nullptr;
+      for (const auto& b : p.blocks)
+        if (b.motion == Motion::kArcCW || b.motion == Motion::kArcCCW) a = &b;
+      ASSERT_NE(a, nullptr);
+      EXPECT_NEAR(a->target[kX] * k, std::stod(m[1]), 5e-5);
+      EXPECT_NEAR(a->target[kY] * k, std::stod(m[2]), 5e-5);
+      EXPECT_NEAR(a->centre[0] * k, std::stod(m[3]), 5e-5);
+      EXPECT_NEAR(a->centre[1] * k, std::stod(m[4]), 5e-5);
+      EXPECT_EQ(a->motion == Motion::kArcCW ? -a->turns : a->turns, std::stoi(m[5]));
+    } else {
+      ++bad;
+      ASSERT_NE(p.first_error(), nullptr) << "a bad__ arc was accepted";
+      EXPECT_NE(p.first_error()->message.find("radius to end of arc differs from radius to start"), std::string::npos);
+      // The file's first comment holds LinuxCNC's message; our r1 and r2 agree with it.
+      const std::string src = read_file(e.path());
+      std::smatch m;
+      ASSERT_TRUE(std::regex_search(src, m, std::regex(R"(r1=([0-9.]+) r2=([0-9.]+))")));
+      EXPECT_NE(p.first_error()->message.find("r1=" + m[1].str()), std::string::npos) << p.first_error()->message;
+      EXPECT_NE(p.first_error()->message.find("r2=" + m[2].str()), std::string::npos) << p.first_error()->message;
+    }
+  }
+  EXPECT_EQ(good, 6);
+  EXPECT_EQ(bad, 6);
+}
+
+// Every real program is accepted, except features listed in the README as unsupported.
+TEST(ParseReal, EveryProgramUnderSharedDataIsAcceptedOrPreciselyRejected) {
+  auto programs = shared_programs();
+  if (programs.empty()) GTEST_SKIP() << shared_data() << " is absent: real programs not checked";
+  int checked = 0;
+  for (const auto& path : programs) {
+    const std::string name = path.filename().string();
+    if (name.rfind("bad__", 0) == 0) continue;  // LinuxCNC's own must-fail files: ParseGolden
+    SCOPED_TRACE(name);
+    Parsed p = parse_text(read_file(path), options_for(path), test_machine(), path.string());
+    EXPECT_EQ(p.summary.lines_read, p.summary.blocks_emitted + p.summary.lines_rejected + p.summary.lines_deleted);
+    if (name == "helix_ac.ngc") {
+      // A LinuxCNC subroutine library file: o<helix_ac> sub ... endsub, all of it.
+      EXPECT_EQ(p.summary.blocks_emitted, 1u);  // the comment line before the sub
+      EXPECT_NE(p.first_error()->message.find("o-word subroutines"), std::string::npos);
+      EXPECT_EQ(p.first_error()->line, 2u);
+    } else {
+      EXPECT_EQ(p.summary.lines_rejected, 0u) << format(*p.first_error());
+    }
+    ++checked;
+  }
+  EXPECT_GE(checked, 12);
+}
+
+TEST(ParseReal, ImpellerReachesMinus400DegreesOfC) {
+  const auto path = shared_data() / "gcode/linuxcnc/xyzac_trt/impeller-7bl-xyzac.ngc";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " is absent";
+  Parsed p = parse_text(read_file(path), options_for(path));
+  double cmin = 0, amin = 0;
+  for (const auto& b : p.blocks) {
+    cmin = std::min(cmin, b.target[kC]);
+    amin = std::min(amin, b.target[kA]);
+    if (b.motion == Motion::kLinear) {
+      EXPECT_EQ(b.feed_mode, FeedMode::kInverseTime);
+      EXPECT_TRUE(b.tcp);
+    }
+  }
+  EXPECT_NEAR(cmin, -399.81, 0.01);  // the program's own summary comment: Cmin -399.81
+  EXPECT_NEAR(amin, -74.49, 0.01);   // Amin -74.49
+}

@@ -1,0 +1,180 @@
+// The write stage: parse(write(parse(p))) == parse(p) block for block.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <random>
+
+#include "parse_helpers.hpp"
+#include "write.hpp"
+
+using namespace gcpipe;
+using namespace gcpipe::test;
+
+namespace {
+
+// "Equal" for a round trip: discrete fields identical, numbers within 1e-9 relative to max(1, |v|),
+// i.e. 1 nm on a part of 1 m. Exact equality is not possible for arc centres: IJK are offsets from
+// the start, and start + (centre - start) need not give back the same double.
+constexpr double kTol = 1e-9;
+
+// The blocks that make the machine do something; state is compared inside each of them.
+std::vector<ResolvedBlock> active(const Parsed& p) {
+  std::vector<ResolvedBlock> out;
+  for (const auto& b : p.blocks)
+    if (b.motion != Motion::kNone || b.stop != ProgramStop::kNone || b.tool_change) out.push_back(b);
+  return out;
+}
+
+std::string write_all(const Parsed& p, WriteOptions wo) {
+  Writer w(wo);
+  std::string out;
+  // Interleave blocks and diagnostics by line, as the batch loop does.
+  std::size_t i = 0, j = 0;
+  while (i < p.blocks.size() || j < p.diags.size()) {
+    if (j >= p.diags.size() || (i < p.blocks.size() && p.blocks[i].line < p.diags[j].line)) w.write(p.blocks[i++], out);
+    else w.write_diagnostic(p.diags[j++], out);
+  }
+  return out;
+}
+
+void expect_round_trip(const Parsed& first, ParseOptions reparse, WriteOptions wo, double tol,
+                       const std::string& what) {
+  const std::string text = write_all(first, wo);
+  Parsed second = parse_text(text, reparse, test_machine(), "written.nc");
+  ASSERT_EQ(second.first_error(), nullptr) << what << ": the written program does not parse: "
+                                           << format(*second.first_error());
+  auto a = active(first), b = active(second);
+  ASSERT_EQ(a.size(), b.size()) << what;
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    std::string why;
+    ASSERT_TRUE(same_meaning(a[k], b[k], tol, &why))
+        << what << ": source line " << a[k].line << " '" << a[k].text << "' written as line "
+        << b[k].line << " '" << b[k].text << "': " << why;
+  }
+}
+
+}  // namespace
+
+TEST(WriteRoundTrip, EveryProgramUnderSharedData) {
+  auto programs = shared_programs();
+  if (programs.empty()) GTEST_SKIP() << shared_data() << " is absent: real programs not round-tripped";
+  for (const auto& path : programs) {
+    SCOPED_TRACE(path.string());
+    const ParseOptions po = options_for(path);
+    Parsed first = parse_text(read_file(path), po, test_machine(), path.string());
+    WriteOptions same;
+    same.dialect = po.dialect;
+    ParseOptions back;  // the written program is plain mm, incremental centres
+    back.dialect = po.dialect;
+    expect_round_trip(first, back, same, kTol, "same dialect");
+    // Across dialects: LinuxCNC in, Fanuc out (and back) keeps the meaning too.
+    WriteOptions other;
+    other.dialect = po.dialect == Dialect::kFanuc ? Dialect::kLinuxCnc : Dialect::kFanuc;
+    ParseOptions back_other;
+    back_other.dialect = other.dialect;
+    expect_round_trip(first, back_other, other, kTol, "other dialect");
+  }
+}
+
+TEST(WriteRoundTrip, ShippedSamples) {
+  int n = 0;
+  for (const auto& e : std::filesystem::directory_iterator(std::filesystem::path(GCPIPE_SOURCE_DIR) / "samples")) {
+    if (e.path().extension() != ".nc") continue;
+    SCOPED_TRACE(e.path().string());
+    Parsed first = parse_text(read_file(e.path()), {}, test_machine(), e.path().string());
+    EXPECT_EQ(first.first_error(), nullptr) << format(*first.first_error());
+    expect_round_trip(first, {}, {}, kTol, "sample");
+    ++n;
+  }
+  EXPECT_GE(n, 1);
+}
+
+TEST(WriteRoundTrip, FixedDecimalsStayWithinHalfAnIncrement) {
+  Parsed first = parse_text("G1 X1.23456789 Y-0.00004 F100\nG2 X3 Y0 I0.88271605 J-1.23456789\n");
+  ASSERT_EQ(first.first_error(), nullptr) << format(*first.first_error());
+  WriteOptions wo;
+  wo.decimals = 4;
+  const std::string text = write_all(first, wo);
+  EXPECT_NE(text.find("X1.2346"), std::string::npos) << text;
+  Parsed second = parse_text(text);
+  // The arc written with 4 decimals must still pass the radius check and land within 5e-5 mm.
+  ASSERT_EQ(second.first_error(), nullptr) << text;
+  auto a = active(first), b = active(second);
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t k = 0; k < a.size(); ++k)
+    for (int ax = 0; ax < kNumAxes; ++ax) EXPECT_NEAR(a[k].target[ax], b[k].target[ax], 5e-5);
+}
+
+TEST(WriteFormat, HeaderLineNumbersCommentsAndRejectedLines) {
+  Parsed p = parse_text("%\nO12 (DEMO)\n(setup)\nG20 G0 X1 ; inch\nG0 B5\n/G0 X9\nM30\n%\n");
+  const std::string out = write_all(p, {});
+  EXPECT_EQ(out,
+            "%\n"
+            "O12 (DEMO)\n"
+            "G17 G21 G40 G49 G54 G80 G90 G94\n"
+            "(setup)\n"
+            "N4 G20 G0 X1. (inch)\n"
+            "(gcpipe: line 5 rejected: unknown word 'B5': this machine has axes X Y Z A C only [no B axis])\n"
+            "(gcpipe: line 6: skipped by block delete ['/' with parse.block_delete on])\n"
+            "N7 M30\n"
+            "%\n");
+}
+
+// Seeded random programs: every combination of modes the generator can draw must round-trip.
+// GCPIPE_ROUNDTRIP_PROGRAMS sets how many (default 200).
+TEST(WriteRoundTrip, SeededRandomPrograms) {
+  const char* env = std::getenv("GCPIPE_ROUNDTRIP_PROGRAMS");
+  const int programs = env ? std::atoi(env) : 200;
+  for (int seed = 1; seed <= programs; ++seed) {
+    std::mt19937_64 rng(static_cast<std::uint64_t>(seed));
+    std::uniform_real_distribution<double> pos(-200, 200), ang(-120, 10), unit(0, 1);
+    std::uniform_int_distribution<int> pick(0, 15);
+    std::string prog = "%\nO" + std::to_string(seed) + "\n";
+    bool inch = false, incremental = false;
+    double x = 0, y = 0;  // current XY in program units (for consistent arcs)
+    for (int i = 0; i < 60; ++i) {
+      char buf[200];
+      switch (pick(rng)) {
+        case 0: prog += inch ? "G21\n" : "G20\n"; inch = !inch; x = y = 0; prog += "G90 G0 X0 Y0\n"; incremental = false; break;
+        case 1: prog += incremental ? "G90\n" : "G91\n"; incremental = !incremental; break;
+        case 2: prog += "T" + std::to_string(1 + pick(rng) % 2) + " M6 S" + std::to_string(1000 + 100 * pick(rng)) + (unit(rng) < 0.5 ? " M3" : " M4") + "\n"; break;
+        case 3: prog += unit(rng) < 0.5 ? "G43 H1\n" : (unit(rng) < 0.5 ? "G43.4 H2\n" : "G49\n"); break;
+        case 4: prog += unit(rng) < 0.3 ? "M7\n" : unit(rng) < 0.5 ? "M8\n" : "M9\n"; break;
+        case 5: prog += unit(rng) < 0.5 ? "G55\n" : "G54\n"; break;
+        case 6: std::snprintf(buf, sizeof buf, "G4 P%d\n", pick(rng) * 100); prog += buf; break;
+        case 7: prog += unit(rng) < 0.5 ? "G93\n" : "G94\n"; break;
+        default: {
+          const double nx = pos(rng), ny = pos(rng);
+          const double dx = incremental ? nx - x : nx, dy = incremental ? ny - y : ny;
+          const int kind = pick(rng) % 4;
+          if (kind < 2) {
+            std::snprintf(buf, sizeof buf, "G%d X%.4f Y%.4f Z%.3f A%.3f C%.3f F%.1f (move %d)\n", kind, dx, dy,
+                          incremental ? unit(rng) : pos(rng) / 4, incremental ? 0.0 : ang(rng),
+                          incremental ? 1.0 : 720 * unit(rng) - 360, 10 + 1000 * unit(rng), i);
+            if (incremental) {
+              x = nx;
+              y = ny;
+            } else {
+              x = dx;
+              y = dy;
+            }
+          } else {
+            // An arc through a centre on the perpendicular bisector, so both radii agree exactly enough.
+            const double mx = (x + nx) / 2, my = (y + ny) / 2, h = pos(rng) / 4;
+            const double len = std::hypot(nx - x, ny - y) + 1e-9;
+            const double cx = mx - h * (ny - y) / len, cy = my + h * (nx - x) / len;
+            std::snprintf(buf, sizeof buf, "G17 G%d X%.6f Y%.6f I%.6f J%.6f F%.1f\n", kind, dx, dy, cx - x, cy - y,
+                          10 + 1000 * unit(rng));
+            x = nx;
+            y = ny;
+          }
+          prog += buf;
+        }
+      }
+    }
+    prog += "M30\n%\n";
+    Parsed first = parse_text(prog);
+    ASSERT_TRUE(first.summary.lines_read > 0);
+    expect_round_trip(first, {}, {}, kTol, "random program seed " + std::to_string(seed));
+  }
+}
