@@ -6,6 +6,7 @@ namespace gcpipe::cli {
 const std::vector<Command> kCommands = {
     kBatchCommand,
     kParseCommand,
+    kSynthCommand,
 };
 
 }  // namespace gcpipe::cli

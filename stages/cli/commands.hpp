@@ -10,6 +10,7 @@ namespace gcpipe::cli {
 
 extern const Command kBatchCommand;
 extern const Command kParseCommand;
+extern const Command kSynthCommand;
 
 extern const std::vector<Command> kCommands;
 

@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Installs what gcpipe needs from Debian 12 packages, builds it, then runs the sample job or the
+# test suite. Idempotent: packages already installed are not fetched again, the build is
+# incremental (ccache), outputs are overwritten.
+#
+#   bash .ci/setup.sh sample   # build, then gcpipe batch on the shipped sample (no DDS setup)
+#   bash .ci/setup.sh test     # build, then the whole CTest suite
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+what="${1:-}"
+case "$what" in sample|test|build) ;; *) echo "usage: bash .ci/setup.sh sample|test|build" >&2; exit 2 ;; esac
+
+packages=(
+  build-essential cmake ninja-build ccache clang libclang-rt-14-dev
+  libeigen3-dev libyaml-cpp-dev libopencv-dev
+  libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools
+  libgtest-dev libgmock-dev libbenchmark-dev
+)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "== installing: ${missing[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+# clang: the same compiler builds the libFuzzer target; ccache keeps rebuilds short.
+echo "== configure and build (build/)"
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_COMPILER=clang++ >/dev/null
+cmake --build build -j"$(nproc)"
+
+case "$what" in
+  sample)
+    echo "== gcpipe batch samples/five_axis_demo.nc -o out/five_axis_demo"
+    build/stages/cli/gcpipe batch samples/five_axis_demo.nc -o out/five_axis_demo
+    ;;
+  test)
+    echo "== ctest"
+    ctest --test-dir build --output-on-failure -j"$(nproc)"
+    ;;
+  build) ;;
+esac

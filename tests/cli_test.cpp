@@ -1,0 +1,155 @@
+// The gcpipe executable as a user runs it: help, batch outputs, exit codes, bad configs, and
+// memory that does not grow with the length of the program.
+#include <gtest/gtest.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <spawn.h>
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+extern char** environ;
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Outcome {
+  int status = -1;       // exit code
+  double max_rss_mb = 0; // peak resident set of the process
+  std::string out, err;
+};
+
+// Runs gcpipe with `args`; stdout/stderr captured through files.
+Outcome gcpipe(const std::vector<std::string>& args) {
+  static int counter = 0;
+  const fs::path dir = fs::temp_directory_path() / ("gcpipe_cli_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path out = dir / ("out" + std::to_string(counter)), err = dir / ("err" + std::to_string(counter++));
+  std::vector<std::string> all{GCPIPE_EXE};
+  all.insert(all.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : all) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  pid_t pid = 0;
+  Outcome r;
+  if (posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ) != 0) return r;
+  int st = 0;
+  rusage ru{};
+  wait4(pid, &st, 0, &ru);
+  posix_spawn_file_actions_destroy(&fa);
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+  r.max_rss_mb = static_cast<double>(ru.ru_maxrss) / 1024.0;
+  auto slurp = [](const fs::path& p) {
+    std::ifstream f(p);
+    std::stringstream s;
+    s << f.rdbuf();
+    return s.str();
+  };
+  r.out = slurp(out);
+  r.err = slurp(err);
+  return r;
+}
+
+fs::path tmpdir(const std::string& name) {
+  fs::path p = fs::temp_directory_path() / ("gcpipe_cli_" + std::to_string(::getpid()) + "_" + name);
+  fs::remove_all(p);
+  fs::create_directories(p);
+  return p;
+}
+
+const std::string kSample = std::string(GCPIPE_SOURCE_DIR) + "/samples/five_axis_demo.nc";
+
+}  // namespace
+
+TEST(Cli, HelpListsCommandsAndEachCommandHasUsage) {
+  Outcome r = gcpipe({"--help"});
+  EXPECT_EQ(r.status, 0);
+  for (const char* c : {"batch", "parse", "synth"}) EXPECT_NE(r.out.find(c), std::string::npos) << c;
+  Outcome b = gcpipe({"batch", "--help"});
+  EXPECT_EQ(b.status, 0);
+  EXPECT_NE(b.out.find("Usage: gcpipe batch"), std::string::npos);
+  Outcome u = gcpipe({"frobnicate"});
+  EXPECT_EQ(u.status, 2);
+  EXPECT_NE(u.err.find("gcpipe --help"), std::string::npos);
+  Outcome o = gcpipe({"batch", kSample, "--bogus"});
+  EXPECT_EQ(o.status, 2);
+  EXPECT_NE(o.err.find("unknown option '--bogus'"), std::string::npos);
+}
+
+TEST(Cli, BatchWritesProgramSummaryAndDiagnostics) {
+  const fs::path out = tmpdir("batch");
+  Outcome r = gcpipe({"batch", kSample, "-o", out.string()});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_TRUE(fs::exists(out / "output.nc"));
+  EXPECT_TRUE(fs::exists(out / "summary.json"));
+  std::ifstream f(out / "summary.json");
+  std::stringstream s;
+  s << f.rdbuf();
+  EXPECT_NE(s.str().find("\"lines_rejected\":0"), std::string::npos) << s.str();
+  EXPECT_NE(r.out.find("31 read = 31 emitted + 0 rejected"), std::string::npos) << r.out;
+}
+
+TEST(Cli, RejectedLinesGiveExitThreeAndStrictStops) {
+  const fs::path dir = tmpdir("bad");
+  {
+    std::ofstream p(dir / "bad.nc");
+    p << "G0 X1\nG0 B2\nG1 X5 F100\nG1 X[1/0]\nM30\n";
+  }
+  Outcome r = gcpipe({"batch", (dir / "bad.nc").string(), "-o", (dir / "out").string()});
+  EXPECT_EQ(r.status, 3);
+  EXPECT_NE(r.err.find("bad.nc:2:4: error: unknown word 'B2'"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("bad.nc:4:7: error: division by zero"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("5 read = 3 emitted + 2 rejected"), std::string::npos) << r.out;
+  Outcome s = gcpipe({"batch", (dir / "bad.nc").string(), "-o", (dir / "out2").string(), "--strict"});
+  EXPECT_EQ(s.status, 1);
+  EXPECT_NE(s.err.find("parse.strict"), std::string::npos) << s.err;
+  EXPECT_NE(s.out.find("2 read = 1 emitted + 1 rejected"), std::string::npos) << s.out;
+}
+
+TEST(Cli, WrongConfigIsRejectedWithKeyValueAndReason) {
+  const fs::path dir = tmpdir("cfg");
+  {
+    std::ofstream c(dir / "bad.yaml");
+    c << "machine: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/machines/mx330.yaml\nparse:\n  max_line_length: 5\n";
+  }
+  Outcome r = gcpipe({"parse", kSample, "--config", (dir / "bad.yaml").string()});
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("bad.yaml:3:20: key 'parse.max_line_length': value '5' is outside the valid range [16, 65536]"),
+            std::string::npos)
+      << r.err;
+  {
+    std::ofstream c(dir / "typo.yaml");
+    c << "machine: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/machines/mx330.yaml\nparse:\n  dialekt: fanuc\n";
+  }
+  Outcome t = gcpipe({"parse", kSample, "--config", (dir / "typo.yaml").string()});
+  EXPECT_EQ(t.status, 1);
+  EXPECT_NE(t.err.find("key 'parse.dialekt': unknown key"), std::string::npos) << t.err;
+  Outcome m = gcpipe({"parse", kSample, "--config", (dir / "missing.yaml").string()});
+  EXPECT_EQ(m.status, 1);
+  EXPECT_NE(m.err.find("cannot open config file"), std::string::npos) << m.err;
+}
+
+// Streaming: peak memory is set by the longest line, not by the length of the program.
+TEST(Cli, PeakMemoryDoesNotGrowWithProgramLength) {
+  const fs::path dir = tmpdir("rss");
+  ASSERT_EQ(gcpipe({"synth", "--megabytes", "20", "-o", (dir / "small.nc").string()}).status, 0);
+  ASSERT_EQ(gcpipe({"synth", "--megabytes", "200", "-o", (dir / "large.nc").string()}).status, 0);
+  Outcome small = gcpipe({"batch", (dir / "small.nc").string(), "-o", (dir / "o1").string(), "--quiet"});
+  Outcome large = gcpipe({"batch", (dir / "large.nc").string(), "-o", (dir / "o2").string(), "--quiet"});
+  ASSERT_EQ(small.status, 0) << small.err;
+  ASSERT_EQ(large.status, 0) << large.err;
+  EXPECT_GT(fs::file_size(dir / "o2" / "output.nc"), 9 * fs::file_size(dir / "o1" / "output.nc"));
+  RecordProperty("peak_rss_20MB", std::to_string(small.max_rss_mb));
+  RecordProperty("peak_rss_200MB", std::to_string(large.max_rss_mb));
+  std::printf("peak RSS: 20 MB program %.1f MB, 200 MB program %.1f MB\n", small.max_rss_mb, large.max_rss_mb);
+  EXPECT_LT(large.max_rss_mb, small.max_rss_mb + 2.0);  // ten times the input, the same memory
+  fs::remove_all(dir);
+}
