@@ -33,6 +33,10 @@ TEST(NumberFormat, FixedDropsTrailingZeros) {
   s.clear();
   append_fixed(s, 3.0, 3);
   EXPECT_EQ(s, "3.");
+  s.clear();
+  append_fixed(s, -1.7976931348623157e308, 9);  // 309 integer digits: found by parse_fuzz
+  EXPECT_EQ(s.size(), 1 + 309 + 1u);
+  EXPECT_EQ(s.back(), '.');
 }
 
 TEST(Config, ReportsKeyValueRangeAndPosition) {

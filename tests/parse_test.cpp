@@ -221,6 +221,8 @@ TEST(ParseErrors, EachClassNamesWordValueAndColumn) {
   expect_error("G1 X[sqrt[-1]] F1\n", "not a finite number", 6);
   expect_error("G1 X[10**400] F1\n", "overflow", 8);
   expect_error("G1 X99999999 F1\n", "out of range", 4);
+  expect_error("G1 X0 Y0 F1\nG2 X1 I1e5\n", "'E' is not a word", 9);
+  expect_error("G1 X0 Y0 F1\nG2 X1 I[10**60]\n", "I1e+60 is out of range", 7);
   expect_error("G1 X1e5 F1\n", "'E' is not a word", 6);
   expect_error("G41 X1\n", "cutter radius compensation", 1);
   expect_error("M98 P100\n", "subprogram", 1);

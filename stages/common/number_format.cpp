@@ -23,9 +23,15 @@ void append_shortest(std::string& out, double v) {
 }
 
 void append_fixed(std::string& out, double v, int decimals) {
-  char buf[64];
-  int n = std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
-  std::string_view s(buf, static_cast<std::size_t>(n));
+  // Fixed notation of the largest double needs 309 digits before the point: size for it rather
+  // than trust a return value that reports what would have been written.
+  char buf[400];
+  auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed, decimals);
+  if (ec != std::errc()) {  // cannot happen for finite v and decimals <= 9; keep the text honest
+    append_shortest(out, v);
+    return;
+  }
+  std::string_view s(buf, static_cast<std::size_t>(end - buf));
   if (s.find('.') != std::string_view::npos) {
     while (s.back() == '0') s.remove_suffix(1);
   }

@@ -701,6 +701,16 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
     return fail(s.w(L).col, std::string("word ") + L + show(s.w(L).value) + " has no meaning here: it is used by " + where);
   }
 
+  // -- Lengths that are not axes (arc centres and radii, cycle parameters): the same range as
+  // the axes, so no absurd value can reach the geometry or the writer.
+  for (char L : {'I', 'J', 'K', 'R', 'D', 'W', 'Q'}) {
+    if (!s.has(L)) continue;
+    const Word& w = s.w(L);
+    if (std::fabs(linear_value(w, ns.units)) > kMaxLinear)
+      return fail(w.col, std::string(1, L) + show(w.value) + " is out of range (|" + L + "| <= " +
+                             show(kMaxLinear) + " mm)");
+  }
+
   // -- Axis words to targets.
   Axes target = ns.position;
   std::uint8_t mask = 0;
