@@ -68,3 +68,41 @@ TEST(Config, EveryShippedPipelineConfigLoads) {
   }
   EXPECT_GE(n, 1);
 }
+
+#include <unistd.h>
+
+#include "gcpipe/line_reader.hpp"
+
+// Lines of every length and terminator, across the 1 MiB read boundary: the reported full length
+// never depends on where a line falls against a read.
+TEST(LineReader, OverlongLinesAndCrLfAnywhereInTheBuffer) {
+  std::string text;
+  std::vector<std::size_t> lengths;
+  for (std::size_t i = 0; i < 20000; ++i) {
+    const std::size_t len = (i * 7919) % 2000;
+    text.append(len, static_cast<char>('A' + i % 26));
+    text += (i % 3 == 0) ? "\r\n" : "\n";
+    lengths.push_back(len);
+  }
+  text.append(700, 'Z');  // a last line without a terminator
+  lengths.push_back(700);
+  char path[] = "/tmp/gcpipe_line_reader_XXXXXX";
+  const int fd = mkstemp(path);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(write(fd, text.data(), text.size()), static_cast<ssize_t>(text.size()));
+  lseek(fd, 0, SEEK_SET);
+  gcpipe::LineReader r(fd, 256);
+  std::string_view line;
+  bool overlong = false;
+  std::size_t full = 0, n = 0;
+  while (r.next(line, overlong, full)) {
+    ASSERT_LT(n, lengths.size());
+    EXPECT_EQ(full, lengths[n]) << "line " << n + 1;
+    EXPECT_EQ(overlong, lengths[n] > 256) << "line " << n + 1;
+    EXPECT_EQ(line.size(), std::min<std::size_t>(lengths[n], 256)) << "line " << n + 1;
+    ++n;
+  }
+  EXPECT_EQ(n, lengths.size());
+  close(fd);
+  unlink(path);
+}

@@ -7,6 +7,12 @@ const std::vector<Command> kCommands = {
     kBatchCommand,
     kParseCommand,
     kSynthCommand,
+#ifdef GCPIPE_WITH_DDS
+    kFeedCommand,
+    kNodeCommand,
+    kSinkCommand,
+    kMonitorCommand,
+#endif
 };
 
 }  // namespace gcpipe::cli

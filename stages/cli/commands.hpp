@@ -11,6 +11,12 @@ namespace gcpipe::cli {
 extern const Command kBatchCommand;
 extern const Command kParseCommand;
 extern const Command kSynthCommand;
+#ifdef GCPIPE_WITH_DDS
+extern const Command kFeedCommand;     // cmd_dds.cpp
+extern const Command kNodeCommand;     // cmd_dds.cpp
+extern const Command kSinkCommand;     // cmd_dds.cpp
+extern const Command kMonitorCommand;  // cmd_dds.cpp
+#endif
 
 extern const std::vector<Command> kCommands;
 

@@ -64,19 +64,23 @@ bool LineReader::next(std::string_view& line, bool& overlong, std::size_t& full_
       // No terminator within the allowed length: report the head, then drop bytes until '\n'.
       long_.assign(start, max_line_);
       std::size_t skipped = avail;
+      char last = start[avail - 1];  // to drop a '\r' before the '\n', as the short path does
       begin_ = end_;
       for (;;) {
         if (!fill()) break;
         const char* s = buf_.data() + begin_;
         const char* e = static_cast<const char*>(std::memchr(s, '\n', end_ - begin_));
         if (e != nullptr) {
+          if (e > s) last = e[-1];
           skipped += static_cast<std::size_t>(e - s);
           begin_ += static_cast<std::size_t>(e - s) + 1;
           break;
         }
+        if (end_ > begin_) last = buf_[end_ - 1];
         skipped += end_ - begin_;
         begin_ = end_;
       }
+      if (last == '\r') --skipped;
       full_length = skipped;
       overlong = true;
       line = long_;

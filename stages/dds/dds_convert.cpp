@@ -1,0 +1,208 @@
+#include "dds_convert.hpp"
+
+#include <algorithm>
+
+namespace gcpipe::dds {
+
+namespace {
+
+template <std::size_t N>
+void copy_array(const std::array<double, N>& from, std::array<double, N>& to) {
+  std::copy(from.begin(), from.end(), to.begin());
+}
+
+bool fail(std::string* why, const char* field, unsigned value) {
+  if (why != nullptr) *why = std::string("field '") + field + "' holds " + std::to_string(value) +
+                             ", which is not a valid value";
+  return false;
+}
+
+bool motion_from(std::uint8_t v, Motion& m) {
+  if (v > static_cast<std::uint8_t>(Motion::kTrochoidSlot)) return false;
+  m = static_cast<Motion>(v);
+  return true;
+}
+bool plane_from(std::uint8_t v, Plane& p) {
+  if (v != 17 && v != 18 && v != 19) return false;
+  p = static_cast<Plane>(v);
+  return true;
+}
+bool feed_mode_from(std::uint8_t v, FeedMode& f) {
+  if (v != 93 && v != 94) return false;
+  f = static_cast<FeedMode>(v);
+  return true;
+}
+bool spindle_from(std::uint8_t v, Spindle& s) {
+  if (v != 3 && v != 4 && v != 5) return false;
+  s = static_cast<Spindle>(v);
+  return true;
+}
+bool units_from(std::uint8_t v, Units& u) {
+  if (v != 20 && v != 21) return false;
+  u = static_cast<Units>(v);
+  return true;
+}
+bool stop_from(std::uint8_t v, ProgramStop& s) {
+  if (v > static_cast<std::uint8_t>(ProgramStop::kEndRewind)) return false;
+  s = static_cast<ProgramStop>(v);
+  return true;
+}
+
+}  // namespace
+
+void to_msg(const ResolvedBlock& b, msg::Block& o) {
+  o.line(b.line);
+  o.text(b.text);
+  o.comment(b.comment);
+  o.motion(static_cast<std::uint8_t>(b.motion));
+  copy_array(b.start, o.start());
+  copy_array(b.target, o.target());
+  o.axis_words(b.axis_words);
+  o.plane(static_cast<std::uint8_t>(b.plane));
+  copy_array(b.centre, o.centre());
+  o.radius(b.radius);
+  o.turns(b.turns);
+  o.feed(b.feed);
+  o.feed_mode(static_cast<std::uint8_t>(b.feed_mode));
+  o.dwell(b.dwell);
+  o.spindle_speed(b.spindle_speed);
+  o.spindle(static_cast<std::uint8_t>(b.spindle));
+  o.tool(b.tool);
+  o.tool_in_spindle(b.tool_in_spindle);
+  o.tool_length_offset(b.tool_length_offset);
+  o.tool_length(b.tool_length);
+  o.tool_length_active(b.tool_length_active);
+  o.tcp(b.tcp);
+  o.coolant(b.coolant);
+  o.work_offset(b.work_offset);
+  copy_array(b.work_origin, o.work_origin());
+  o.source_units(static_cast<std::uint8_t>(b.source_units));
+  o.tool_change(b.tool_change);
+  o.stop(static_cast<std::uint8_t>(b.stop));
+  o.program_number(b.program_number);
+  o.percent(b.percent);
+  msg::TrochoidSlot& s = o.slot();
+  copy_array(b.slot.start, s.start());
+  copy_array(b.slot.end, s.end());
+  s.bottom(b.slot.bottom);
+  s.clearance(b.slot.clearance);
+  s.width(b.slot.width);
+  s.step(b.slot.step);
+  s.depth_step(b.slot.depth_step);
+  s.tool_diameter(b.slot.tool_diameter);
+  s.climb(b.slot.climb);
+}
+
+bool from_msg(const msg::Block& i, ResolvedBlock& b, std::string* why) {
+  if (!motion_from(i.motion(), b.motion)) return fail(why, "motion", i.motion());
+  if (!plane_from(i.plane(), b.plane)) return fail(why, "plane", i.plane());
+  if (!feed_mode_from(i.feed_mode(), b.feed_mode)) return fail(why, "feed_mode", i.feed_mode());
+  if (!spindle_from(i.spindle(), b.spindle)) return fail(why, "spindle", i.spindle());
+  if (!units_from(i.source_units(), b.source_units))
+    return fail(why, "source_units", i.source_units());
+  if (!stop_from(i.stop(), b.stop)) return fail(why, "stop", i.stop());
+  if (i.coolant() > (kCoolantMist | kCoolantFlood)) return fail(why, "coolant", i.coolant());
+  if (i.axis_words() >= (1u << kNumAxes)) return fail(why, "axis_words", i.axis_words());
+  b.line = i.line();
+  b.text = i.text();
+  b.comment = i.comment();
+  copy_array(i.start(), b.start);
+  copy_array(i.target(), b.target);
+  b.axis_words = i.axis_words();
+  copy_array(i.centre(), b.centre);
+  b.radius = i.radius();
+  b.turns = i.turns();
+  b.feed = i.feed();
+  b.dwell = i.dwell();
+  b.spindle_speed = i.spindle_speed();
+  b.tool = i.tool();
+  b.tool_in_spindle = i.tool_in_spindle();
+  b.tool_length_offset = i.tool_length_offset();
+  b.tool_length = i.tool_length();
+  b.tool_length_active = i.tool_length_active();
+  b.tcp = i.tcp();
+  b.coolant = i.coolant();
+  b.work_offset = i.work_offset();
+  copy_array(i.work_origin(), b.work_origin);
+  b.tool_change = i.tool_change();
+  b.program_number = i.program_number();
+  b.percent = i.percent();
+  const msg::TrochoidSlot& s = i.slot();
+  copy_array(s.start(), b.slot.start);
+  copy_array(s.end(), b.slot.end);
+  b.slot.bottom = s.bottom();
+  b.slot.clearance = s.clearance();
+  b.slot.width = s.width();
+  b.slot.step = s.step();
+  b.slot.depth_step = s.depth_step();
+  b.slot.tool_diameter = s.tool_diameter();
+  b.slot.climb = s.climb();
+  return true;
+}
+
+void to_msg(const Diagnostic& d, LineStatus status, msg::LineDiagnostic& o) {
+  o.file(d.file);
+  o.line(d.line);
+  o.column(d.column);
+  o.severity(static_cast<std::uint8_t>(d.severity));
+  o.message(d.message);
+  o.line_status(static_cast<std::uint8_t>(status));
+}
+
+bool from_msg(const msg::LineDiagnostic& i, Diagnostic& d, LineStatus& status, std::string* why) {
+  if (i.severity() > static_cast<std::uint8_t>(Severity::kError))
+    return fail(why, "severity", i.severity());
+  if (i.line_status() != static_cast<std::uint8_t>(LineStatus::kRejected) &&
+      i.line_status() != static_cast<std::uint8_t>(LineStatus::kDeleted))
+    return fail(why, "line_status", i.line_status());
+  d.file = i.file();
+  d.line = i.line();
+  d.column = i.column();
+  d.severity = static_cast<Severity>(i.severity());
+  d.message = i.message();
+  status = static_cast<LineStatus>(i.line_status());
+  return true;
+}
+
+void to_msg(const ParseSummary& s, msg::ParseCounts& o) {
+  o.lines_read(s.lines_read);
+  o.blocks_emitted(s.blocks_emitted);
+  o.lines_rejected(s.lines_rejected);
+  o.lines_deleted(s.lines_deleted);
+  o.bytes_read(s.bytes_read);
+}
+
+ParseSummary from_msg(const msg::ParseCounts& i) {
+  ParseSummary s;
+  s.lines_read = i.lines_read();
+  s.blocks_emitted = i.blocks_emitted();
+  s.lines_rejected = i.lines_rejected();
+  s.lines_deleted = i.lines_deleted();
+  s.bytes_read = i.bytes_read();
+  return s;
+}
+
+std::string check_counts(const ParseSummary& s, std::uint64_t blocks, std::uint64_t rejected,
+                         std::uint64_t deleted) {
+  std::string problems;
+  auto add = [&problems](const std::string& p) {
+    if (!problems.empty()) problems += "; ";
+    problems += p;
+  };
+  if (blocks != s.blocks_emitted)
+    add("received " + std::to_string(blocks) + " blocks but the parser emitted " +
+        std::to_string(s.blocks_emitted));
+  if (rejected != s.lines_rejected)
+    add("received " + std::to_string(rejected) + " rejected-line diagnostics but the parser "
+        "rejected " + std::to_string(s.lines_rejected) + " lines");
+  if (deleted != s.lines_deleted)
+    add("received " + std::to_string(deleted) + " block-delete diagnostics but the parser "
+        "deleted " + std::to_string(s.lines_deleted) + " lines");
+  if (s.blocks_emitted + s.lines_rejected + s.lines_deleted != s.lines_read)
+    add("the parser's counts do not add up: " + std::to_string(s.blocks_emitted) + " blocks + " +
+        std::to_string(s.lines_rejected) + " rejected + " + std::to_string(s.lines_deleted) +
+        " deleted != " + std::to_string(s.lines_read) + " lines read");
+  return problems;
+}
+
+}  // namespace gcpipe::dds

@@ -1,0 +1,295 @@
+#include "dds_runtime.hpp"
+
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/dds/publisher/DataWriter.hpp>
+#include <fastdds/dds/publisher/Publisher.hpp>
+#include <fastdds/dds/subscriber/DataReader.hpp>
+#include <fastdds/dds/subscriber/SampleInfo.hpp>
+#include <fastdds/dds/subscriber/Subscriber.hpp>
+#include <fastdds/dds/topic/Topic.hpp>
+#include <fastdds/dds/topic/TypeSupport.hpp>
+
+#include <atomic>
+#include <charconv>
+#include <chrono>
+#include <csignal>
+#include <cstdlib>
+#include <iostream>
+#include <sstream>
+#include <stdexcept>
+#include <thread>
+
+#include "gcpipe/pipeline_config.hpp"
+#include "gcpipePubSubTypes.h"
+
+namespace gcpipe::dds {
+
+namespace fdds = eprosima::fastdds::dds;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr const char* kParticipantProfile = "gcpipe_participant";
+constexpr const char* kWriterProfile = "gcpipe_writer";
+constexpr const char* kReaderProfile = "gcpipe_reader";
+// How often blocking waits look at the stop flag [s]: short enough that Ctrl-C feels immediate.
+constexpr double kPollPeriod = 0.1;
+
+std::atomic<bool> g_stop{false};
+
+extern "C" void on_stop_signal(int) { g_stop.store(true); }
+
+eprosima::fastrtps::Duration_t duration(double seconds) {
+  return eprosima::fastrtps::Duration_t(static_cast<long double>(seconds));
+}
+
+using ReturnCode = eprosima::fastrtps::types::ReturnCode_t;
+bool ok(const ReturnCode& rc) { return rc == ReturnCode::RETCODE_OK; }
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+std::string seconds_text(double s) {
+  std::ostringstream o;
+  o << s << " s";
+  return o.str();
+}
+
+}  // namespace
+
+const char* topic_name(Topic topic) {
+  switch (topic) {
+    case Topic::kProgram: return kProgramTopicName;
+    case Topic::kBlocks: return kBlocksTopicName;
+    case Topic::kGcode: return kGcodeTopicName;
+  }
+  return "?";
+}
+
+Topic topic_from_name(const std::string& name) {
+  if (name == kProgramTopicName || name == "program") return Topic::kProgram;
+  if (name == kBlocksTopicName || name == "blocks") return Topic::kBlocks;
+  if (name == kGcodeTopicName || name == "gcode") return Topic::kGcode;
+  throw std::runtime_error("unknown topic '" + name + "' (known: " + kProgramTopicName + ", " +
+                           kBlocksTopicName + ", " + kGcodeTopicName + ")");
+}
+
+std::filesystem::path default_profiles_path() {
+  if (const char* env = std::getenv("GCPIPE_DDS_PROFILES"); env != nullptr && *env != '\0')
+    return env;
+  return default_pipeline_config().parent_path() / "dds_profiles.xml";
+}
+
+int default_domain(int fallback) {
+  const char* env = std::getenv("GCPIPE_DDS_DOMAIN");
+  if (env == nullptr || *env == '\0') return fallback;
+  std::string_view s(env);
+  int value = -1;
+  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), value);
+  if (ec != std::errc() || p != s.data() + s.size() || value < 0 || value > 232)
+    throw std::runtime_error("GCPIPE_DDS_DOMAIN='" + std::string(s) +
+                             "' is not a DDS domain id (an integer in [0, 232])");
+  return value;
+}
+
+void install_stop_handlers() {
+  std::signal(SIGINT, on_stop_signal);
+  std::signal(SIGTERM, on_stop_signal);
+}
+
+bool stop_requested() { return g_stop.load(); }
+
+// ---------------------------------------------------------------------------------------------
+
+struct Participant::Impl {
+  DdsOptions options;
+  double start_time = 0;  // [s since the Unix epoch]
+  fdds::DomainParticipant* participant = nullptr;
+  fdds::Publisher* publisher = nullptr;
+  fdds::Subscriber* subscriber = nullptr;
+  fdds::Topic* topics[3] = {nullptr, nullptr, nullptr};
+
+  fdds::Topic* topic(Topic which) {
+    auto& slot = topics[static_cast<int>(which)];
+    if (slot != nullptr) return slot;
+    fdds::TypeSupport type;
+    switch (which) {
+      case Topic::kProgram: type = fdds::TypeSupport(new msg::ProgramChunkPubSubType()); break;
+      case Topic::kBlocks: type = fdds::TypeSupport(new msg::BlockBatchPubSubType()); break;
+      case Topic::kGcode: type = fdds::TypeSupport(new msg::GcodeChunkPubSubType()); break;
+    }
+    if (!ok(type.register_type(participant)))
+      throw std::runtime_error(std::string("cannot register the type of topic ") +
+                               topic_name(which));
+    slot = participant->create_topic(topic_name(which), type.get_type_name(),
+                                     fdds::TOPIC_QOS_DEFAULT);
+    if (slot == nullptr)
+      throw std::runtime_error(std::string("cannot create topic ") + topic_name(which));
+    return slot;
+  }
+};
+
+Participant::Participant(const DdsOptions& options) : impl_(std::make_unique<Impl>()) {
+  impl_->options = options;
+  impl_->start_time = std::chrono::duration<double>(
+                          std::chrono::system_clock::now().time_since_epoch()).count();
+  if (impl_->options.profiles.empty()) impl_->options.profiles = default_profiles_path();
+  const std::string file = impl_->options.profiles.string();
+  if (options.domain < 0 || options.domain > 232)
+    throw std::runtime_error("DDS domain id " + std::to_string(options.domain) +
+                             " is outside [0, 232]");
+  auto* factory = fdds::DomainParticipantFactory::get_instance();
+  // load_profiles() must run before any default QoS is read, or the XML is silently ignored.
+  factory->load_profiles();
+  if (!std::filesystem::is_regular_file(impl_->options.profiles))
+    throw std::runtime_error("DDS profiles file '" + file + "' does not exist");
+  if (!ok(factory->load_XML_profiles_file(file)))
+    throw std::runtime_error("DDS profiles file '" + file +
+                             "' could not be loaded (Fast DDS printed the reason above)");
+  impl_->participant = factory->create_participant_with_profile(
+      static_cast<fdds::DomainId_t>(options.domain), kParticipantProfile);
+  if (impl_->participant == nullptr)
+    throw std::runtime_error("cannot create the DDS participant from profile '" +
+                             std::string(kParticipantProfile) + "' of '" + file + "' on domain " +
+                             std::to_string(options.domain));
+  impl_->publisher = impl_->participant->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
+  impl_->subscriber = impl_->participant->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);
+  if (impl_->publisher == nullptr || impl_->subscriber == nullptr)
+    throw std::runtime_error("cannot create the DDS publisher/subscriber");
+}
+
+Participant::~Participant() {
+  if (impl_->participant != nullptr) {
+    impl_->participant->delete_contained_entities();
+    fdds::DomainParticipantFactory::get_instance()->delete_participant(impl_->participant);
+  }
+}
+
+const DdsOptions& Participant::options() const { return impl_->options; }
+
+bool Participant::published_before_start(double source_time) const {
+  return !impl_->options.replay && source_time < impl_->start_time;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+struct RawWriter::Impl {
+  Participant::Impl* owner = nullptr;
+  fdds::DataWriter* writer = nullptr;
+};
+
+RawWriter::RawWriter(Participant& participant, Topic topic)
+    : impl_(std::make_unique<Impl>()), topic_(topic) {
+  impl_->owner = &participant.impl();
+  impl_->writer = impl_->owner->publisher->create_datawriter_with_profile(
+      impl_->owner->topic(topic), kWriterProfile);
+  // Inconsistent resource limits in the XML make this return null without an exception.
+  if (impl_->writer == nullptr)
+    throw std::runtime_error(std::string("cannot create a writer of ") + topic_name(topic) +
+                             " from profile '" + kWriterProfile + "' of '" +
+                             impl_->owner->options.profiles.string() +
+                             "' (check max_samples >= max_instances * max_samples_per_instance)");
+}
+
+RawWriter::~RawWriter() {
+  if (impl_->writer != nullptr) impl_->owner->publisher->delete_datawriter(impl_->writer);
+}
+
+int RawWriter::matched_readers() const {
+  fdds::PublicationMatchedStatus status;
+  impl_->writer->get_publication_matched_status(status);
+  return status.current_count;
+}
+
+bool RawWriter::wait_for_readers() {
+  const auto& o = impl_->owner->options;
+  const auto t0 = Clock::now();
+  while (matched_readers() < o.subscribers) {
+    if (stop_requested()) return false;
+    if (seconds_since(t0) > o.match_timeout)
+      throw std::runtime_error(std::string("no reader of ") + topic_name(topic_) + " within " +
+                               seconds_text(o.match_timeout) + " on domain " +
+                               std::to_string(o.domain) + " (waiting for " +
+                               std::to_string(o.subscribers) + ", matched " +
+                               std::to_string(matched_readers()) + ")");
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return true;
+}
+
+bool RawWriter::publish(const void* sample) {
+  const auto& o = impl_->owner->options;
+  const auto t0 = Clock::now();
+  // write() blocks up to the profile's max_blocking_time, then returns false with the sample
+  // not stored; a retry is therefore safe and cannot duplicate it.
+  while (!impl_->writer->write(const_cast<void*>(sample))) {
+    if (blocked_writes_++ == 0)
+      std::cerr << "gcpipe: " << topic_name(topic_)
+                << ": history full, a reader lags behind; retrying the write until it catches up"
+                << " (at most " << o.write_timeout << " s per write)" << std::endl;
+    if (stop_requested()) return false;
+    if (seconds_since(t0) > o.write_timeout)
+      throw std::runtime_error(std::string("writing to ") + topic_name(topic_) +
+                               " stayed blocked for " + seconds_text(o.write_timeout) +
+                               ": a reader stopped acknowledging (history full)");
+  }
+  return true;
+}
+
+bool RawWriter::wait_acknowledged() {
+  const auto& o = impl_->owner->options;
+  const auto t0 = Clock::now();
+  for (;;) {
+    if (ok(impl_->writer->wait_for_acknowledgments(duration(kPollPeriod)))) return true;
+    if (stop_requested() || seconds_since(t0) > o.ack_timeout) return false;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+
+struct RawReader::Impl {
+  Participant::Impl* owner = nullptr;
+  fdds::DataReader* reader = nullptr;
+};
+
+RawReader::RawReader(Participant& participant, Topic topic) : impl_(std::make_unique<Impl>()) {
+  impl_->owner = &participant.impl();
+  impl_->reader = impl_->owner->subscriber->create_datareader_with_profile(
+      impl_->owner->topic(topic), kReaderProfile);
+  if (impl_->reader == nullptr)
+    throw std::runtime_error(std::string("cannot create a reader of ") + topic_name(topic) +
+                             " from profile '" + kReaderProfile + "' of '" +
+                             impl_->owner->options.profiles.string() +
+                             "' (check max_samples >= max_instances * max_samples_per_instance)");
+}
+
+RawReader::~RawReader() {
+  if (impl_->reader != nullptr) impl_->owner->subscriber->delete_datareader(impl_->reader);
+}
+
+bool RawReader::take(void* sample, double timeout_s, double* source_time) {
+  const auto t0 = Clock::now();
+  fdds::SampleInfo info;
+  for (;;) {
+    // Samples without data (a writer leaving changes the instance state) are skipped.
+    while (ok(impl_->reader->take_next_sample(sample, &info))) {
+      if (!info.valid_data) continue;
+      if (source_time != nullptr)
+        *source_time = static_cast<double>(info.source_timestamp.to_ns()) * 1e-9;
+      return true;
+    }
+    const double left = timeout_s - seconds_since(t0);
+    if (left <= 0 || stop_requested()) return false;
+    impl_->reader->wait_for_unread_message(duration(std::min(left, kPollPeriod)));
+  }
+}
+
+int RawReader::matched_writers() const {
+  fdds::SubscriptionMatchedStatus status;
+  impl_->reader->get_subscription_matched_status(status);
+  return status.current_count;
+}
+
+}  // namespace gcpipe::dds

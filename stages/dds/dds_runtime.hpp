@@ -1,0 +1,146 @@
+// Thin Fast DDS plumbing shared by every gcpipe node: a participant made from the XML profiles,
+// and typed writers/readers for the three pipeline topics.
+//
+// This header is deliberately free of Fast DDS includes (they are heavy to compile): entities live
+// behind pointers to implementation in dds_runtime.cpp. QoS is never set in code; it comes from
+// the named profiles in pipeline_configs/dds_profiles.xml (see stages/dds/README.md for the
+// choices and the measurements behind them).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+namespace gcpipe::msg {
+class ProgramChunk;
+class BlockBatch;
+class GcodeChunk;
+}  // namespace gcpipe::msg
+
+namespace gcpipe::dds {
+
+/// The pipeline topics (idl/gcpipe.idl documents their samples).
+enum class Topic { kProgram, kBlocks, kGcode };
+inline constexpr const char* kProgramTopicName = "gcpipe_program";  //!< ProgramChunk: feed -> parse
+inline constexpr const char* kBlocksTopicName = "gcpipe_blocks";    //!< BlockBatch: parse -> write
+inline constexpr const char* kGcodeTopicName = "gcpipe_gcode";      //!< GcodeChunk: write -> sink
+const char* topic_name(Topic topic);
+/// Accepts the full names above and the short ones (program, blocks, gcode); throws otherwise.
+Topic topic_from_name(const std::string& name);
+
+template <class T> struct TopicOf;
+template <> struct TopicOf<msg::ProgramChunk> { static constexpr Topic value = Topic::kProgram; };
+template <> struct TopicOf<msg::BlockBatch> { static constexpr Topic value = Topic::kBlocks; };
+template <> struct TopicOf<msg::GcodeChunk> { static constexpr Topic value = Topic::kGcode; };
+
+/// Where and how long; every field has a command-line option (stages/dds/README.md).
+struct DdsOptions {
+  int domain = 0;                  //!< DDS domain id [0, 232]; parallel pipelines need distinct ids
+  std::filesystem::path profiles;  //!< XML profiles; empty = default_profiles_path()
+  int subscribers = 1;             //!< readers a writer waits for before its first sample [1, 100]
+  double match_timeout = 30;       //!< [s] longest wait for those readers
+  double write_timeout = 60;       //!< [s] longest a write may stay blocked on a full history
+  double ack_timeout = 60;         //!< [s] longest wait, before leaving, for readers to acknowledge
+  double idle_timeout = 0;         //!< [s] a consumer gives up after this long without a sample;
+                                   //!< 0 = wait for ever (tests set it so nothing can hang)
+  /// Also take programs that were published before this process started and are replayed from
+  /// a writer's transient-local history (by default they are old news and skipped).
+  bool replay = false;
+};
+
+/// pipeline_configs/dds_profiles.xml beside the default pipeline config; GCPIPE_DDS_PROFILES
+/// overrides it.
+std::filesystem::path default_profiles_path();
+/// GCPIPE_DDS_DOMAIN when set (checked to be an integer in [0, 232]), else `fallback`.
+int default_domain(int fallback = 0);
+
+/// SIGINT and SIGTERM set a flag that every wait below polls, so nodes end cleanly (a killed
+/// process leaves shared-memory segments behind).
+void install_stop_handlers();
+bool stop_requested();
+
+/// One DomainParticipant per process, created from profile "gcpipe_participant" after
+/// load_profiles() (otherwise the XML would be ignored). Throws std::runtime_error naming the
+/// profile file, profile and domain when creation fails.
+class Participant {
+ public:
+  explicit Participant(const DdsOptions& options);
+  ~Participant();
+  Participant(const Participant&) = delete;
+  Participant& operator=(const Participant&) = delete;
+  const DdsOptions& options() const;
+  /// True when a sample with this source timestamp [s since the Unix epoch] was published before
+  /// this participant was created and `replay` is off: a consumer then skips its program.
+  /// Compares clocks of two processes; exact on one host, subject to clock skew across hosts.
+  bool published_before_start(double source_time) const;
+  struct Impl;
+  Impl& impl() { return *impl_; }
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+/// A writer of one topic from profile "gcpipe_writer".
+class RawWriter {
+ public:
+  RawWriter(Participant& participant, Topic topic);
+  ~RawWriter();
+  RawWriter(const RawWriter&) = delete;
+  RawWriter& operator=(const RawWriter&) = delete;
+
+  /// Blocks until options().subscribers readers matched. Throws after match_timeout; false
+  /// when a stop was requested.
+  bool wait_for_readers();
+  int matched_readers() const;
+  /// Writes one sample. write() returns false while the keep-all history is full and a reader
+  /// lags; that is retried, never ignored (ignoring it lost samples in ../shared/DESIGN.md's
+  /// measurement). Throws after write_timeout; false when a stop was requested.
+  bool publish(const void* sample);
+  /// True when every matched reader acknowledged every sample within ack_timeout.
+  bool wait_acknowledged();
+  Topic topic() const { return topic_; }
+  /// How often write() returned false (history full, a reader behind) and was retried.
+  std::uint64_t blocked_writes() const { return blocked_writes_; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  Topic topic_;
+  std::uint64_t blocked_writes_ = 0;
+};
+
+/// A reader of one topic from profile "gcpipe_reader".
+class RawReader {
+ public:
+  RawReader(Participant& participant, Topic topic);
+  ~RawReader();
+  RawReader(const RawReader&) = delete;
+  RawReader& operator=(const RawReader&) = delete;
+  /// Takes the next sample with data into `sample` (of the topic's type). False when none came
+  /// within `timeout_s` [s]. `source_time`: when the writer wrote it [s since the Unix epoch].
+  bool take(void* sample, double timeout_s, double* source_time = nullptr);
+  int matched_writers() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+template <class T>
+class Writer : public RawWriter {
+ public:
+  explicit Writer(Participant& p) : RawWriter(p, TopicOf<T>::value) {}
+  bool publish(const T& sample) { return RawWriter::publish(&sample); }
+};
+
+template <class T>
+class Reader : public RawReader {
+ public:
+  explicit Reader(Participant& p) : RawReader(p, TopicOf<T>::value) {}
+  bool take(T& sample, double timeout_s, double* source_time = nullptr) {
+    return RawReader::take(&sample, timeout_s, source_time);
+  }
+};
+
+}  // namespace gcpipe::dds

@@ -1,0 +1,329 @@
+#include "dds_tools.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iomanip>
+#include <ostream>
+#include <random>
+#include <set>
+#include <stdexcept>
+
+#include "dds_convert.hpp"
+#include "gcpipe/line_reader.hpp"
+
+namespace gcpipe::dds {
+
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+std::uint64_t random_program_id() {
+  std::random_device rd;
+  std::uint64_t id = 0;
+  while (id == 0) id = (static_cast<std::uint64_t>(rd()) << 32) ^ rd();
+  return id;
+}
+
+// Takes the next sample; false after idle_timeout without one (0 = never) or on a stop request.
+template <class T>
+bool take_or_idle(Reader<T>& reader, T& sample, double idle_timeout, bool& idle,
+                  double* source_time) {
+  const auto t0 = Clock::now();
+  idle = false;
+  while (!stop_requested()) {
+    if (reader.take(sample, 0.1, source_time)) return true;
+    if (idle_timeout > 0 && seconds_since(t0) > idle_timeout) {
+      idle = true;
+      return false;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+
+int run_feed(Participant& participant, const FeedOptions& o, std::ostream& log) {
+  // "-" is standard input, named "<stdin>" in diagnostics as batch mode names it.
+  const bool stdin_input = o.input == "-";
+  const std::string name = stdin_input ? "<stdin>" : o.input.string();
+  const int fd = stdin_input ? 0 : ::open(o.input.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0)
+    throw std::runtime_error("cannot open program '" + name + "': " + std::strerror(errno));
+  struct Closer {
+    int fd;
+    ~Closer() {
+      if (fd > 0) ::close(fd);
+    }
+  } closer{fd};
+
+  Writer<msg::ProgramChunk> writer(participant);
+  if (!writer.wait_for_readers()) return 130;
+  const auto t0 = Clock::now();
+
+  const std::uint64_t id = o.program_id != 0 ? o.program_id : random_program_id();
+  LineReader reader(fd, o.max_line_length);
+  msg::ProgramChunk chunk;
+  chunk.program_id(id);
+  chunk.file(name);
+  chunk.first_line(1);
+  std::uint64_t lines = 0, chunks = 0;
+  std::size_t size = 0;
+  std::string_view line;
+  bool overlong = false;
+  std::size_t full_length = 0;
+  auto publish = [&]() {
+    chunk.sequence_number(chunks++);
+    if (!writer.publish(chunk)) return false;
+    chunk.first_line(lines + 1);
+    chunk.lines().clear();
+    size = 0;
+    return true;
+  };
+  while (reader.next(line, overlong, full_length)) {
+    msg::SourceLine& s = chunk.lines().emplace_back();
+    s.text(std::string(line));
+    s.full_length(overlong ? full_length : 0);
+    ++lines;
+    size += line.size() + 20;  // CDR: string length, terminator, padding, full_length
+    if (size >= o.chunk_bytes && !publish()) return 130;
+  }
+  if (!reader.error().empty())
+    throw std::runtime_error("reading '" + name + "': " + reader.error());
+  chunk.end_of_program(true);
+  chunk.line_count(lines);
+  chunk.byte_count(reader.bytes_read());
+  if (!publish()) return 130;
+  const bool acked = writer.wait_acknowledged();
+  log << "gcpipe feed: program " << id << " '" << name << "': " << lines
+      << " lines, " << reader.bytes_read() << " bytes in " << chunks << " chunks, "
+      << std::fixed << std::setprecision(3) << seconds_since(t0)
+      << " s; writes retried on a full history: " << writer.blocked_writes() << "\n";
+  if (!acked) {
+    log << "gcpipe feed: not every chunk was acknowledged by the readers of " << kProgramTopicName
+        << "\n";
+    return 1;
+  }
+  return 0;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+int run_sink(Participant& participant, const SinkOptions& o, std::ostream& log) {
+  Reader<msg::GcodeChunk> reader(participant);
+  const double idle_timeout = participant.options().idle_timeout;
+  msg::GcodeChunk chunk;
+  bool idle = false;
+  std::uint64_t id = 0;
+  std::uint64_t next = 0, bytes = 0;
+  std::string error;
+  const std::filesystem::path part = o.output.string() + ".part";
+  // Opened before anything arrives, so an unwritable path fails at once, not mid-program.
+  std::ofstream out(part, std::ios::binary | std::ios::trunc);
+  if (!out) throw std::runtime_error("cannot write '" + part.string() + "'");
+  Clock::time_point t0;
+  std::set<std::uint64_t> skipped;  // programs published before the sink started
+  double source_time = 0;
+  for (;;) {
+    if (!take_or_idle(reader, chunk, idle_timeout, idle, &source_time)) {
+      if (idle)
+        log << "gcpipe sink: nothing arrived on " << kGcodeTopicName << " for " << idle_timeout
+            << " s; giving up\n";
+      if (id != 0)
+        log << "gcpipe sink: INCOMPLETE, program " << id << " ended before its end marker; "
+            << bytes << " bytes left in '" << part.string() << "'\n";
+      return idle ? 1 : 130;
+    }
+    if (id == 0 && skipped.count(chunk.program_id()) != 0) continue;
+    if (id == 0 && participant.published_before_start(source_time)) {
+      // Replayed from a writer's history (a node serving with --forever): an old program.
+      if (skipped.insert(chunk.program_id()).second)
+        log << "gcpipe sink: skipping program " << chunk.program_id() << " ('" << chunk.file()
+            << "'), published before the sink started (--replay takes it)\n";
+      continue;
+    }
+    if (next == 0 && id == 0) {
+      id = chunk.program_id();
+      t0 = Clock::now();
+      if (chunk.sequence_number() != 0)
+        error = "joined program " + std::to_string(id) + " at chunk " +
+                std::to_string(chunk.sequence_number()) + ": its beginning is lost";
+      next = chunk.sequence_number();
+    }
+    if (chunk.program_id() != id) continue;  // another program: the first one is ours
+    if (chunk.sequence_number() != next && error.empty())
+      error = "chunk " + std::to_string(next) + " is missing (got chunk " +
+              std::to_string(chunk.sequence_number()) + ")";
+    next = chunk.sequence_number() + 1;
+    out.write(chunk.text().data(), static_cast<std::streamsize>(chunk.text().size()));
+    bytes += chunk.text().size();
+    if (chunk.end_of_program()) break;
+  }
+  out.close();
+  if (!out) throw std::runtime_error("writing '" + part.string() + "' failed");
+
+  auto add = [&error](const std::string& e) {
+    if (e.empty()) return;
+    if (!error.empty()) error += "; ";
+    error += e;
+  };
+  add(chunk.error());
+  if (chunk.byte_count() != bytes)
+    add("received " + std::to_string(bytes) + " bytes, the writer sent " +
+        std::to_string(chunk.byte_count()));
+  const ParseSummary s = from_msg(chunk.summary());
+  if (chunk.blocks_written() != s.blocks_emitted ||
+      chunk.diagnostics_written() != s.lines_rejected + s.lines_deleted ||
+      s.blocks_emitted + s.lines_rejected + s.lines_deleted != s.lines_read)
+    add("counts disagree: written " + std::to_string(chunk.blocks_written()) + " blocks + " +
+        std::to_string(chunk.diagnostics_written()) + " diagnostics; parsed " +
+        std::to_string(s.lines_read) + " lines = " + std::to_string(s.blocks_emitted) +
+        " blocks + " + std::to_string(s.lines_rejected) + " rejected + " +
+        std::to_string(s.lines_deleted) + " deleted");
+  log << "gcpipe sink: program " << id << " '" << chunk.file() << "': " << s.lines_read
+      << " lines read, " << s.blocks_emitted << " blocks, " << s.lines_rejected << " rejected, "
+      << s.lines_deleted << " deleted; " << bytes << " bytes in " << next << " chunks, "
+      << std::fixed << std::setprecision(3) << seconds_since(t0) << " s"
+      << (chunk.stopped() ? " (strict mode stopped at the first rejected line)" : "") << "\n";
+  if (!error.empty()) {
+    log << "gcpipe sink: INCOMPLETE, output left in '" << part.string() << "': " << error << "\n";
+    return 1;
+  }
+  std::filesystem::rename(part, o.output);
+  // The exit status of `gcpipe batch` for the same program.
+  if (chunk.stopped()) return 1;
+  return s.lines_rejected > 0 ? 3 : 0;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+namespace {
+
+// What the monitor extracts from one sample of each topic.
+struct Seen {
+  std::uint64_t program_id = 0, sequence = 0, items = 0, last_line = 0, errors = 0;
+  bool end = false;
+};
+
+Seen inspect(const msg::ProgramChunk& c) {
+  Seen s{c.program_id(), c.sequence_number(), c.lines().size(), 0, 0, c.end_of_program()};
+  if (!c.lines().empty()) s.last_line = c.first_line() + c.lines().size() - 1;
+  return s;
+}
+Seen inspect(const msg::BlockBatch& b) {
+  Seen s{b.program_id(), b.sequence_number(), b.blocks().size(), 0, 0, b.end_of_program()};
+  if (!b.blocks().empty()) s.last_line = b.blocks().back().line();
+  if (!b.diagnostics().empty()) s.last_line = std::max(s.last_line, b.diagnostics().back().line());
+  for (const auto& d : b.diagnostics())
+    if (d.line_status() == static_cast<std::uint8_t>(LineStatus::kRejected)) ++s.errors;
+  return s;
+}
+Seen inspect(const msg::GcodeChunk& g) {
+  return Seen{g.program_id(), g.sequence_number(), g.text().size(), g.last_line(), 0,
+              g.end_of_program()};
+}
+
+const char* item_name(Topic t) {
+  return t == Topic::kProgram ? "lines" : t == Topic::kBlocks ? "blocks" : "bytes";
+}
+
+void print_end(std::ostream& out, const msg::ProgramChunk& c) {
+  out << "end of program: " << c.line_count() << " lines, " << c.byte_count() << " bytes";
+}
+void print_end(std::ostream& out, const msg::BlockBatch& b) {
+  const auto& s = b.summary();
+  out << "end of program: " << s.lines_read() << " lines read, " << s.blocks_emitted()
+      << " blocks, " << s.lines_rejected() << " rejected, " << s.lines_deleted() << " deleted"
+      << (b.stopped() ? ", strict stop" : "") << (b.error().empty() ? "" : ", ERROR: " + b.error());
+}
+void print_end(std::ostream& out, const msg::GcodeChunk& g) {
+  out << "end of program: " << g.byte_count() << " bytes, " << g.blocks_written() << " blocks, "
+      << g.diagnostics_written() << " diagnostics"
+      << (g.error().empty() ? "" : ", ERROR: " + g.error());
+}
+
+template <class T>
+int monitor(Participant& participant, Topic topic, double period, std::ostream& out) {
+  Reader<T> reader(participant);
+  T sample;
+  const auto t0 = Clock::now();
+  auto next_print = t0 + std::chrono::duration_cast<Clock::duration>(
+                             std::chrono::duration<double>(period));
+  std::uint64_t samples = 0, items = 0, errors = 0, last_line = 0, program = 0;
+  std::uint64_t first_seq = 0, window_items = 0;
+  auto window_start = t0;
+  const double idle_timeout = participant.options().idle_timeout;
+  auto last_sample = t0;
+  auto line = [&](std::ostream& o) {
+    const double dt = std::chrono::duration<double>(Clock::now() - window_start).count();
+    o << std::fixed << std::setprecision(1) << seconds_since(t0) << " s  " << topic_name(topic)
+      << "  program " << program << "  batches " << samples << "  " << item_name(topic) << " "
+      << items << " (" << std::setprecision(0) << (dt > 0 ? window_items / dt : 0.0) << "/s)"
+      << "  last line " << last_line << "  errors " << errors;
+  };
+  while (!stop_requested()) {
+    if (reader.take(sample, 0.05)) {
+      const Seen s = inspect(sample);
+      last_sample = Clock::now();
+      if (samples == 0) {
+        program = s.program_id;
+        first_seq = s.sequence;
+      }
+      if (s.program_id == program) {
+        ++samples;
+        items += s.items;
+        window_items += s.items;
+        errors += s.errors;
+        if (s.last_line != 0) last_line = s.last_line;
+        if (s.end) {
+          line(out);
+          out << "\n" << topic_name(topic) << "  program " << program << "  ";
+          print_end(out, sample);
+          if (first_seq != 0) out << "  (joined late, at batch " << first_seq << ")";
+          else if (samples != s.sequence + 1) out << "  (" << (s.sequence + 1 - samples)
+                                                  << " batches MISSING)";
+          out << std::endl;
+          return 0;
+        }
+      }
+    }
+    if (Clock::now() >= next_print) {
+      line(out);
+      out << std::endl;
+      window_items = 0;
+      window_start = Clock::now();
+      next_print += std::chrono::duration_cast<Clock::duration>(
+          std::chrono::duration<double>(period));
+    }
+    if (idle_timeout > 0 && seconds_since(last_sample) > idle_timeout) {
+      out << "no sample on " << topic_name(topic) << " for " << idle_timeout << " s; giving up"
+          << std::endl;
+      return 1;
+    }
+  }
+  return 130;
+}
+
+}  // namespace
+
+int run_monitor(Participant& participant, Topic topic, double period, std::ostream& out) {
+  switch (topic) {
+    case Topic::kProgram: return monitor<msg::ProgramChunk>(participant, topic, period, out);
+    case Topic::kBlocks: return monitor<msg::BlockBatch>(participant, topic, period, out);
+    case Topic::kGcode: return monitor<msg::GcodeChunk>(participant, topic, period, out);
+  }
+  return 2;
+}
+
+}  // namespace gcpipe::dds

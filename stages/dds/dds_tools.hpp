@@ -1,0 +1,42 @@
+// The pipeline's ends and its observer: `gcpipe feed`, `gcpipe sink`, `gcpipe monitor`.
+// (The stage nodes are in stages/<stage>/<stage>_node.hpp.) stages/cli only parses arguments.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <iosfwd>
+
+#include "dds_runtime.hpp"
+
+namespace gcpipe::dds {
+
+struct FeedOptions {
+  std::filesystem::path input;       //!< program file to publish; "-" = standard input
+  /// Lines are cut at this length as batch mode's reader cuts them (parse.max_line_length) [bytes]
+  std::size_t max_line_length = 256;
+  std::size_t chunk_bytes = 32 * 1024;  //!< publish a chunk once it holds this much text [bytes]
+  std::uint64_t program_id = 0;      //!< 0 = pick a random one
+};
+
+/// Publishes a program on gcpipe_program and waits until its readers acknowledged all of it.
+/// Returns the exit status (0 ok); throws for an unreadable file.
+int run_feed(Participant& participant, const FeedOptions& options, std::ostream& log);
+
+struct SinkOptions {
+  std::filesystem::path output;  //!< written through a temporary file, renamed when complete
+};
+
+/// Writes the first program that arrives on gcpipe_gcode to `output` and returns after its end
+/// marker, having checked that the chunks were contiguous and every count agrees (bytes,
+/// blocks + diagnostics = lines read by the parser). Returns batch mode's exit status for the
+/// program: 0 all lines accepted, 3 some rejected, 1 strict mode stopped; 1 also when data went
+/// missing, and then the file is left as OUTPUT.part.
+int run_sink(Participant& participant, const SinkOptions& options, std::ostream& log);
+
+/// Prints one summary line per `period` [s] about `topic` (batches, items and items/s, last
+/// source line, errors) until an end-of-program marker arrives (returns 0) or a stop is requested
+/// (returns 130). Joining late is fine: it reports what the writer still held.
+int run_monitor(Participant& participant, Topic topic, double period, std::ostream& out);
+
+}  // namespace gcpipe::dds

@@ -1,0 +1,197 @@
+#include "write_node.hpp"
+
+#include <chrono>
+#include <iostream>
+#include <map>
+#include <set>
+
+#include "dds_convert.hpp"
+#include "dds_runtime.hpp"
+
+namespace gcpipe {
+
+namespace {
+
+struct Program {
+  explicit Program(const WriteOptions& o) : writer(o) {}
+  Writer writer;
+  std::string file;
+  std::uint64_t next_batch = 0;
+  std::uint64_t next_chunk = 0;
+  std::uint64_t blocks = 0, rejected = 0, deleted = 0;
+  std::uint64_t bytes = 0;        // text published so far [bytes]
+  std::uint64_t last_line = 0;    // last source line written
+  std::string text;               // text not yet published
+  std::string error;
+};
+
+}  // namespace
+
+struct WriteNode::Impl {
+  dds::Participant& participant;
+  WriteOptions write_options;
+  WriteNodeOptions options;
+  dds::Reader<msg::BlockBatch> reader;
+  dds::Writer<msg::GcodeChunk> writer;
+  std::map<std::uint64_t, Program> programs;
+  std::set<std::uint64_t> skipped;  // programs published before this node started
+  int status = 0;
+  msg::GcodeChunk chunk;
+
+  Impl(dds::Participant& p, WriteOptions wo, WriteNodeOptions o)
+      : participant(p), write_options(wo), options(o), reader(p), writer(p) {}
+
+  bool publish(std::uint64_t id, Program& prog) {
+    chunk.program_id(id);
+    chunk.file(prog.file);
+    chunk.sequence_number(prog.next_chunk++);
+    chunk.last_line(prog.last_line);
+    prog.bytes += prog.text.size();
+    chunk.text().swap(prog.text);
+    const bool ok = writer.publish(chunk);
+    prog.text.clear();
+    return ok;
+  }
+
+  void fail(Program& prog, std::uint64_t id, const std::string& why) {
+    if (!prog.error.empty()) return;
+    prog.error = why;
+    std::cerr << "gcpipe node write: program " << id << " (" << prog.file << "): " << why << "\n";
+  }
+
+  void write_batch(Program& prog, std::uint64_t id, const msg::BlockBatch& batch) {
+    ResolvedBlock block;
+    Diagnostic diag;
+    LineStatus status{};
+    std::string why;
+    const auto& blocks = batch.blocks();
+    const auto& diags = batch.diagnostics();
+    std::size_t b = 0, d = 0;
+    // Each line gave a block or a diagnostic; merging the two ordered lists restores the order
+    // in which batch mode handed them to its writer.
+    while (b < blocks.size() || d < diags.size()) {
+      const bool take_block =
+          d == diags.size() || (b < blocks.size() && blocks[b].line() < diags[d].line());
+      if (take_block) {
+        if (!dds::from_msg(blocks[b], block, &why)) {
+          fail(prog, id, "batch " + std::to_string(batch.sequence_number()) + ", line " +
+                             std::to_string(blocks[b].line()) + ": " + why);
+          return;
+        }
+        ++b;
+        ++prog.blocks;
+        prog.last_line = block.line;
+        prog.writer.write(block, prog.text);
+      } else {
+        if (!dds::from_msg(diags[d], diag, status, &why)) {
+          fail(prog, id, "batch " + std::to_string(batch.sequence_number()) + ", line " +
+                             std::to_string(diags[d].line()) + ": " + why);
+          return;
+        }
+        ++d;
+        ++(status == LineStatus::kRejected ? prog.rejected : prog.deleted);
+        prog.last_line = diag.line;
+        prog.writer.write_diagnostic(diag, prog.text);
+      }
+      if (prog.text.size() >= options.chunk_bytes && !publish(id, prog)) return;
+    }
+  }
+
+  bool handle(const msg::BlockBatch& batch, double source_time) {
+    const std::uint64_t id = batch.program_id();
+    if (skipped.count(id) != 0) {
+      if (batch.end_of_program()) skipped.erase(id);
+      return false;
+    }
+    auto it = programs.find(id);
+    if (it == programs.end() && participant.published_before_start(source_time)) {
+      // Replayed from the parse node's history: an old program, not one sent to this node.
+      std::cerr << "gcpipe node write: skipping program " << id << " ('" << batch.file()
+                << "'), published before this node started (--replay takes it)\n";
+      if (!batch.end_of_program()) skipped.insert(id);
+      return false;
+    }
+    if (it == programs.end()) {
+      it = programs.emplace(id, Program(write_options)).first;
+      it->second.file = batch.file();
+      if (batch.sequence_number() != 0)
+        fail(it->second, id,
+             "joined the program at batch " + std::to_string(batch.sequence_number()) +
+                 ": its beginning is no longer available from the parse node");
+      it->second.next_batch = batch.sequence_number();
+    }
+    Program& prog = it->second;
+    if (batch.sequence_number() != prog.next_batch)
+      fail(prog, id, "batch " + std::to_string(prog.next_batch) + " is missing (got batch " +
+                         std::to_string(batch.sequence_number()) + ")");
+    prog.next_batch = batch.sequence_number() + 1;
+    if (prog.error.empty()) write_batch(prog, id, batch);
+    if (!batch.end_of_program()) return false;
+
+    const ParseSummary summary = dds::from_msg(batch.summary());
+    if (!batch.error().empty()) fail(prog, id, "upstream: " + batch.error());
+    if (prog.error.empty()) {
+      std::string counts = dds::check_counts(summary, prog.blocks, prog.rejected, prog.deleted);
+      if (!counts.empty()) fail(prog, id, counts);
+    }
+    chunk.end_of_program(true);
+    chunk.byte_count(prog.bytes + prog.text.size());
+    chunk.blocks_written(prog.blocks);
+    chunk.diagnostics_written(prog.rejected + prog.deleted);
+    chunk.stopped(batch.stopped());
+    chunk.summary(batch.summary());
+    chunk.error(prog.error);
+    if (!prog.error.empty()) status = 1;
+    publish(id, prog);
+    std::cerr << "gcpipe node write: program " << id << " '" << prog.file << "': " << prog.blocks
+              << " blocks, " << prog.rejected + prog.deleted << " diagnostics from "
+              << prog.next_batch << " batches; " << prog.bytes << " bytes in " << prog.next_chunk
+              << " chunks; writes retried on a full history: " << writer.blocked_writes() << "\n";
+    chunk = msg::GcodeChunk();
+    programs.erase(it);
+    return true;
+  }
+};
+
+WriteNode::WriteNode(dds::Participant& participant, WriteOptions write_options,
+                     WriteNodeOptions node_options)
+    : impl_(std::make_unique<Impl>(participant, write_options, node_options)) {}
+
+WriteNode::~WriteNode() = default;
+
+int WriteNode::run() {
+  msg::BlockBatch batch;
+  double source_time = 0;
+  // Downstream first: input is taken only once someone will receive the output, so nothing is
+  // written into a history that no reader drains.
+  if (!impl_->writer.wait_for_readers()) return 130;
+  std::cerr << "gcpipe node write: ready, " << impl_->writer.matched_readers() << " reader(s) of "
+            << dds::kGcodeTopicName << " matched" << std::endl;
+  bool done = false;
+  const double idle_timeout = impl_->participant.options().idle_timeout;
+  auto last_sample = std::chrono::steady_clock::now();
+  while (!done && !dds::stop_requested()) {
+    if (!impl_->reader.take(batch, 0.1, &source_time)) {
+      const std::chrono::duration<double> idle = std::chrono::steady_clock::now() - last_sample;
+      if (idle_timeout > 0 && idle.count() > idle_timeout && !impl_->options.forever) {
+        std::cerr << "gcpipe node write: nothing arrived for " << idle_timeout << " s\n";
+        break;
+      }
+      continue;
+    }
+    last_sample = std::chrono::steady_clock::now();
+    if (impl_->handle(batch, source_time) && !impl_->options.forever) done = true;
+  }
+  if (!done && !impl_->options.forever) {
+    std::cerr << "gcpipe node write: stopped before the end of the program\n";
+    impl_->status = 1;
+  }
+  if (!impl_->writer.wait_acknowledged()) {
+    std::cerr << "gcpipe node write: not every chunk was acknowledged by the readers of "
+              << dds::kGcodeTopicName << "\n";
+    impl_->status = 1;
+  }
+  return impl_->status;
+}
+
+}  // namespace gcpipe

@@ -1,0 +1,381 @@
+// The streaming pipeline end to end: feed -> node parse -> node write -> sink, each a separate
+// process of the built gcpipe executable (so shared memory and UDP are really used; two
+// participants in one process would take Fast DDS's in-process shortcut), must write exactly the
+// bytes `gcpipe batch` writes, and exit with batch mode's status.
+#include <gtest/gtest.h>
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/file.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+extern char** environ;
+
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kExe = GCPIPE_EXE;
+const std::string kConfig = std::string(GCPIPE_SOURCE_DIR) + "/pipeline_configs/default.yaml";
+// Every process gets this: no step can wait longer than this by itself [s].
+constexpr const char* kIdle = "60";
+constexpr double kProcessLimit = 180;  // [s] then the test kills the process and fails
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+// One child process with stdout+stderr in a log file.
+struct Process {
+  std::string name;
+  pid_t pid = -1;
+  fs::path log;
+  bool killed = false;
+
+  Process(std::string n, const std::vector<std::string>& args, const fs::path& dir)
+      : name(std::move(n)), log(dir / (name + ".log")) {
+    std::vector<char*> argv;
+    argv.push_back(const_cast<char*>(kExe.c_str()));
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_adddup2(&fa, 1, 2);
+    const int rc = posix_spawn(&pid, kExe.c_str(), &fa, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&fa);
+    if (rc != 0) pid = -1;
+  }
+
+  // Exit status, or -1 after killing a process that overran `limit` [s].
+  int wait(double limit = kProcessLimit) {
+    if (pid <= 0) return -2;
+    const auto t0 = std::chrono::steady_clock::now();
+    int status = 0;
+    for (;;) {
+      const pid_t r = waitpid(pid, &status, WNOHANG);
+      if (r == pid) break;
+      if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > limit) {
+        kill(pid, SIGKILL);
+        waitpid(pid, &status, 0);
+        killed = true;
+        pid = -1;
+        return -1;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    pid = -1;
+    if (WIFEXITED(status)) return WEXITSTATUS(status);
+    return 128 + WTERMSIG(status);
+  }
+
+  ~Process() {
+    // Left running by a failed assertion: kill it, and clean the shared memory it leaves.
+    if (pid > 0 && wait(0) == -1) {
+      [[maybe_unused]] const int rc = std::system("fastdds shm clean > /dev/null 2>&1");
+    }
+  }
+};
+
+// Polls a process's log until it contains `text`; false after `limit` [s].
+bool wait_for_log(const Process& p, const std::string& text, double limit = 60) {
+  const auto t0 = std::chrono::steady_clock::now();
+  while (slurp(p.log).find(text) == std::string::npos) {
+    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > limit)
+      return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return true;
+}
+
+class DdsPipeline : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() /
+           ("gcpipe_dds_" + std::string(info->name()) + "_" + std::to_string(getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    domain_ = std::to_string(claim_domain());
+  }
+
+  // Tests run in parallel (ctest -j) must not hear each other: each holds an exclusive lock on
+  // one domain id for its lifetime. The lock dies with the process, so a crash frees it.
+  int claim_domain() {
+    const int first = 20 + getpid() % 200;
+    for (int k = 0; k < 200; ++k) {
+      const int domain = 20 + (first - 20 + k) % 200;
+      const fs::path lock = fs::temp_directory_path() / ("gcpipe_dds_domain_" + std::to_string(domain) + ".lock");
+      const int fd = ::open(lock.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+      if (fd < 0) continue;
+      if (flock(fd, LOCK_EX | LOCK_NB) == 0) {
+        domain_lock_ = fd;
+        return domain;
+      }
+      ::close(fd);
+    }
+    ADD_FAILURE() << "no free DDS domain id in [20, 220)";
+    return 0;
+  }
+
+  void TearDown() override {
+    if (any_killed_) {
+      // A SIGKILLed participant leaves its shared-memory segments behind.
+      [[maybe_unused]] int rc = std::system("fastdds shm clean > /dev/null 2>&1");
+    }
+    if (!HasFailure()) fs::remove_all(dir_);
+    else std::cerr << "logs kept in " << dir_ << "\n";
+    if (domain_lock_ >= 0) ::close(domain_lock_);
+  }
+
+  std::vector<std::string> dds_args(std::vector<std::string> args) const {
+    for (const char* a : {"--domain", domain_.c_str(), "--idle-timeout", kIdle, "--timeout", kIdle})
+      args.emplace_back(a);
+    return args;
+  }
+
+  struct BatchResult {
+    int status = 0;
+    std::string output;
+  };
+
+  BatchResult run_batch(const fs::path& input, const std::vector<std::string>& extra = {}) {
+    std::vector<std::string> args = {"batch", input.string(), "-o", (dir_ / "batch").string(),
+                                     "--config", kConfig, "--quiet"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    Process p("batch", args, dir_);
+    BatchResult r;
+    r.status = p.wait();
+    r.output = slurp(dir_ / "batch" / "output.nc");
+    return r;
+  }
+
+  struct PipelineResult {
+    int feed = -2, parse = -2, write = -2, sink = -2;
+    std::string output;
+    std::string sink_log;
+  };
+
+  // Starts the consumers first, as an operator would, then the feeder; the feeder waits for its
+  // reader anyway, so the order only saves time.
+  PipelineResult run_pipeline(const fs::path& input, const std::vector<std::string>& parse_extra = {},
+                              const std::vector<std::string>& write_extra = {},
+                              const std::vector<std::string>& feed_extra = {},
+                              Process** keep_parse = nullptr) {
+    const fs::path out = dir_ / "sink.nc";
+    Process sink("sink", dds_args({"sink", "-o", out.string()}), dir_);
+    std::vector<std::string> w = {"node", "write", "--config", kConfig};
+    w.insert(w.end(), write_extra.begin(), write_extra.end());
+    Process write("write", dds_args(w), dir_);
+    std::vector<std::string> pa = {"node", "parse", "--config", kConfig};
+    pa.insert(pa.end(), parse_extra.begin(), parse_extra.end());
+    auto* parse = new Process("parse", dds_args(pa), dir_);
+    std::vector<std::string> f = {"feed", input.string(), "--config", kConfig};
+    f.insert(f.end(), feed_extra.begin(), feed_extra.end());
+    Process feed("feed", dds_args(f), dir_);
+    PipelineResult r;
+    r.feed = feed.wait();
+    r.sink = sink.wait();
+    r.write = write.wait();
+    if (keep_parse != nullptr) {
+      *keep_parse = parse;  // still running (--forever); the caller ends it
+    } else {
+      r.parse = parse->wait();
+      any_killed_ |= parse->killed;
+      delete parse;
+    }
+    any_killed_ |= feed.killed || sink.killed || write.killed;
+    r.output = slurp(out);
+    r.sink_log = slurp(sink.log);
+    return r;
+  }
+
+  void expect_same_as_batch(const fs::path& input, const std::vector<std::string>& node_extra = {},
+                            const std::vector<std::string>& feed_extra = {}) {
+    const BatchResult batch = run_batch(input);
+    ASSERT_FALSE(batch.output.empty()) << "batch wrote nothing for " << input;
+    const PipelineResult pipe = run_pipeline(input, node_extra, node_extra, feed_extra);
+    EXPECT_EQ(pipe.feed, 0);
+    EXPECT_EQ(pipe.parse, 0);
+    EXPECT_EQ(pipe.write, 0);
+    EXPECT_EQ(pipe.sink, batch.status) << pipe.sink_log;
+    EXPECT_EQ(pipe.output.size(), batch.output.size());
+    EXPECT_TRUE(pipe.output == batch.output) << "sink output differs from batch for " << input;
+  }
+
+  fs::path dir_;
+  std::string domain_;
+  bool any_killed_ = false;
+  int domain_lock_ = -1;
+};
+
+// ~20,000 lines of five-axis moves, arcs, comments, with lines the parser must reject (a word
+// twice, an arc that cannot exist, an overlong line), block-delete lines, CRLF endings and no
+// final newline.
+fs::path generate_program(const fs::path& dir, int lines) {
+  std::mt19937 rng(4242);
+  std::uniform_real_distribution<double> xy(-60, 60), z(-5, 0), a(-30, 30), c(0, 360);
+  std::ofstream f(dir / "generated.nc", std::ios::binary);
+  f << "%\nO2001 (GENERATED)\nG21 G17 G90 G94\nT1 M6\nG54\nG43 H1\nS9000 M3\nM8\n";
+  f << "G0 X0. Y0. Z10. A0. C0.\nG1 Z-1. F600.\n";
+  char buf[256];
+  for (int k = 0; k < lines; ++k) {
+    switch (k % 20) {
+      case 3:
+        std::snprintf(buf, sizeof buf, "G2 X%.3f Y%.3f I5. J0 (arc %d)", 0.0, 0.0, k);
+        break;  // first and last point differ in general: a genuine arc or a rejected one
+      case 7: std::snprintf(buf, sizeof buf, "/G1 X%.3f", xy(rng)); break;
+      case 11: std::snprintf(buf, sizeof buf, "G1 X1. X2. Y%d.", k % 50); break;
+      case 13: std::snprintf(buf, sizeof buf, "(note %d)\r", k); break;
+      case 17: std::snprintf(buf, sizeof buf, "G0 x%.2f y%.2f", xy(rng), xy(rng)); break;
+      default:
+        std::snprintf(buf, sizeof buf, "G1 X%.3f Y%.3f Z%.3f A%.3f C%.3f F%d", xy(rng), xy(rng),
+                      z(rng), a(rng), c(rng), 500 + k % 1000);
+    }
+    f << buf << "\n";
+    if (k % 5000 == 4999) f << "(" << std::string(400, 'L') << ")\n";  // over 256 bytes
+  }
+  f << "M30\n%";
+  return dir / "generated.nc";
+}
+
+TEST_F(DdsPipeline, ShippedSamplesMatchBatchByteForByte) {
+  const fs::path samples = fs::path(GCPIPE_SOURCE_DIR) / "samples";
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(samples)) {
+    if (e.path().extension() != ".nc") continue;
+    ++n;
+    SCOPED_TRACE(e.path().string());
+    expect_same_as_batch(e.path());
+  }
+  EXPECT_GT(n, 0) << "no samples/*.nc";
+}
+
+TEST_F(DdsPipeline, GeneratedProgramWithBadLinesMatchesBatchByteForByte) {
+  const fs::path input = generate_program(dir_, 20000);
+  expect_same_as_batch(input);
+  const std::string summary = slurp(dir_ / "batch" / "summary.json");
+  // The program must really exercise rejection and block delete, or the test proves less.
+  EXPECT_EQ(summary.find("\"lines_rejected\":0,"), std::string::npos) << summary;
+  EXPECT_EQ(summary.find("\"lines_deleted\":0,"), std::string::npos) << summary;
+}
+
+TEST_F(DdsPipeline, StalledReaderBlocksTheWriterAndNothingIsLost) {
+  // 1 KB batches make thousands of samples, far beyond the 256-sample history. The write node is
+  // frozen (SIGSTOP) while the program flows until the parse node's history is full: write()
+  // then returns false and must be retried, never dropped (../shared/DESIGN.md section 7).
+  const fs::path input = generate_program(dir_, 20000);
+  const BatchResult batch = run_batch(input);
+  const fs::path out = dir_ / "sink.nc";
+  Process sink("sink", dds_args({"sink", "-o", out.string()}), dir_);
+  Process write("write", dds_args({"node", "write", "--config", kConfig, "--batch-bytes", "1024"}),
+                dir_);
+  Process parse("parse", dds_args({"node", "parse", "--config", kConfig, "--batch-bytes", "1024"}),
+                dir_);
+  // Freeze the write node only once the parse node has matched it as a reader ("ready"), or the
+  // parse node would merely wait for a reader instead of filling its history.
+  ASSERT_TRUE(wait_for_log(parse, "ready")) << slurp(parse.log);
+  ASSERT_EQ(kill(write.pid, SIGSTOP), 0);
+  Process feed("feed", dds_args({"feed", input.string(), "--config", kConfig, "--chunk-bytes",
+                                 "1024"}), dir_);
+  // The parse node says so when its first write() finds the history full.
+  const bool filled = wait_for_log(parse, "history full");
+  ASSERT_EQ(kill(write.pid, SIGCONT), 0);
+  EXPECT_TRUE(filled) << slurp(parse.log);
+  EXPECT_EQ(feed.wait(), 0);
+  EXPECT_EQ(parse.wait(), 0);
+  EXPECT_EQ(write.wait(), 0);
+  EXPECT_EQ(sink.wait(), batch.status) << slurp(sink.log);
+  any_killed_ |= feed.killed || parse.killed || write.killed || sink.killed;
+  EXPECT_TRUE(slurp(out) == batch.output);
+  const std::string log = slurp(parse.log);
+  const auto p = log.find("writes retried on a full history: ");
+  ASSERT_NE(p, std::string::npos) << log;
+  const std::string retried = log.substr(p + std::strlen("writes retried on a full history: "));
+  EXPECT_GT(std::stoull(retried), 0u) << "the history never filled:\n" << log;
+}
+
+TEST_F(DdsPipeline, StrictModeStopsWhereBatchStops) {
+  const fs::path input = generate_program(dir_, 2000);
+  const BatchResult batch = run_batch(input, {"--strict"});
+  EXPECT_EQ(batch.status, 1);
+  const PipelineResult pipe = run_pipeline(input, {"--strict"});
+  EXPECT_EQ(pipe.parse, 0);
+  EXPECT_EQ(pipe.write, 0);
+  EXPECT_EQ(pipe.sink, 1) << pipe.sink_log;
+  EXPECT_NE(pipe.sink_log.find("strict mode stopped"), std::string::npos) << pipe.sink_log;
+  EXPECT_TRUE(pipe.output == batch.output);
+}
+
+TEST_F(DdsPipeline, ForeverNodesServeSuccessiveProgramsAndSinksSkipReplays) {
+  // Nodes serving with --forever keep finished programs in their transient-local history; a
+  // sink started for the next program must not take the replayed old one.
+  const fs::path first = fs::path(GCPIPE_SOURCE_DIR) / "samples" / "five_axis_demo.nc";
+  const fs::path second = generate_program(dir_, 3000);
+  const BatchResult batch_first = run_batch(first);
+  const BatchResult batch_second = run_batch(second);
+  Process parse("parse", dds_args({"node", "parse", "--config", kConfig, "--forever"}), dir_);
+  Process write("write", dds_args({"node", "write", "--config", kConfig, "--forever"}), dir_);
+  for (const auto& [input, batch] : {std::pair{first, batch_first}, std::pair{second, batch_second}}) {
+    SCOPED_TRACE(input.string());
+    const fs::path out = dir_ / "sink.nc";
+    fs::remove(out);
+    Process sink("sink", dds_args({"sink", "-o", out.string()}), dir_);
+    Process feed("feed", dds_args({"feed", input.string(), "--config", kConfig}), dir_);
+    EXPECT_EQ(feed.wait(), 0);
+    EXPECT_EQ(sink.wait(), batch.status) << slurp(sink.log);
+    any_killed_ |= feed.killed || sink.killed;
+    EXPECT_TRUE(slurp(out) == batch.output);
+    if (input == second)  // the first program was still in the write node's history
+      EXPECT_NE(slurp(sink.log).find("skipping program"), std::string::npos) << slurp(sink.log);
+  }
+  kill(parse.pid, SIGTERM);
+  kill(write.pid, SIGTERM);
+  EXPECT_EQ(parse.wait(30), 0) << slurp(parse.log);
+  EXPECT_EQ(write.wait(30), 0) << slurp(write.log);
+  any_killed_ |= parse.killed || write.killed;
+}
+
+TEST_F(DdsPipeline, LateMonitorStillSeesTheEndMarker) {
+  const fs::path input = generate_program(dir_, 20000);
+  const BatchResult batch = run_batch(input);
+  Process* parse = nullptr;
+  const PipelineResult pipe = run_pipeline(input, {"--forever"}, {}, {}, &parse);
+  ASSERT_NE(parse, nullptr);
+  EXPECT_EQ(pipe.sink, batch.status) << pipe.sink_log;
+  EXPECT_TRUE(pipe.output == batch.output);
+  // The program is over; the parse node still holds its history for late joiners.
+  Process monitor("monitor", dds_args({"monitor", "gcpipe_blocks", "--period", "0.2"}), dir_);
+  EXPECT_EQ(monitor.wait(60), 0);
+  const std::string log = slurp(monitor.log);
+  const std::string summary = slurp(dir_ / "batch" / "summary.json");
+  auto count = [&summary](const std::string& key) {
+    const auto p = summary.find("\"" + key + "\":");
+    return summary.substr(p + key.size() + 3, summary.find(',', p) - p - key.size() - 3);
+  };
+  const std::string expected = "end of program: " + count("lines_read") + " lines read, " +
+                               count("blocks_emitted") + " blocks, " + count("lines_rejected") +
+                               " rejected, " + count("lines_deleted") + " deleted";
+  EXPECT_NE(log.find(expected), std::string::npos) << "expected '" << expected << "' in:\n" << log;
+  kill(parse->pid, SIGTERM);
+  EXPECT_EQ(parse->wait(30), 0) << slurp(parse->log);
+  any_killed_ |= parse->killed || monitor.killed;
+  delete parse;
+}
+
+}  // namespace
