@@ -3,7 +3,7 @@
 # test suite. Idempotent: packages already installed are not fetched again, the build is
 # incremental (ccache), outputs are overwritten.
 #
-#   bash .ci/setup.sh sample   # build, then gcpipe batch on the shipped sample (no DDS setup)
+#   bash .ci/setup.sh sample   # build, then gcpipe batch on the paper's slot sample (no DDS setup)
 #   bash .ci/setup.sh test     # build, then the whole CTest suite
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -35,8 +35,9 @@ cmake --build build -j"$(nproc)"
 
 case "$what" in
   sample)
-    echo "== gcpipe batch samples/five_axis_demo.nc -o out/five_axis_demo"
-    build/stages/cli/gcpipe batch samples/five_axis_demo.nc -o out/five_axis_demo
+    echo "== gcpipe batch samples/trochoid_slot_seed000.nc -o out/trochoid_slot_seed000"
+    build/stages/cli/gcpipe batch samples/trochoid_slot_seed000.nc -o out/trochoid_slot_seed000
+    echo "== the figure: out/trochoid_slot_seed000/plots/trochoid_engagement.png"
     ;;
   test)
     echo "== ctest"

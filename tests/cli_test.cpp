@@ -153,3 +153,29 @@ TEST(Cli, PeakMemoryDoesNotGrowWithProgramLength) {
   EXPECT_LT(large.max_rss_mb, small.max_rss_mb + 2.0);  // ten times the input, the same memory
   fs::remove_all(dir);
 }
+
+// parse -> trochoid -> write: the paper's slot expands, its figure is drawn, and an impossible
+// cycle is rejected with its line while the rest of the program still runs from the right place.
+TEST(Cli, BatchExpandsTrochoidCyclesAndDrawsTheirFigure) {
+  const fs::path out = tmpdir("troch");
+  Outcome r = gcpipe({"batch", std::string(GCPIPE_SOURCE_DIR) + "/samples/trochoid_slot_seed000.nc", "-o", out.string()});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("parse -> trochoid -> write"), std::string::npos);
+  EXPECT_NE(r.out.find("1 G275 cycles expanded, 0 rejected"), std::string::npos) << r.out;
+  ASSERT_TRUE(fs::exists(out / "plots" / "trochoid_engagement.png"));
+  EXPECT_GT(fs::file_size(out / "plots" / "trochoid_engagement.png"), 20000u);  // a drawn figure, not an empty canvas
+  EXPECT_GT(fs::file_size(out / "output.nc"), 300000u);  // ~20,000 expanded blocks
+
+  const fs::path dir = tmpdir("troch_bad");
+  {
+    std::ofstream p(dir / "slots.nc");
+    p << "T2 M6\nG0 X0 Y0 Z5\nG1 F1000 Z5\n"
+         "G275 X0 Y60 Z-5 R5 W18 K1.5\n"   // narrower than the D20 tool: impossible
+         "G275 X40 Y60 Z-5 R5 W28 K1\n"    // fine, starts where the first one would have ended
+         "M30\n";
+  }
+  Outcome b = gcpipe({"batch", (dir / "slots.nc").string(), "-o", (dir / "o").string()});
+  EXPECT_EQ(b.status, 3);
+  EXPECT_NE(b.err.find("slots.nc:4: error: G275 rejected:"), std::string::npos) << b.err;
+  EXPECT_NE(b.out.find("1 G275 cycles expanded, 1 rejected"), std::string::npos) << b.out;
+}

@@ -116,8 +116,7 @@ TEST(DdsConvert, BlocksAndDiagnosticsSurviveCdrBitForBit) {
     Diagnostic d{"dir/prog.nc", rng(), static_cast<std::uint32_t>(rng()),
                  static_cast<Severity>(rng() % 3), "word X appears twice (X1. at column 4)"};
     diags.push_back(d);
-    dds::to_msg(d, k % 2 ? LineStatus::kRejected : LineStatus::kDeleted,
-                batch.diagnostics().emplace_back());
+    dds::to_msg(d, static_cast<dds::DiagnosticKind>(1 + k % 3), batch.diagnostics().emplace_back());
   }
   const msg::BlockBatch back = through_cdr(batch);
   ASSERT_EQ(back.blocks().size(), blocks.size());
@@ -128,14 +127,14 @@ TEST(DdsConvert, BlocksAndDiagnosticsSurviveCdrBitForBit) {
     ASSERT_TRUE(dds::from_msg(back.blocks()[k], b, &why)) << why;
     expect_identical(blocks[k], b);
     Diagnostic d;
-    LineStatus st{};
+    dds::DiagnosticKind st{};
     ASSERT_TRUE(dds::from_msg(back.diagnostics()[k], d, st, &why)) << why;
     EXPECT_EQ(d.file, diags[k].file);
     EXPECT_EQ(d.line, diags[k].line);
     EXPECT_EQ(d.column, diags[k].column);
     EXPECT_EQ(d.severity, diags[k].severity);
     EXPECT_EQ(d.message, diags[k].message);
-    EXPECT_EQ(st, k % 2 ? LineStatus::kRejected : LineStatus::kDeleted);
+    EXPECT_EQ(st, static_cast<dds::DiagnosticKind>(1 + k % 3));
   }
 }
 
@@ -156,13 +155,95 @@ TEST(DdsConvert, SummaryRoundTripsAndCountsAreChecked) {
   EXPECT_EQ(r.lines_rejected, 60u);
   EXPECT_EQ(r.lines_deleted, 40u);
   EXPECT_EQ(r.bytes_read, 123456u);
-  EXPECT_EQ(dds::check_counts(s, 900, 60, 40), "");
-  EXPECT_NE(dds::check_counts(s, 899, 60, 40).find("received 899 blocks"), std::string::npos);
-  EXPECT_NE(dds::check_counts(s, 900, 59, 40).find("rejected"), std::string::npos);
-  EXPECT_NE(dds::check_counts(s, 900, 60, 41).find("deleted"), std::string::npos);
-  ParseSummary bad = s;
-  bad.lines_read = 1001;
-  EXPECT_NE(dds::check_counts(bad, 900, 60, 40).find("do not add up"), std::string::npos);
+  EXPECT_EQ(dds::kind_of(LineStatus::kRejected), dds::DiagnosticKind::kLineRejected);
+  EXPECT_EQ(dds::kind_of(LineStatus::kDeleted), dds::DiagnosticKind::kLineDeleted);
+}
+
+// The end marker's totals travel through CDR, and check_counts catches each kind of loss on an
+// edge: the parse node's edge (blocks = parsed blocks) and the trochoid node's (one cycle became
+// 20,000 blocks, another was rejected: one diagnostic of kind 3 and its skip moves).
+TEST(DdsConvert, EndMarkerTotalsRoundTripAndEveryEdgeIsChecked) {
+  dds::BatchTotals t;
+  t.summary = ParseSummary{1000, 900, 60, 40, 123456};
+  t.blocks_sent = 900 - 2 + 20000 + 3;
+  t.diagnostics_sent = 60 + 40 + 1;
+  t.blocks_rejected = 1;
+  msg::BlockBatch m;
+  dds::set_totals(t, m);
+  const dds::BatchTotals r = dds::totals_of(through_cdr(m));
+  EXPECT_EQ(r.summary.lines_read, 1000u);
+  EXPECT_EQ(r.summary.blocks_emitted, 900u);
+  EXPECT_EQ(r.summary.lines_rejected, 60u);
+  EXPECT_EQ(r.summary.lines_deleted, 40u);
+  EXPECT_EQ(r.summary.bytes_read, 123456u);
+  EXPECT_EQ(r.blocks_sent, t.blocks_sent);
+  EXPECT_EQ(r.diagnostics_sent, 101u);
+  EXPECT_EQ(r.blocks_rejected, 1u);
+  EXPECT_FALSE(r.stopped);
+
+  dds::BatchArrivals got;
+  got.blocks = t.blocks_sent;
+  got.lines_rejected = 60;
+  got.lines_deleted = 40;
+  got.blocks_rejected = 1;
+  EXPECT_EQ(got.diagnostics(), 101u);
+  EXPECT_EQ(dds::check_counts(r, got), "");
+  auto with = [&](auto change) {
+    dds::BatchArrivals g = got;
+    change(g);
+    return dds::check_counts(r, g);
+  };
+  EXPECT_NE(with([](auto& g) { --g.blocks; }).find("received 20900 blocks but the upstream sent 20901"),
+            std::string::npos);
+  EXPECT_NE(with([](auto& g) { --g.lines_rejected; }).find("rejected-line"), std::string::npos);
+  EXPECT_NE(with([](auto& g) { --g.lines_deleted; }).find("block-delete"), std::string::npos);
+  EXPECT_NE(with([](auto& g) { --g.blocks_rejected; }).find("rejected-block"), std::string::npos);
+  // A diagnostic of one kind arriving as another: totals agree, the kinds do not.
+  EXPECT_NE(with([](auto& g) { --g.lines_deleted; ++g.blocks_rejected; }), "");
+  dds::BatchTotals bad = r;
+  bad.summary.lines_read = 1001;
+  EXPECT_NE(dds::check_counts(bad, got).find("do not add up"), std::string::npos);
+  // Strict mode stopped downstream of the parser: its later diagnostics were not forwarded.
+  dds::BatchTotals stopped = r;
+  stopped.stopped = true;
+  stopped.diagnostics_sent = 31;
+  dds::BatchArrivals partial = got;
+  partial.lines_rejected = 1;
+  partial.lines_deleted = 29;
+  EXPECT_EQ(dds::check_counts(stopped, partial), "");
+  partial.lines_deleted = 41;
+  partial.lines_rejected = 0;
+  EXPECT_NE(dds::check_counts(stopped, partial).find("block-delete"), std::string::npos);
+}
+
+// Batch mode hands a line's diagnostic to the writer before the blocks of that line (a rejected
+// cycle: "G275 rejected", then its skip moves); the merge must do the same, keep equal-line
+// blocks in order, and never reorder across lines.
+TEST(DdsConvert, MergeByLinePutsTheDiagnosticBeforeTheBlocksOfItsLine) {
+  msg::BlockBatch batch;
+  for (std::uint64_t line : {2, 5, 5, 5, 7, 9}) {
+    msg::Block& b = batch.blocks().emplace_back();
+    b.line(line);
+    b.text(std::to_string(batch.blocks().size() - 1));
+  }
+  for (std::uint64_t line : {1, 5, 8, 10}) batch.diagnostics().emplace_back().line(line);
+  std::string order;
+  dds::for_each_in_line_order(
+      batch,
+      [&](std::size_t b) {
+        order += "b" + std::to_string(batch.blocks()[b].line()) + "." + batch.blocks()[b].text() + " ";
+        return true;
+      },
+      [&](std::size_t d) {
+        order += "d" + std::to_string(batch.diagnostics()[d].line()) + " ";
+        return true;
+      });
+  EXPECT_EQ(order, "d1 b2.0 d5 b5.1 b5.2 b5.3 b7.4 d8 b9.5 d10 ");
+  // A callback returning false stops the walk (a corrupt sample ends the program).
+  int calls = 0;
+  dds::for_each_in_line_order(
+      batch, [&](std::size_t) { return ++calls < 3; }, [&](std::size_t) { return ++calls < 3; });
+  EXPECT_EQ(calls, 3);
 }
 
 TEST(DdsConvert, CorruptEnumerationsAreRefusedByName) {
@@ -200,13 +281,17 @@ TEST(DdsConvert, CorruptEnumerationsAreRefusedByName) {
   EXPECT_TRUE(dds::from_msg(m, b, &why)) << why;
 
   msg::LineDiagnostic d;
-  dds::to_msg(Diagnostic{"f", 1, 2, Severity::kError, "m"}, LineStatus::kRejected, d);
+  dds::to_msg(Diagnostic{"f", 1, 2, Severity::kError, "m"}, dds::DiagnosticKind::kLineRejected, d);
   Diagnostic out;
-  LineStatus st{};
-  d.line_status(static_cast<std::uint8_t>(LineStatus::kBlock));
-  EXPECT_FALSE(dds::from_msg(d, out, st, &why));
-  EXPECT_NE(why.find("line_status"), std::string::npos);
-  d.line_status(static_cast<std::uint8_t>(LineStatus::kDeleted));
+  dds::DiagnosticKind st{};
+  for (std::uint8_t invalid : {0, 4}) {  // 0 = LineStatus::kBlock: a block has no diagnostic
+    d.line_status(invalid);
+    EXPECT_FALSE(dds::from_msg(d, out, st, &why));
+    EXPECT_NE(why.find("line_status"), std::string::npos);
+  }
+  d.line_status(static_cast<std::uint8_t>(dds::DiagnosticKind::kBlockRejected));
+  EXPECT_TRUE(dds::from_msg(d, out, st, &why)) << why;
+  EXPECT_EQ(st, dds::DiagnosticKind::kBlockRejected);
   d.severity(3);
   EXPECT_FALSE(dds::from_msg(d, out, st, &why));
   EXPECT_NE(why.find("severity"), std::string::npos);

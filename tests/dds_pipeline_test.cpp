@@ -1,7 +1,7 @@
-// The streaming pipeline end to end: feed -> node parse -> node write -> sink, each a separate
-// process of the built gcpipe executable (so shared memory and UDP are really used; two
-// participants in one process would take Fast DDS's in-process shortcut), must write exactly the
-// bytes `gcpipe batch` writes, and exit with batch mode's status.
+// The streaming pipeline end to end: feed -> node parse -> node trochoid -> node write -> sink,
+// each a separate process of the built gcpipe executable (so shared memory and UDP are really
+// used; two participants in one process would take Fast DDS's in-process shortcut), must write
+// exactly the bytes `gcpipe batch` writes, and exit with batch mode's status.
 #include <gtest/gtest.h>
 
 #include <fcntl.h>
@@ -15,6 +15,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <random>
 #include <sstream>
 #include <string>
@@ -103,6 +104,14 @@ bool wait_for_log(const Process& p, const std::string& text, double limit = 60) 
   return true;
 }
 
+// Extra arguments per process of run_pipeline; a node given a `keep` pointer is left running
+// (--forever) and handed to the caller, who ends it.
+struct PipelineArgs {
+  std::vector<std::string> parse, trochoid, write, feed;
+  std::unique_ptr<Process>* keep_parse = nullptr;
+  std::unique_ptr<Process>* keep_trochoid = nullptr;
+};
+
 class DdsPipeline : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -166,53 +175,61 @@ class DdsPipeline : public ::testing::Test {
   }
 
   struct PipelineResult {
-    int feed = -2, parse = -2, write = -2, sink = -2;
+    int feed = -2, parse = -2, trochoid = -2, write = -2, sink = -2;
     std::string output;
     std::string sink_log;
   };
 
   // Starts the consumers first, as an operator would, then the feeder; the feeder waits for its
   // reader anyway, so the order only saves time.
-  PipelineResult run_pipeline(const fs::path& input, const std::vector<std::string>& parse_extra = {},
-                              const std::vector<std::string>& write_extra = {},
-                              const std::vector<std::string>& feed_extra = {},
-                              Process** keep_parse = nullptr) {
+  PipelineResult run_pipeline(const fs::path& input, const PipelineArgs& extra = {}) {
     const fs::path out = dir_ / "sink.nc";
+    auto with = [](std::vector<std::string> a, const std::vector<std::string>& more) {
+      a.insert(a.end(), more.begin(), more.end());
+      return a;
+    };
     Process sink("sink", dds_args({"sink", "-o", out.string()}), dir_);
-    std::vector<std::string> w = {"node", "write", "--config", kConfig};
-    w.insert(w.end(), write_extra.begin(), write_extra.end());
-    Process write("write", dds_args(w), dir_);
-    std::vector<std::string> pa = {"node", "parse", "--config", kConfig};
-    pa.insert(pa.end(), parse_extra.begin(), parse_extra.end());
-    auto* parse = new Process("parse", dds_args(pa), dir_);
-    std::vector<std::string> f = {"feed", input.string(), "--config", kConfig};
-    f.insert(f.end(), feed_extra.begin(), feed_extra.end());
-    Process feed("feed", dds_args(f), dir_);
+    Process write("write", dds_args(with({"node", "write", "--config", kConfig}, extra.write)), dir_);
+    auto trochoid = std::make_unique<Process>(
+        "trochoid", dds_args(with({"node", "trochoid", "--config", kConfig}, extra.trochoid)), dir_);
+    auto parse = std::make_unique<Process>(
+        "parse", dds_args(with({"node", "parse", "--config", kConfig}, extra.parse)), dir_);
+    Process feed("feed", dds_args(with({"feed", input.string(), "--config", kConfig}, extra.feed)),
+                 dir_);
     PipelineResult r;
     r.feed = feed.wait();
     r.sink = sink.wait();
     r.write = write.wait();
-    if (keep_parse != nullptr) {
-      *keep_parse = parse;  // still running (--forever); the caller ends it
-    } else {
-      r.parse = parse->wait();
-      any_killed_ |= parse->killed;
-      delete parse;
-    }
+    // Nodes kept for the caller are still serving (--forever); the others must have left.
+    auto finish = [this](std::unique_ptr<Process>& p, std::unique_ptr<Process>* keep, int& status) {
+      if (keep != nullptr) {
+        *keep = std::move(p);
+        return;
+      }
+      status = p->wait();
+      any_killed_ |= p->killed;
+    };
+    finish(trochoid, extra.keep_trochoid, r.trochoid);
+    finish(parse, extra.keep_parse, r.parse);
     any_killed_ |= feed.killed || sink.killed || write.killed;
     r.output = slurp(out);
     r.sink_log = slurp(sink.log);
     return r;
   }
 
+  // `node_extra` goes to every node, `feed_extra` to the feeder.
   void expect_same_as_batch(const fs::path& input, const std::vector<std::string>& node_extra = {},
                             const std::vector<std::string>& feed_extra = {}) {
     const BatchResult batch = run_batch(input);
     ASSERT_FALSE(batch.output.empty()) << "batch wrote nothing for " << input;
-    const PipelineResult pipe = run_pipeline(input, node_extra, node_extra, feed_extra);
-    EXPECT_EQ(pipe.feed, 0);
-    EXPECT_EQ(pipe.parse, 0);
-    EXPECT_EQ(pipe.write, 0);
+    PipelineArgs extra;
+    extra.parse = extra.trochoid = extra.write = node_extra;
+    extra.feed = feed_extra;
+    const PipelineResult pipe = run_pipeline(input, extra);
+    EXPECT_EQ(pipe.feed, 0) << slurp(dir_ / "feed.log");
+    EXPECT_EQ(pipe.parse, 0) << slurp(dir_ / "parse.log");
+    EXPECT_EQ(pipe.trochoid, 0) << slurp(dir_ / "trochoid.log");
+    EXPECT_EQ(pipe.write, 0) << slurp(dir_ / "write.log");
     EXPECT_EQ(pipe.sink, batch.status) << pipe.sink_log;
     EXPECT_EQ(pipe.output.size(), batch.output.size());
     EXPECT_TRUE(pipe.output == batch.output) << "sink output differs from batch for " << input;
@@ -254,6 +271,38 @@ fs::path generate_program(const fs::path& dir, int lines) {
   return dir / "generated.nc";
 }
 
+// `cycles` G275 trochoidal slots (D10 tool, thousands of blocks each) among ordinary moves. Cycle
+// `impossible` is narrower than the tool (W8 < D10): the trochoid stage rejects it, and a
+// diagnostic followed by skip moves with the cycle's line number flows through. Lines the parser
+// rejects and block-delete lines follow every cycle from `bad_from` on (so strict mode can be
+// made to stop at the impossible cycle rather than at a parser error).
+fs::path generate_cycle_program(const fs::path& dir, int cycles, int impossible, int bad_from) {
+  std::ofstream f(dir / "cycles.nc", std::ios::binary);
+  f << "%\nO2002 (GENERATED G275 CYCLES)\nG17 G21 G40 G49 G54 G80 G90 G94\nT2 M6\nS6000 M3\n";
+  char buf[160];
+  for (int k = 0; k < cycles; ++k) {
+    const double x = 40.0 * k, length = 12.0 + 3.0 * (k % 4);
+    std::snprintf(buf, sizeof buf, "G0 X%.1f Y10. Z5.\nG0 Z0\nG1 F%d\n", x, 700 + 50 * k);
+    f << buf;
+    if (k == impossible)
+      std::snprintf(buf, sizeof buf, "G275 X%.1f Y%.1f Z-3 R5 W8 K0.5 Q0 D10 (W < D)\n", x,
+                    10 + length);
+    else if (k % 2 == 0)
+      std::snprintf(buf, sizeof buf, "G275 X%.1f Y%.1f Z-3 R5 W14 K0.7 Q0 D10\n", x, 10 + length);
+    else
+      std::snprintf(buf, sizeof buf, "G275 X%.1f Y%.1f Z-4 R5 W16 K1.0 Q2 D10 P1\n", x,
+                    10 + length);
+    f << buf << "G0 Z5.\n";
+    if (k >= bad_from) f << "G1 X1. X2. Y3.\n/G1 X5.\n";
+    for (int j = 0; j < 20; ++j) {
+      std::snprintf(buf, sizeof buf, "G1 X%.3f Y%.3f F900 (move %d)\n", x + 0.5 * j, 5.0 + j % 3, j);
+      f << buf;
+    }
+  }
+  f << "G0 Z50.\nM5\nM30\n%\n";
+  return dir / "cycles.nc";
+}
+
 TEST_F(DdsPipeline, ShippedSamplesMatchBatchByteForByte) {
   const fs::path samples = fs::path(GCPIPE_SOURCE_DIR) / "samples";
   int n = 0;
@@ -275,47 +324,133 @@ TEST_F(DdsPipeline, GeneratedProgramWithBadLinesMatchesBatchByteForByte) {
   EXPECT_EQ(summary.find("\"lines_deleted\":0,"), std::string::npos) << summary;
 }
 
+TEST_F(DdsPipeline, RejectedCycleDiagnosticAndSkipMovesMatchBatchByteForByte) {
+  const fs::path input = generate_cycle_program(dir_, 6, 3, 0);
+  expect_same_as_batch(input);
+  const std::string summary = slurp(dir_ / "batch" / "summary.json");
+  // The program must really expand cycles and reject one, or the test proves less.
+  EXPECT_NE(summary.find("\"cycles_expanded\":5,\"cycles_rejected\":1"), std::string::npos)
+      << summary;
+  const std::string output = slurp(dir_ / "sink.nc");
+  const auto diag = output.find("G275 rejected: slot width W8");
+  ASSERT_NE(diag, std::string::npos);
+  // The skip moves of the rejected cycle come right after its diagnostic (batch mode's order).
+  EXPECT_NE(output.find("G275 left out", diag), std::string::npos);
+  EXPECT_NE(slurp(dir_ / "trochoid.log").find("5 G275 cycles expanded, 1 rejected"),
+            std::string::npos)
+      << slurp(dir_ / "trochoid.log");
+  // 1 KB batches: a cycle's diagnostic and its skip moves, and every expansion, are cut across
+  // many samples; the order must survive that.
+  expect_same_as_batch(input, {"--batch-bytes", "1024"}, {"--chunk-bytes", "1024"});
+}
+
+TEST_F(DdsPipeline, StrictModeStopsAtTheFirstRejectedCycleWhereBatchStops) {
+  // The first error is the impossible cycle (parser errors only after it): batch stops there,
+  // after writing the cycle's diagnostic and skip moves. Only the parse node gets --strict; the
+  // trochoid node follows the mode its input batches carry.
+  const fs::path input = generate_cycle_program(dir_, 4, 1, 2);
+  const BatchResult batch = run_batch(input, {"--strict"});
+  EXPECT_EQ(batch.status, 1);
+  ASSERT_NE(batch.output.find("G275 rejected"), std::string::npos) << batch.output;
+  PipelineArgs strict;
+  strict.parse = {"--strict"};
+  const PipelineResult pipe = run_pipeline(input, strict);
+  EXPECT_EQ(pipe.parse, 0);
+  EXPECT_EQ(pipe.trochoid, 0) << slurp(dir_ / "trochoid.log");
+  EXPECT_EQ(pipe.write, 0) << slurp(dir_ / "write.log");
+  EXPECT_EQ(pipe.sink, 1) << pipe.sink_log;
+  EXPECT_NE(pipe.sink_log.find("strict mode stopped"), std::string::npos) << pipe.sink_log;
+  EXPECT_NE(slurp(dir_ / "trochoid.log").find("(strict stop)"), std::string::npos);
+  EXPECT_TRUE(pipe.output == batch.output);
+}
+
+TEST_F(DdsPipeline, WriteNodeReadsTheParserDirectlyAndTopicsCanBeRenamed) {
+  // Without the trochoid node (a program without G275 writes the same), on renamed topics; a
+  // monitor of a non-default name needs --type.
+  const fs::path input = fs::path(GCPIPE_SOURCE_DIR) / "samples" / "five_axis_demo.nc";
+  const BatchResult batch = run_batch(input);
+  const fs::path out = dir_ / "sink.nc";
+  Process sink("sink", dds_args({"sink", "-o", out.string(), "--in", "t_gcode"}), dir_);
+  Process write("write", dds_args({"node", "write", "--config", kConfig, "--in", "t_blocks",
+                                   "--out", "t_gcode"}), dir_);
+  Process parse("parse", dds_args({"node", "parse", "--config", kConfig, "--in", "t_program",
+                                   "--out", "t_blocks", "--forever"}), dir_);
+  Process feed("feed", dds_args({"feed", input.string(), "--config", kConfig, "--out",
+                                 "t_program"}), dir_);
+  EXPECT_EQ(feed.wait(), 0);
+  EXPECT_EQ(sink.wait(), batch.status) << slurp(sink.log);
+  EXPECT_EQ(write.wait(), 0) << slurp(write.log);
+  EXPECT_TRUE(slurp(out) == batch.output);
+  Process untyped("untyped", dds_args({"monitor", "t_blocks"}), dir_);
+  EXPECT_EQ(untyped.wait(30), 2) << slurp(untyped.log);
+  Process monitor("monitor", dds_args({"monitor", "t_blocks", "--type", "blocks", "--period",
+                                       "0.2"}), dir_);
+  EXPECT_EQ(monitor.wait(60), 0);
+  const std::string summary = slurp(dir_ / "batch" / "summary.json");
+  const auto at = summary.find("\"lines_read\":");
+  ASSERT_NE(at, std::string::npos) << summary;
+  const std::string lines = summary.substr(at + 13, summary.find(',', at) - at - 13);
+  EXPECT_NE(slurp(monitor.log).find("end of program: " + lines + " lines read"), std::string::npos)
+      << lines << "\n" << slurp(monitor.log);
+  kill(parse.pid, SIGTERM);
+  EXPECT_EQ(parse.wait(30), 0) << slurp(parse.log);
+  any_killed_ |= feed.killed || sink.killed || write.killed || parse.killed || monitor.killed ||
+                 untyped.killed;
+}
+
 TEST_F(DdsPipeline, StalledReaderBlocksTheWriterAndNothingIsLost) {
   // 1 KB batches make thousands of samples, far beyond the 256-sample history. The write node is
-  // frozen (SIGSTOP) while the program flows until the parse node's history is full: write()
-  // then returns false and must be retried, never dropped (../shared/DESIGN.md section 7).
+  // frozen (SIGSTOP) while the program flows until the trochoid node's history is full and, the
+  // trochoid node then being stuck retrying, the parse node's too: write() returns false and must
+  // be retried, never dropped (../shared/DESIGN.md section 7), on both edges.
   const fs::path input = generate_program(dir_, 20000);
   const BatchResult batch = run_batch(input);
   const fs::path out = dir_ / "sink.nc";
   Process sink("sink", dds_args({"sink", "-o", out.string()}), dir_);
   Process write("write", dds_args({"node", "write", "--config", kConfig, "--batch-bytes", "1024"}),
                 dir_);
+  Process trochoid("trochoid", dds_args({"node", "trochoid", "--config", kConfig, "--batch-bytes",
+                                         "1024"}), dir_);
   Process parse("parse", dds_args({"node", "parse", "--config", kConfig, "--batch-bytes", "1024"}),
                 dir_);
-  // Freeze the write node only once the parse node has matched it as a reader ("ready"), or the
-  // parse node would merely wait for a reader instead of filling its history.
+  // Freeze the write node only once both upstream nodes have matched their readers ("ready"), or
+  // they would merely wait for a reader instead of filling their histories.
+  ASSERT_TRUE(wait_for_log(trochoid, "ready")) << slurp(trochoid.log);
   ASSERT_TRUE(wait_for_log(parse, "ready")) << slurp(parse.log);
   ASSERT_EQ(kill(write.pid, SIGSTOP), 0);
   Process feed("feed", dds_args({"feed", input.string(), "--config", kConfig, "--chunk-bytes",
                                  "1024"}), dir_);
-  // The parse node says so when its first write() finds the history full.
-  const bool filled = wait_for_log(parse, "history full");
+  // Each node says so when its first write() finds the history full.
+  const bool trochoid_filled = wait_for_log(trochoid, "history full");
+  const bool parse_filled = wait_for_log(parse, "history full");
   ASSERT_EQ(kill(write.pid, SIGCONT), 0);
-  EXPECT_TRUE(filled) << slurp(parse.log);
+  EXPECT_TRUE(trochoid_filled) << slurp(trochoid.log);
+  EXPECT_TRUE(parse_filled) << slurp(parse.log);
   EXPECT_EQ(feed.wait(), 0);
   EXPECT_EQ(parse.wait(), 0);
+  EXPECT_EQ(trochoid.wait(), 0) << slurp(trochoid.log);
   EXPECT_EQ(write.wait(), 0);
   EXPECT_EQ(sink.wait(), batch.status) << slurp(sink.log);
-  any_killed_ |= feed.killed || parse.killed || write.killed || sink.killed;
+  any_killed_ |= feed.killed || parse.killed || trochoid.killed || write.killed || sink.killed;
   EXPECT_TRUE(slurp(out) == batch.output);
-  const std::string log = slurp(parse.log);
-  const auto p = log.find("writes retried on a full history: ");
-  ASSERT_NE(p, std::string::npos) << log;
-  const std::string retried = log.substr(p + std::strlen("writes retried on a full history: "));
-  EXPECT_GT(std::stoull(retried), 0u) << "the history never filled:\n" << log;
+  for (const Process* p : {&parse, &trochoid}) {
+    const std::string log = slurp(p->log);
+    const auto at = log.find("writes retried on a full history: ");
+    ASSERT_NE(at, std::string::npos) << log;
+    const std::string retried = log.substr(at + std::strlen("writes retried on a full history: "));
+    EXPECT_GT(std::stoull(retried), 0u) << "the history never filled:\n" << log;
+  }
 }
 
 TEST_F(DdsPipeline, StrictModeStopsWhereBatchStops) {
   const fs::path input = generate_program(dir_, 2000);
   const BatchResult batch = run_batch(input, {"--strict"});
   EXPECT_EQ(batch.status, 1);
-  const PipelineResult pipe = run_pipeline(input, {"--strict"});
+  PipelineArgs strict;
+  strict.parse = {"--strict"};
+  const PipelineResult pipe = run_pipeline(input, strict);
   EXPECT_EQ(pipe.parse, 0);
+  EXPECT_EQ(pipe.trochoid, 0);
   EXPECT_EQ(pipe.write, 0);
   EXPECT_EQ(pipe.sink, 1) << pipe.sink_log;
   EXPECT_NE(pipe.sink_log.find("strict mode stopped"), std::string::npos) << pipe.sink_log;
@@ -325,11 +460,13 @@ TEST_F(DdsPipeline, StrictModeStopsWhereBatchStops) {
 TEST_F(DdsPipeline, ForeverNodesServeSuccessiveProgramsAndSinksSkipReplays) {
   // Nodes serving with --forever keep finished programs in their transient-local history; a
   // sink started for the next program must not take the replayed old one.
-  const fs::path first = fs::path(GCPIPE_SOURCE_DIR) / "samples" / "five_axis_demo.nc";
+  const fs::path first = fs::path(GCPIPE_SOURCE_DIR) / "samples" / "trochoid_slot_seed000.nc";
   const fs::path second = generate_program(dir_, 3000);
   const BatchResult batch_first = run_batch(first);
   const BatchResult batch_second = run_batch(second);
   Process parse("parse", dds_args({"node", "parse", "--config", kConfig, "--forever"}), dir_);
+  Process trochoid("trochoid", dds_args({"node", "trochoid", "--config", kConfig, "--forever"}),
+                   dir_);
   Process write("write", dds_args({"node", "write", "--config", kConfig, "--forever"}), dir_);
   for (const auto& [input, batch] : {std::pair{first, batch_first}, std::pair{second, batch_second}}) {
     SCOPED_TRACE(input.string());
@@ -345,37 +482,62 @@ TEST_F(DdsPipeline, ForeverNodesServeSuccessiveProgramsAndSinksSkipReplays) {
       EXPECT_NE(slurp(sink.log).find("skipping program"), std::string::npos) << slurp(sink.log);
   }
   kill(parse.pid, SIGTERM);
+  kill(trochoid.pid, SIGTERM);
   kill(write.pid, SIGTERM);
   EXPECT_EQ(parse.wait(30), 0) << slurp(parse.log);
+  EXPECT_EQ(trochoid.wait(30), 0) << slurp(trochoid.log);
   EXPECT_EQ(write.wait(30), 0) << slurp(write.log);
-  any_killed_ |= parse.killed || write.killed;
+  any_killed_ |= parse.killed || trochoid.killed || write.killed;
 }
 
 TEST_F(DdsPipeline, LateMonitorStillSeesTheEndMarker) {
-  const fs::path input = generate_program(dir_, 20000);
+  const fs::path input = generate_cycle_program(dir_, 4, 2, 0);
   const BatchResult batch = run_batch(input);
-  Process* parse = nullptr;
-  const PipelineResult pipe = run_pipeline(input, {"--forever"}, {}, {}, &parse);
+  std::unique_ptr<Process> parse, trochoid;
+  PipelineArgs extra;
+  extra.parse = extra.trochoid = {"--forever"};
+  extra.keep_parse = &parse;
+  extra.keep_trochoid = &trochoid;
+  const PipelineResult pipe = run_pipeline(input, extra);
   ASSERT_NE(parse, nullptr);
+  ASSERT_NE(trochoid, nullptr);
   EXPECT_EQ(pipe.sink, batch.status) << pipe.sink_log;
   EXPECT_TRUE(pipe.output == batch.output);
-  // The program is over; the parse node still holds its history for late joiners.
-  Process monitor("monitor", dds_args({"monitor", "gcpipe_blocks", "--period", "0.2"}), dir_);
-  EXPECT_EQ(monitor.wait(60), 0);
-  const std::string log = slurp(monitor.log);
+  // The program is over; both nodes still hold their histories for late joiners.
+  Process blocks("monitor_blocks", dds_args({"monitor", "gcpipe_blocks", "--period", "0.2"}), dir_);
+  Process toolpath("monitor_toolpath", dds_args({"monitor", "gcpipe_toolpath", "--period", "0.2"}),
+                   dir_);
+  EXPECT_EQ(blocks.wait(60), 0);
+  EXPECT_EQ(toolpath.wait(60), 0);
   const std::string summary = slurp(dir_ / "batch" / "summary.json");
   auto count = [&summary](const std::string& key) {
     const auto p = summary.find("\"" + key + "\":");
-    return summary.substr(p + key.size() + 3, summary.find(',', p) - p - key.size() - 3);
+    return summary.substr(p + key.size() + 3, summary.find_first_of(",}", p) - p - key.size() - 3);
   };
-  const std::string expected = "end of program: " + count("lines_read") + " lines read, " +
-                               count("blocks_emitted") + " blocks, " + count("lines_rejected") +
-                               " rejected, " + count("lines_deleted") + " deleted";
-  EXPECT_NE(log.find(expected), std::string::npos) << "expected '" << expected << "' in:\n" << log;
+  const std::string parsed = "end of program: " + count("lines_read") + " lines read, " +
+                             count("blocks_emitted") + " blocks, " + count("lines_rejected") +
+                             " rejected, " + count("lines_deleted") + " deleted";
+  const std::string diagnostics =
+      std::to_string(std::stoull(count("lines_rejected")) + std::stoull(count("lines_deleted")));
+  // gcpipe_blocks: the parse node sent the parsed blocks and one diagnostic per bad line.
+  EXPECT_NE(slurp(blocks.log).find(parsed + "; sent " + count("blocks_emitted") + " blocks, " +
+                                   diagnostics + " diagnostics, 0 blocks rejected"),
+            std::string::npos)
+      << parsed << "\n" << slurp(blocks.log);
+  // gcpipe_toolpath: the same parser counts forwarded, plus what the trochoid node sent: batch
+  // mode's written blocks, and the rejected cycle's diagnostic on top of the parser's.
+  const std::string rejected = count("cycles_rejected");
+  EXPECT_EQ(rejected, "1");
+  EXPECT_NE(slurp(toolpath.log).find(
+                parsed + "; sent " + count("blocks_written") + " blocks, " +
+                std::to_string(std::stoull(diagnostics) + 1) + " diagnostics, 1 blocks rejected"),
+            std::string::npos)
+      << slurp(toolpath.log);
   kill(parse->pid, SIGTERM);
+  kill(trochoid->pid, SIGTERM);
   EXPECT_EQ(parse->wait(30), 0) << slurp(parse->log);
-  any_killed_ |= parse->killed || monitor.killed;
-  delete parse;
+  EXPECT_EQ(trochoid->wait(30), 0) << slurp(trochoid->log);
+  any_killed_ |= parse->killed || trochoid->killed || blocks.killed || toolpath.killed;
 }
 
 }  // namespace

@@ -6,6 +6,10 @@ namespace gcpipe::cli {
 const std::vector<Command> kCommands = {
     kBatchCommand,
     kParseCommand,
+    kTrochoidCommand,
+    kIkCommand,
+    kSimulateCommand,
+    kTrainIkCommand,
     kSynthCommand,
 #ifdef GCPIPE_WITH_DDS
     kFeedCommand,

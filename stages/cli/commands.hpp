@@ -11,6 +11,8 @@ namespace gcpipe::cli {
 extern const Command kBatchCommand;
 extern const Command kParseCommand;
 extern const Command kSynthCommand;
+extern const Command kTrainIkCommand;  // cmd_train_ik.cpp
+extern const Command kIkCommand;       // cmd_ik.cpp
 #ifdef GCPIPE_WITH_DDS
 extern const Command kFeedCommand;     // cmd_dds.cpp
 extern const Command kNodeCommand;     // cmd_dds.cpp
@@ -18,6 +20,8 @@ extern const Command kSinkCommand;     // cmd_dds.cpp
 extern const Command kMonitorCommand;  // cmd_dds.cpp
 #endif
 
+extern const Command kSimulateCommand;  // cmd_simulate.cpp
+extern const Command kTrochoidCommand;  // cmd_trochoid.cpp
 extern const std::vector<Command> kCommands;
 
 }  // namespace gcpipe::cli

@@ -6,6 +6,7 @@ namespace gcpipe {
 
 MachineConfig load_machine(const Config& m) {
   MachineConfig out;
+  m.reject_unknown({"name", "work_offsets", "tools", "initial_position", "kinematics", "limits"});
   out.name = m.string("name", "unnamed");
   if (m.has("work_offsets")) {
     Config wo = m.section("work_offsets");
@@ -40,6 +41,7 @@ MachineConfig load_machine(const Config& m) {
     auto v = m.numbers("initial_position", kNumAxes, "mm or deg (X Y Z A C)", -1e5, 1e5);
     for (int a = 0; a < kNumAxes; ++a) out.initial_position[static_cast<std::size_t>(a)] = v[static_cast<std::size_t>(a)];
   }
+  out.kinematics = load_kinematics(m);
   return out;
 }
 

@@ -8,16 +8,15 @@ namespace gcpipe {
 
 void append_shortest(std::string& out, double v) {
   if (v == 0) v = 0;  // folds -0 into 0 so that "-0." never appears
-  char buf[32];
-  auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
-  (void)ec;  // 32 bytes always suffice for the shortest form of a finite double
-  std::string_view s(buf, static_cast<std::size_t>(end - buf));
-  if (s.find('e') != std::string_view::npos) {
-    // G-code has no exponent: spell it out in fixed notation, shortest digits preserved.
-    auto [e2, ec2] = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed);
-    (void)ec2;
-    s = std::string_view(buf, static_cast<std::size_t>(e2 - buf));
+  // G-code has no exponent, so the shortest digits are spelled out in fixed notation: 1e308 has
+  // 309 digits before the point, 5e-324 has 323 zeros after it. 400 bytes hold either.
+  char buf[400];
+  auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed);
+  if (ec != std::errc()) {  // not finite: never written by a stage, but never garbage either
+    out += v != v ? "nan" : v > 0 ? "inf" : "-inf";
+    return;
   }
+  std::string_view s(buf, static_cast<std::size_t>(end - buf));
   out.append(s);
   if (s.find('.') == std::string_view::npos) out.push_back('.');
 }

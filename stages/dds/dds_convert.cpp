@@ -140,27 +140,32 @@ bool from_msg(const msg::Block& i, ResolvedBlock& b, std::string* why) {
   return true;
 }
 
-void to_msg(const Diagnostic& d, LineStatus status, msg::LineDiagnostic& o) {
+DiagnosticKind kind_of(LineStatus status) {
+  return status == LineStatus::kDeleted ? DiagnosticKind::kLineDeleted
+                                        : DiagnosticKind::kLineRejected;
+}
+
+void to_msg(const Diagnostic& d, DiagnosticKind kind, msg::LineDiagnostic& o) {
   o.file(d.file);
   o.line(d.line);
   o.column(d.column);
   o.severity(static_cast<std::uint8_t>(d.severity));
   o.message(d.message);
-  o.line_status(static_cast<std::uint8_t>(status));
+  o.line_status(static_cast<std::uint8_t>(kind));
 }
 
-bool from_msg(const msg::LineDiagnostic& i, Diagnostic& d, LineStatus& status, std::string* why) {
+bool from_msg(const msg::LineDiagnostic& i, Diagnostic& d, DiagnosticKind& kind, std::string* why) {
   if (i.severity() > static_cast<std::uint8_t>(Severity::kError))
     return fail(why, "severity", i.severity());
-  if (i.line_status() != static_cast<std::uint8_t>(LineStatus::kRejected) &&
-      i.line_status() != static_cast<std::uint8_t>(LineStatus::kDeleted))
+  if (i.line_status() < static_cast<std::uint8_t>(DiagnosticKind::kLineRejected) ||
+      i.line_status() > static_cast<std::uint8_t>(DiagnosticKind::kBlockRejected))
     return fail(why, "line_status", i.line_status());
   d.file = i.file();
   d.line = i.line();
   d.column = i.column();
   d.severity = static_cast<Severity>(i.severity());
   d.message = i.message();
-  status = static_cast<LineStatus>(i.line_status());
+  kind = static_cast<DiagnosticKind>(i.line_status());
   return true;
 }
 
@@ -182,26 +187,63 @@ ParseSummary from_msg(const msg::ParseCounts& i) {
   return s;
 }
 
-std::string check_counts(const ParseSummary& s, std::uint64_t blocks, std::uint64_t rejected,
-                         std::uint64_t deleted) {
+void BatchArrivals::count(DiagnosticKind kind) {
+  switch (kind) {
+    case DiagnosticKind::kLineRejected: ++lines_rejected; break;
+    case DiagnosticKind::kLineDeleted: ++lines_deleted; break;
+    case DiagnosticKind::kBlockRejected: ++blocks_rejected; break;
+  }
+}
+
+BatchTotals totals_of(const msg::BlockBatch& m) {
+  BatchTotals t;
+  t.summary = from_msg(m.summary());
+  t.blocks_sent = m.blocks_sent();
+  t.diagnostics_sent = m.diagnostics_sent();
+  t.blocks_rejected = m.blocks_rejected();
+  t.stopped = m.stopped();
+  return t;
+}
+
+void set_totals(const BatchTotals& t, msg::BlockBatch& m) {
+  to_msg(t.summary, m.summary());
+  m.blocks_sent(t.blocks_sent);
+  m.diagnostics_sent(t.diagnostics_sent);
+  m.blocks_rejected(t.blocks_rejected);
+  m.stopped(t.stopped);
+}
+
+std::string check_counts(const BatchTotals& sent, const BatchArrivals& got) {
   std::string problems;
   auto add = [&problems](const std::string& p) {
     if (!problems.empty()) problems += "; ";
     problems += p;
   };
-  if (blocks != s.blocks_emitted)
-    add("received " + std::to_string(blocks) + " blocks but the parser emitted " +
-        std::to_string(s.blocks_emitted));
-  if (rejected != s.lines_rejected)
-    add("received " + std::to_string(rejected) + " rejected-line diagnostics but the parser "
-        "rejected " + std::to_string(s.lines_rejected) + " lines");
-  if (deleted != s.lines_deleted)
-    add("received " + std::to_string(deleted) + " block-delete diagnostics but the parser "
-        "deleted " + std::to_string(s.lines_deleted) + " lines");
+  auto n = [](std::uint64_t v) { return std::to_string(v); };
+  const ParseSummary& s = sent.summary;
+  if (got.blocks != sent.blocks_sent)
+    add("received " + n(got.blocks) + " blocks but the upstream sent " + n(sent.blocks_sent));
+  if (got.diagnostics() != sent.diagnostics_sent)
+    add("received " + n(got.diagnostics()) + " diagnostics but the upstream sent " +
+        n(sent.diagnostics_sent));
+  if (got.blocks_rejected != sent.blocks_rejected)
+    add("received " + n(got.blocks_rejected) + " rejected-block diagnostics but the stages "
+        "rejected " + n(sent.blocks_rejected) + " blocks");
   if (s.blocks_emitted + s.lines_rejected + s.lines_deleted != s.lines_read)
-    add("the parser's counts do not add up: " + std::to_string(s.blocks_emitted) + " blocks + " +
-        std::to_string(s.lines_rejected) + " rejected + " + std::to_string(s.lines_deleted) +
-        " deleted != " + std::to_string(s.lines_read) + " lines read");
+    add("the parser's counts do not add up: " + n(s.blocks_emitted) + " blocks + " +
+        n(s.lines_rejected) + " rejected + " + n(s.lines_deleted) + " deleted != " +
+        n(s.lines_read) + " lines read");
+  // A stage after the parser that stops in strict mode drops the parser's later diagnostics.
+  const bool partial = sent.stopped;
+  auto mismatch = [partial](std::uint64_t received, std::uint64_t parsed) {
+    return partial ? received > parsed : received != parsed;
+  };
+  if (mismatch(got.lines_rejected, s.lines_rejected))
+    add("received " + n(got.lines_rejected) + " rejected-line diagnostics but the parser "
+        "rejected " + n(s.lines_rejected) + " lines");
+  if (mismatch(got.lines_deleted, s.lines_deleted))
+    add("received " + n(got.lines_deleted) + " block-delete diagnostics but the parser "
+        "deleted " + n(s.lines_deleted) + " lines");
   return problems;
 }
 

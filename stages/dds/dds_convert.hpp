@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 
 #include "gcpipe.h"  // generated from idl/gcpipe.idl
@@ -20,17 +21,68 @@ void to_msg(const ResolvedBlock& block, msg::Block& out);
 /// False (and `why` says which field and value) when an enumeration holds an unknown value.
 bool from_msg(const msg::Block& in, ResolvedBlock& out, std::string* why = nullptr);
 
-/// `status` is kRejected or kDeleted: the reason the line produced no block.
-void to_msg(const Diagnostic& diag, LineStatus status, msg::LineDiagnostic& out);
-bool from_msg(const msg::LineDiagnostic& in, Diagnostic& out, LineStatus& status,
+/// What a LineDiagnostic says about its line (wire octet `line_status`, idl/gcpipe.idl).
+enum class DiagnosticKind : std::uint8_t {
+  kLineRejected = 1,   //!< the parser rejected the line (LineStatus::kRejected): no block
+  kLineDeleted = 2,    //!< block delete '/' (LineStatus::kDeleted): no block
+  kBlockRejected = 3,  //!< a later stage rejected the line's block (G275 cycle); the blocks
+                       //!< replacing it (skip moves) carry the same line and come after it
+};
+/// kRejected -> kLineRejected, kDeleted -> kLineDeleted (kBlock has no diagnostic).
+DiagnosticKind kind_of(LineStatus status);
+
+void to_msg(const Diagnostic& diag, DiagnosticKind kind, msg::LineDiagnostic& out);
+bool from_msg(const msg::LineDiagnostic& in, Diagnostic& out, DiagnosticKind& kind,
               std::string* why = nullptr);
 
 void to_msg(const ParseSummary& summary, msg::ParseCounts& out);
 ParseSummary from_msg(const msg::ParseCounts& in);
 
-/// The counts a finished program must satisfy, as one message per violated identity; empty
-/// when consistent. `blocks` and `rejected`/`deleted` are what the consumer actually received.
-std::string check_counts(const ParseSummary& summary, std::uint64_t blocks, std::uint64_t rejected,
-                         std::uint64_t deleted);
+/// The order in which a BlockBatch's items reach the writer, identical to batch mode's: merge
+/// blocks and diagnostics by line; on equal lines the diagnostic first (a line has at most one,
+/// and it precedes the skip moves that replace a rejected cycle); equal-line blocks keep their
+/// order. Calls on_block(index) / on_diagnostic(index); stops when one returns false.
+template <class OnBlock, class OnDiagnostic>
+void for_each_in_line_order(const msg::BlockBatch& batch, OnBlock&& on_block,
+                            OnDiagnostic&& on_diagnostic) {
+  const auto& blocks = batch.blocks();
+  const auto& diags = batch.diagnostics();
+  std::size_t b = 0, d = 0;
+  while (b < blocks.size() || d < diags.size()) {
+    const bool block_first =
+        d == diags.size() || (b < blocks.size() && blocks[b].line() < diags[d].line());
+    if (block_first ? !on_block(b++) : !on_diagnostic(d++)) return;
+  }
+}
+
+/// What a consumer of a BlockBatch topic received of one program.
+struct BatchArrivals {
+  std::uint64_t blocks = 0;
+  std::uint64_t lines_rejected = 0;   //!< diagnostics of kind kLineRejected
+  std::uint64_t lines_deleted = 0;    //!< kLineDeleted
+  std::uint64_t blocks_rejected = 0;  //!< kBlockRejected
+  std::uint64_t diagnostics() const { return lines_rejected + lines_deleted + blocks_rejected; }
+  void count(DiagnosticKind kind);
+};
+
+/// What a BlockBatch end marker states (idl/gcpipe.idl).
+struct BatchTotals {
+  ParseSummary summary;               //!< the parser's, forwarded unchanged
+  std::uint64_t blocks_sent = 0;      //!< by the immediate upstream
+  std::uint64_t diagnostics_sent = 0;
+  std::uint64_t blocks_rejected = 0;  //!< by stages after the parser, along the chain
+  bool stopped = false;
+};
+BatchTotals totals_of(const msg::BlockBatch& end_marker);
+void set_totals(const BatchTotals& totals, msg::BlockBatch& end_marker);
+
+/// The identities a finished program must satisfy on one BlockBatch edge, as one message per
+/// violated identity; empty when consistent:
+///  - blocks and diagnostics received = what the upstream says it sent (exact, every edge);
+///  - block-rejected diagnostics received = blocks_rejected;
+///  - the parser's accounting adds up: emitted + rejected + deleted = read;
+///  - rejected-line and deleted-line diagnostics received = the parser's counts, or at most
+///    those when strict mode stopped the program downstream of the parser.
+std::string check_counts(const BatchTotals& sent, const BatchArrivals& received);
 
 }  // namespace gcpipe::dds

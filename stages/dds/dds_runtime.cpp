@@ -16,6 +16,7 @@
 #include <csignal>
 #include <cstdlib>
 #include <iostream>
+#include <map>
 #include <sstream>
 #include <stdexcept>
 #include <thread>
@@ -59,21 +60,39 @@ std::string seconds_text(double s) {
 
 }  // namespace
 
-const char* topic_name(Topic topic) {
-  switch (topic) {
-    case Topic::kProgram: return kProgramTopicName;
-    case Topic::kBlocks: return kBlocksTopicName;
-    case Topic::kGcode: return kGcodeTopicName;
+const char* type_name(MessageType type) {
+  switch (type) {
+    case MessageType::kProgramChunk: return "ProgramChunk";
+    case MessageType::kBlockBatch: return "BlockBatch";
+    case MessageType::kGcodeChunk: return "GcodeChunk";
   }
   return "?";
 }
 
-Topic topic_from_name(const std::string& name) {
-  if (name == kProgramTopicName || name == "program") return Topic::kProgram;
-  if (name == kBlocksTopicName || name == "blocks") return Topic::kBlocks;
-  if (name == kGcodeTopicName || name == "gcode") return Topic::kGcode;
-  throw std::runtime_error("unknown topic '" + name + "' (known: " + kProgramTopicName + ", " +
-                           kBlocksTopicName + ", " + kGcodeTopicName + ")");
+MessageType message_type_from_name(const std::string& name) {
+  if (name == "program" || name == "ProgramChunk") return MessageType::kProgramChunk;
+  if (name == "blocks" || name == "BlockBatch") return MessageType::kBlockBatch;
+  if (name == "gcode" || name == "GcodeChunk") return MessageType::kGcodeChunk;
+  throw std::runtime_error("unknown message type '" + name +
+                           "' (known: program, blocks, gcode, or ProgramChunk, BlockBatch, GcodeChunk)");
+}
+
+bool default_topic_type(const std::string& topic, MessageType& type) {
+  if (topic == kProgramTopicName) type = MessageType::kProgramChunk;
+  else if (topic == kBlocksTopicName || topic == kToolpathTopicName) type = MessageType::kBlockBatch;
+  else if (topic == kGcodeTopicName) type = MessageType::kGcodeChunk;
+  else return false;
+  return true;
+}
+
+void check_topic_name(const std::string& topic) {
+  bool ok = !topic.empty() && topic.size() <= 200 && !(topic[0] >= '0' && topic[0] <= '9');
+  for (const char c : topic)
+    ok = ok && ((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_');
+  if (!ok)
+    throw std::runtime_error("topic name '" + topic +
+                             "' is not usable: give 1..200 characters of A-Z a-z 0-9 _, not "
+                             "starting with a digit");
 }
 
 std::filesystem::path default_profiles_path() {
@@ -109,25 +128,37 @@ struct Participant::Impl {
   fdds::DomainParticipant* participant = nullptr;
   fdds::Publisher* publisher = nullptr;
   fdds::Subscriber* subscriber = nullptr;
-  fdds::Topic* topics[3] = {nullptr, nullptr, nullptr};
+  // Each type is registered once; a topic is created once per name and may then be shared by
+  // a reader and a writer of this process (a node reading and writing the same name is refused
+  // by the node, not here).
+  std::string type_names[3];
+  std::map<std::string, std::pair<MessageType, fdds::Topic*>> topics;
 
-  fdds::Topic* topic(Topic which) {
-    auto& slot = topics[static_cast<int>(which)];
-    if (slot != nullptr) return slot;
-    fdds::TypeSupport type;
-    switch (which) {
-      case Topic::kProgram: type = fdds::TypeSupport(new msg::ProgramChunkPubSubType()); break;
-      case Topic::kBlocks: type = fdds::TypeSupport(new msg::BlockBatchPubSubType()); break;
-      case Topic::kGcode: type = fdds::TypeSupport(new msg::GcodeChunkPubSubType()); break;
+  fdds::Topic* topic(MessageType type, const std::string& name) {
+    check_topic_name(name);
+    if (auto it = topics.find(name); it != topics.end()) {
+      if (it->second.first != type)
+        throw std::runtime_error("topic " + name + " is already used with type " +
+                                 type_name(it->second.first) + ", not " + type_name(type));
+      return it->second.second;
     }
-    if (!ok(type.register_type(participant)))
-      throw std::runtime_error(std::string("cannot register the type of topic ") +
-                               topic_name(which));
-    slot = participant->create_topic(topic_name(which), type.get_type_name(),
-                                     fdds::TOPIC_QOS_DEFAULT);
-    if (slot == nullptr)
-      throw std::runtime_error(std::string("cannot create topic ") + topic_name(which));
-    return slot;
+    std::string& registered = type_names[static_cast<int>(type)];
+    if (registered.empty()) {
+      fdds::TypeSupport support;
+      switch (type) {
+        case MessageType::kProgramChunk: support = fdds::TypeSupport(new msg::ProgramChunkPubSubType()); break;
+        case MessageType::kBlockBatch: support = fdds::TypeSupport(new msg::BlockBatchPubSubType()); break;
+        case MessageType::kGcodeChunk: support = fdds::TypeSupport(new msg::GcodeChunkPubSubType()); break;
+      }
+      if (!ok(support.register_type(participant)))
+        throw std::runtime_error(std::string("cannot register type ") + type_name(type) +
+                                 " for topic " + name);
+      registered = support.get_type_name();
+    }
+    fdds::Topic* created = participant->create_topic(name, registered, fdds::TOPIC_QOS_DEFAULT);
+    if (created == nullptr) throw std::runtime_error("cannot create topic " + name);
+    topics.emplace(name, std::make_pair(type, created));
+    return created;
   }
 };
 
@@ -180,14 +211,14 @@ struct RawWriter::Impl {
   fdds::DataWriter* writer = nullptr;
 };
 
-RawWriter::RawWriter(Participant& participant, Topic topic)
+RawWriter::RawWriter(Participant& participant, MessageType type, const std::string& topic)
     : impl_(std::make_unique<Impl>()), topic_(topic) {
   impl_->owner = &participant.impl();
   impl_->writer = impl_->owner->publisher->create_datawriter_with_profile(
-      impl_->owner->topic(topic), kWriterProfile);
+      impl_->owner->topic(type, topic), kWriterProfile);
   // Inconsistent resource limits in the XML make this return null without an exception.
   if (impl_->writer == nullptr)
-    throw std::runtime_error(std::string("cannot create a writer of ") + topic_name(topic) +
+    throw std::runtime_error("cannot create a writer of " + topic +
                              " from profile '" + kWriterProfile + "' of '" +
                              impl_->owner->options.profiles.string() +
                              "' (check max_samples >= max_instances * max_samples_per_instance)");
@@ -209,7 +240,7 @@ bool RawWriter::wait_for_readers() {
   while (matched_readers() < o.subscribers) {
     if (stop_requested()) return false;
     if (seconds_since(t0) > o.match_timeout)
-      throw std::runtime_error(std::string("no reader of ") + topic_name(topic_) + " within " +
+      throw std::runtime_error(std::string("no reader of ") + topic_ + " within " +
                                seconds_text(o.match_timeout) + " on domain " +
                                std::to_string(o.domain) + " (waiting for " +
                                std::to_string(o.subscribers) + ", matched " +
@@ -226,12 +257,12 @@ bool RawWriter::publish(const void* sample) {
   // not stored; a retry is therefore safe and cannot duplicate it.
   while (!impl_->writer->write(const_cast<void*>(sample))) {
     if (blocked_writes_++ == 0)
-      std::cerr << "gcpipe: " << topic_name(topic_)
+      std::cerr << "gcpipe: " << topic_
                 << ": history full, a reader lags behind; retrying the write until it catches up"
                 << " (at most " << o.write_timeout << " s per write)" << std::endl;
     if (stop_requested()) return false;
     if (seconds_since(t0) > o.write_timeout)
-      throw std::runtime_error(std::string("writing to ") + topic_name(topic_) +
+      throw std::runtime_error(std::string("writing to ") + topic_ +
                                " stayed blocked for " + seconds_text(o.write_timeout) +
                                ": a reader stopped acknowledging (history full)");
   }
@@ -254,12 +285,13 @@ struct RawReader::Impl {
   fdds::DataReader* reader = nullptr;
 };
 
-RawReader::RawReader(Participant& participant, Topic topic) : impl_(std::make_unique<Impl>()) {
+RawReader::RawReader(Participant& participant, MessageType type, const std::string& topic)
+    : impl_(std::make_unique<Impl>()), topic_(topic) {
   impl_->owner = &participant.impl();
   impl_->reader = impl_->owner->subscriber->create_datareader_with_profile(
-      impl_->owner->topic(topic), kReaderProfile);
+      impl_->owner->topic(type, topic), kReaderProfile);
   if (impl_->reader == nullptr)
-    throw std::runtime_error(std::string("cannot create a reader of ") + topic_name(topic) +
+    throw std::runtime_error("cannot create a reader of " + topic +
                              " from profile '" + kReaderProfile + "' of '" +
                              impl_->owner->options.profiles.string() +
                              "' (check max_samples >= max_instances * max_samples_per_instance)");

@@ -1,5 +1,5 @@
 // Thin Fast DDS plumbing shared by every gcpipe node: a participant made from the XML profiles,
-// and typed writers/readers for the three pipeline topics.
+// and typed writers/readers of the pipeline's topics (one per edge, each of one of three types).
 //
 // This header is deliberately free of Fast DDS includes (they are heavy to compile): entities live
 // behind pointers to implementation in dds_runtime.cpp. QoS is never set in code; it comes from
@@ -20,19 +20,28 @@ class GcodeChunk;
 
 namespace gcpipe::dds {
 
-/// The pipeline topics (idl/gcpipe.idl documents their samples).
-enum class Topic { kProgram, kBlocks, kGcode };
-inline constexpr const char* kProgramTopicName = "gcpipe_program";  //!< ProgramChunk: feed -> parse
-inline constexpr const char* kBlocksTopicName = "gcpipe_blocks";    //!< BlockBatch: parse -> write
-inline constexpr const char* kGcodeTopicName = "gcpipe_gcode";      //!< GcodeChunk: write -> sink
-const char* topic_name(Topic topic);
-/// Accepts the full names above and the short ones (program, blocks, gcode); throws otherwise.
-Topic topic_from_name(const std::string& name);
+/// The three wire types (idl/gcpipe.idl documents their samples). A topic is a name plus one of
+/// these; the pipeline has one topic per edge, so several topics carry the same type.
+enum class MessageType { kProgramChunk, kBlockBatch, kGcodeChunk };
+const char* type_name(MessageType type);
+/// Accepts program|blocks|gcode and ProgramChunk|BlockBatch|GcodeChunk; throws otherwise.
+MessageType message_type_from_name(const std::string& name);
 
-template <class T> struct TopicOf;
-template <> struct TopicOf<msg::ProgramChunk> { static constexpr Topic value = Topic::kProgram; };
-template <> struct TopicOf<msg::BlockBatch> { static constexpr Topic value = Topic::kBlocks; };
-template <> struct TopicOf<msg::GcodeChunk> { static constexpr Topic value = Topic::kGcode; };
+/// Default topic of each pipeline edge (every node's --in/--out overrides them).
+inline constexpr const char* kProgramTopicName = "gcpipe_program";    //!< ProgramChunk: feed -> parse
+inline constexpr const char* kBlocksTopicName = "gcpipe_blocks";      //!< BlockBatch: parse -> trochoid
+inline constexpr const char* kToolpathTopicName = "gcpipe_toolpath";  //!< BlockBatch: trochoid -> write
+inline constexpr const char* kGcodeTopicName = "gcpipe_gcode";        //!< GcodeChunk: write -> sink
+/// The type of a default topic name, false for any other name (then the type must be given).
+bool default_topic_type(const std::string& topic, MessageType& type);
+/// Throws std::runtime_error unless `topic` is a usable topic name: 1..200 characters of
+/// [A-Za-z0-9_], not starting with a digit (a conservative subset of what DDS accepts).
+void check_topic_name(const std::string& topic);
+
+template <class T> struct TypeOf;
+template <> struct TypeOf<msg::ProgramChunk> { static constexpr MessageType value = MessageType::kProgramChunk; };
+template <> struct TypeOf<msg::BlockBatch> { static constexpr MessageType value = MessageType::kBlockBatch; };
+template <> struct TypeOf<msg::GcodeChunk> { static constexpr MessageType value = MessageType::kGcodeChunk; };
 
 /// Where and how long; every field has a command-line option (stages/dds/README.md).
 struct DdsOptions {
@@ -84,7 +93,8 @@ class Participant {
 /// A writer of one topic from profile "gcpipe_writer".
 class RawWriter {
  public:
-  RawWriter(Participant& participant, Topic topic);
+  /// Throws when the name is unusable or the participant already has `topic` with another type.
+  RawWriter(Participant& participant, MessageType type, const std::string& topic);
   ~RawWriter();
   RawWriter(const RawWriter&) = delete;
   RawWriter& operator=(const RawWriter&) = delete;
@@ -99,21 +109,21 @@ class RawWriter {
   bool publish(const void* sample);
   /// True when every matched reader acknowledged every sample within ack_timeout.
   bool wait_acknowledged();
-  Topic topic() const { return topic_; }
+  const std::string& topic() const { return topic_; }
   /// How often write() returned false (history full, a reader behind) and was retried.
   std::uint64_t blocked_writes() const { return blocked_writes_; }
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
-  Topic topic_;
+  std::string topic_;
   std::uint64_t blocked_writes_ = 0;
 };
 
 /// A reader of one topic from profile "gcpipe_reader".
 class RawReader {
  public:
-  RawReader(Participant& participant, Topic topic);
+  RawReader(Participant& participant, MessageType type, const std::string& topic);
   ~RawReader();
   RawReader(const RawReader&) = delete;
   RawReader& operator=(const RawReader&) = delete;
@@ -121,23 +131,25 @@ class RawReader {
   /// within `timeout_s` [s]. `source_time`: when the writer wrote it [s since the Unix epoch].
   bool take(void* sample, double timeout_s, double* source_time = nullptr);
   int matched_writers() const;
+  const std::string& topic() const { return topic_; }
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
+  std::string topic_;
 };
 
 template <class T>
 class Writer : public RawWriter {
  public:
-  explicit Writer(Participant& p) : RawWriter(p, TopicOf<T>::value) {}
+  Writer(Participant& p, const std::string& topic) : RawWriter(p, TypeOf<T>::value, topic) {}
   bool publish(const T& sample) { return RawWriter::publish(&sample); }
 };
 
 template <class T>
 class Reader : public RawReader {
  public:
-  explicit Reader(Participant& p) : RawReader(p, TopicOf<T>::value) {}
+  Reader(Participant& p, const std::string& topic) : RawReader(p, TypeOf<T>::value, topic) {}
   bool take(T& sample, double timeout_s, double* source_time = nullptr) {
     return RawReader::take(&sample, timeout_s, source_time);
   }

@@ -68,7 +68,7 @@ int run_feed(Participant& participant, const FeedOptions& o, std::ostream& log) 
     }
   } closer{fd};
 
-  Writer<msg::ProgramChunk> writer(participant);
+  Writer<msg::ProgramChunk> writer(participant, o.topic);
   if (!writer.wait_for_readers()) return 130;
   const auto t0 = Clock::now();
 
@@ -111,7 +111,7 @@ int run_feed(Participant& participant, const FeedOptions& o, std::ostream& log) 
       << std::fixed << std::setprecision(3) << seconds_since(t0)
       << " s; writes retried on a full history: " << writer.blocked_writes() << "\n";
   if (!acked) {
-    log << "gcpipe feed: not every chunk was acknowledged by the readers of " << kProgramTopicName
+    log << "gcpipe feed: not every chunk was acknowledged by the readers of " << o.topic
         << "\n";
     return 1;
   }
@@ -121,7 +121,7 @@ int run_feed(Participant& participant, const FeedOptions& o, std::ostream& log) 
 // ---------------------------------------------------------------------------------------------
 
 int run_sink(Participant& participant, const SinkOptions& o, std::ostream& log) {
-  Reader<msg::GcodeChunk> reader(participant);
+  Reader<msg::GcodeChunk> reader(participant, o.topic);
   const double idle_timeout = participant.options().idle_timeout;
   msg::GcodeChunk chunk;
   bool idle = false;
@@ -138,7 +138,7 @@ int run_sink(Participant& participant, const SinkOptions& o, std::ostream& log) 
   for (;;) {
     if (!take_or_idle(reader, chunk, idle_timeout, idle, &source_time)) {
       if (idle)
-        log << "gcpipe sink: nothing arrived on " << kGcodeTopicName << " for " << idle_timeout
+        log << "gcpipe sink: nothing arrived on " << o.topic << " for " << idle_timeout
             << " s; giving up\n";
       if (id != 0)
         log << "gcpipe sink: INCOMPLETE, program " << id << " ended before its end marker; "
@@ -182,20 +182,20 @@ int run_sink(Participant& participant, const SinkOptions& o, std::ostream& log) 
   if (chunk.byte_count() != bytes)
     add("received " + std::to_string(bytes) + " bytes, the writer sent " +
         std::to_string(chunk.byte_count()));
+  // The block and diagnostic counts were checked edge by edge by the nodes (an error would be in
+  // chunk.error()); what is left to check here is the parser's own accounting.
   const ParseSummary s = from_msg(chunk.summary());
-  if (chunk.blocks_written() != s.blocks_emitted ||
-      chunk.diagnostics_written() != s.lines_rejected + s.lines_deleted ||
-      s.blocks_emitted + s.lines_rejected + s.lines_deleted != s.lines_read)
-    add("counts disagree: written " + std::to_string(chunk.blocks_written()) + " blocks + " +
-        std::to_string(chunk.diagnostics_written()) + " diagnostics; parsed " +
-        std::to_string(s.lines_read) + " lines = " + std::to_string(s.blocks_emitted) +
-        " blocks + " + std::to_string(s.lines_rejected) + " rejected + " +
-        std::to_string(s.lines_deleted) + " deleted");
+  if (s.blocks_emitted + s.lines_rejected + s.lines_deleted != s.lines_read)
+    add("the parser's counts do not add up: " + std::to_string(s.lines_read) + " lines read != " +
+        std::to_string(s.blocks_emitted) + " blocks + " + std::to_string(s.lines_rejected) +
+        " rejected + " + std::to_string(s.lines_deleted) + " deleted");
   log << "gcpipe sink: program " << id << " '" << chunk.file() << "': " << s.lines_read
-      << " lines read, " << s.blocks_emitted << " blocks, " << s.lines_rejected << " rejected, "
-      << s.lines_deleted << " deleted; " << bytes << " bytes in " << next << " chunks, "
-      << std::fixed << std::setprecision(3) << seconds_since(t0) << " s"
-      << (chunk.stopped() ? " (strict mode stopped at the first rejected line)" : "") << "\n";
+      << " lines read, " << s.blocks_emitted << " blocks parsed, " << s.lines_rejected
+      << " rejected, " << s.lines_deleted << " deleted; " << chunk.blocks_rejected()
+      << " blocks rejected by later stages; written " << chunk.blocks_written() << " blocks, "
+      << chunk.diagnostics_written() << " diagnostics, " << bytes << " bytes in " << next
+      << " chunks, " << std::fixed << std::setprecision(3) << seconds_since(t0) << " s"
+      << (chunk.stopped() ? " (strict mode stopped at the first error)" : "") << "\n";
   if (!error.empty()) {
     log << "gcpipe sink: INCOMPLETE, output left in '" << part.string() << "': " << error << "\n";
     return 1;
@@ -203,7 +203,7 @@ int run_sink(Participant& participant, const SinkOptions& o, std::ostream& log) 
   std::filesystem::rename(part, o.output);
   // The exit status of `gcpipe batch` for the same program.
   if (chunk.stopped()) return 1;
-  return s.lines_rejected > 0 ? 3 : 0;
+  return s.lines_rejected + chunk.blocks_rejected() > 0 ? 3 : 0;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -226,7 +226,7 @@ Seen inspect(const msg::BlockBatch& b) {
   if (!b.blocks().empty()) s.last_line = b.blocks().back().line();
   if (!b.diagnostics().empty()) s.last_line = std::max(s.last_line, b.diagnostics().back().line());
   for (const auto& d : b.diagnostics())
-    if (d.line_status() == static_cast<std::uint8_t>(LineStatus::kRejected)) ++s.errors;
+    if (d.line_status() != static_cast<std::uint8_t>(DiagnosticKind::kLineDeleted)) ++s.errors;
   return s;
 }
 Seen inspect(const msg::GcodeChunk& g) {
@@ -234,8 +234,9 @@ Seen inspect(const msg::GcodeChunk& g) {
               g.end_of_program()};
 }
 
-const char* item_name(Topic t) {
-  return t == Topic::kProgram ? "lines" : t == Topic::kBlocks ? "blocks" : "bytes";
+const char* item_name(MessageType t) {
+  return t == MessageType::kProgramChunk ? "lines"
+         : t == MessageType::kBlockBatch ? "blocks" : "bytes";
 }
 
 void print_end(std::ostream& out, const msg::ProgramChunk& c) {
@@ -245,17 +246,21 @@ void print_end(std::ostream& out, const msg::BlockBatch& b) {
   const auto& s = b.summary();
   out << "end of program: " << s.lines_read() << " lines read, " << s.blocks_emitted()
       << " blocks, " << s.lines_rejected() << " rejected, " << s.lines_deleted() << " deleted"
-      << (b.stopped() ? ", strict stop" : "") << (b.error().empty() ? "" : ", ERROR: " + b.error());
+      << "; sent " << b.blocks_sent() << " blocks, " << b.diagnostics_sent() << " diagnostics, "
+      << b.blocks_rejected() << " blocks rejected" << (b.stopped() ? ", strict stop" : "")
+      << (b.error().empty() ? "" : ", ERROR: " + b.error());
 }
 void print_end(std::ostream& out, const msg::GcodeChunk& g) {
   out << "end of program: " << g.byte_count() << " bytes, " << g.blocks_written() << " blocks, "
-      << g.diagnostics_written() << " diagnostics"
+      << g.diagnostics_written() << " diagnostics, " << g.blocks_rejected()
+      << " blocks rejected" << (g.stopped() ? ", strict stop" : "")
       << (g.error().empty() ? "" : ", ERROR: " + g.error());
 }
 
 template <class T>
-int monitor(Participant& participant, Topic topic, double period, std::ostream& out) {
-  Reader<T> reader(participant);
+int monitor(Participant& participant, const std::string& topic, double period, std::ostream& out) {
+  constexpr MessageType type = TypeOf<T>::value;
+  Reader<T> reader(participant, topic);
   T sample;
   const auto t0 = Clock::now();
   auto next_print = t0 + std::chrono::duration_cast<Clock::duration>(
@@ -267,8 +272,8 @@ int monitor(Participant& participant, Topic topic, double period, std::ostream& 
   auto last_sample = t0;
   auto line = [&](std::ostream& o) {
     const double dt = std::chrono::duration<double>(Clock::now() - window_start).count();
-    o << std::fixed << std::setprecision(1) << seconds_since(t0) << " s  " << topic_name(topic)
-      << "  program " << program << "  batches " << samples << "  " << item_name(topic) << " "
+    o << std::fixed << std::setprecision(1) << seconds_since(t0) << " s  " << topic
+      << "  program " << program << "  batches " << samples << "  " << item_name(type) << " "
       << items << " (" << std::setprecision(0) << (dt > 0 ? window_items / dt : 0.0) << "/s)"
       << "  last line " << last_line << "  errors " << errors;
   };
@@ -288,7 +293,7 @@ int monitor(Participant& participant, Topic topic, double period, std::ostream& 
         if (s.last_line != 0) last_line = s.last_line;
         if (s.end) {
           line(out);
-          out << "\n" << topic_name(topic) << "  program " << program << "  ";
+          out << "\n" << topic << "  program " << program << "  ";
           print_end(out, sample);
           if (first_seq != 0) out << "  (joined late, at batch " << first_seq << ")";
           else if (samples != s.sequence + 1) out << "  (" << (s.sequence + 1 - samples)
@@ -307,7 +312,7 @@ int monitor(Participant& participant, Topic topic, double period, std::ostream& 
           std::chrono::duration<double>(period));
     }
     if (idle_timeout > 0 && seconds_since(last_sample) > idle_timeout) {
-      out << "no sample on " << topic_name(topic) << " for " << idle_timeout << " s; giving up"
+      out << "no sample on " << topic << " for " << idle_timeout << " s; giving up"
           << std::endl;
       return 1;
     }
@@ -317,11 +322,12 @@ int monitor(Participant& participant, Topic topic, double period, std::ostream& 
 
 }  // namespace
 
-int run_monitor(Participant& participant, Topic topic, double period, std::ostream& out) {
-  switch (topic) {
-    case Topic::kProgram: return monitor<msg::ProgramChunk>(participant, topic, period, out);
-    case Topic::kBlocks: return monitor<msg::BlockBatch>(participant, topic, period, out);
-    case Topic::kGcode: return monitor<msg::GcodeChunk>(participant, topic, period, out);
+int run_monitor(Participant& participant, MessageType type, const std::string& topic,
+                double period, std::ostream& out) {
+  switch (type) {
+    case MessageType::kProgramChunk: return monitor<msg::ProgramChunk>(participant, topic, period, out);
+    case MessageType::kBlockBatch: return monitor<msg::BlockBatch>(participant, topic, period, out);
+    case MessageType::kGcodeChunk: return monitor<msg::GcodeChunk>(participant, topic, period, out);
   }
   return 2;
 }

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <iosfwd>
+#include <string>
 
 #include "dds_runtime.hpp"
 
@@ -17,26 +18,29 @@ struct FeedOptions {
   std::size_t max_line_length = 256;
   std::size_t chunk_bytes = 32 * 1024;  //!< publish a chunk once it holds this much text [bytes]
   std::uint64_t program_id = 0;      //!< 0 = pick a random one
+  std::string topic = kProgramTopicName;  //!< ProgramChunk topic written (--out)
 };
 
-/// Publishes a program on gcpipe_program and waits until its readers acknowledged all of it.
+/// Publishes a program on its topic and waits until its readers acknowledged all of it.
 /// Returns the exit status (0 ok); throws for an unreadable file.
 int run_feed(Participant& participant, const FeedOptions& options, std::ostream& log);
 
 struct SinkOptions {
   std::filesystem::path output;  //!< written through a temporary file, renamed when complete
+  std::string topic = kGcodeTopicName;  //!< GcodeChunk topic read (--in)
 };
 
-/// Writes the first program that arrives on gcpipe_gcode to `output` and returns after its end
-/// marker, having checked that the chunks were contiguous and every count agrees (bytes,
-/// blocks + diagnostics = lines read by the parser). Returns batch mode's exit status for the
-/// program: 0 all lines accepted, 3 some rejected, 1 strict mode stopped; 1 also when data went
-/// missing, and then the file is left as OUTPUT.part.
+/// Writes the first program that arrives on its topic to `output` and returns after its end
+/// marker, having checked that the chunks were contiguous, the bytes are the writer's, no stage
+/// reported lost input, and the parser's accounting adds up. Returns batch mode's exit status
+/// for the program: 0 all lines and cycles accepted, 3 some rejected, 1 strict mode stopped; 1
+/// also when data went missing, and then the file is left as OUTPUT.part.
 int run_sink(Participant& participant, const SinkOptions& options, std::ostream& log);
 
-/// Prints one summary line per `period` [s] about `topic` (batches, items and items/s, last
-/// source line, errors) until an end-of-program marker arrives (returns 0) or a stop is requested
-/// (returns 130). Joining late is fine: it reports what the writer still held.
-int run_monitor(Participant& participant, Topic topic, double period, std::ostream& out);
+/// Prints one summary line per `period` [s] about `topic`, which carries `type` (batches, items
+/// and items/s, last source line, errors) until an end-of-program marker arrives (returns 0) or a
+/// stop is requested (returns 130). Joining late is fine: it reports what the writer still held.
+int run_monitor(Participant& participant, MessageType type, const std::string& topic,
+                double period, std::ostream& out);
 
 }  // namespace gcpipe::dds

@@ -22,6 +22,7 @@ struct Program {
   std::uint64_t next_batch = 0;
   msg::BlockBatch batch;
   std::size_t batch_size = 0;     // serialized size of `batch` so far [bytes]
+  std::uint64_t blocks_sent = 0, diagnostics_sent = 0;
   bool stopped = false;           // strict mode met a rejected line
   std::string error;              // first sign of lost input; parsing stops there
 };
@@ -40,14 +41,17 @@ struct ParseNode::Impl {
   int status = 0;
 
   Impl(dds::Participant& p, ParseOptions po, MachineConfig m, ParseNodeOptions o)
-      : participant(p), parse_options(po), machine(std::move(m)), options(o), reader(p),
-        writer(p) {}
+      : participant(p), parse_options(po), machine(std::move(m)), options(o),
+        reader(p, o.input_topic), writer(p, o.output_topic) {}
 
   bool publish(std::uint64_t id, Program& prog) {
     prog.batch.program_id(id);
     prog.batch.file(prog.file);
     prog.batch.sequence_number(prog.next_batch++);
+    prog.batch.strict(parse_options.strict);
     if (!writer.publish(prog.batch)) return false;
+    prog.blocks_sent += prog.batch.blocks().size();
+    prog.diagnostics_sent += prog.batch.diagnostics().size();
     prog.batch.blocks().clear();
     prog.batch.diagnostics().clear();
     prog.batch_size = 0;
@@ -90,7 +94,7 @@ struct ParseNode::Impl {
         prog.batch_size += msg::Block::getCdrSerializedSize(m);
       } else {
         msg::LineDiagnostic& m = prog.batch.diagnostics().emplace_back();
-        dds::to_msg(diag, st, m);
+        dds::to_msg(diag, dds::kind_of(st), m);
         prog.batch_size += msg::LineDiagnostic::getCdrSerializedSize(m);
         if (st == LineStatus::kRejected && parse_options.strict) prog.stopped = true;
       }
@@ -134,8 +138,13 @@ struct ParseNode::Impl {
       fail(prog, id, "the feeder sent " + std::to_string(chunk.line_count()) +
                          " lines but " + std::to_string(prog.lines_seen) + " arrived");
     prog.batch.end_of_program(true);
-    prog.batch.stopped(prog.stopped);
-    dds::to_msg(prog.parser->summary(), prog.batch.summary());
+    dds::BatchTotals totals;
+    totals.summary = prog.parser->summary();
+    // Counted before publishing, as the end marker must state them: what went out plus itself.
+    totals.blocks_sent = prog.blocks_sent + prog.batch.blocks().size();
+    totals.diagnostics_sent = prog.diagnostics_sent + prog.batch.diagnostics().size();
+    totals.stopped = prog.stopped;
+    dds::set_totals(totals, prog.batch);
     prog.batch.error(prog.error);
     if (!prog.error.empty()) status = 1;
     publish(id, prog);
@@ -163,7 +172,7 @@ int ParseNode::run() {
   // written into a history that no reader drains.
   if (!impl_->writer.wait_for_readers()) return 130;
   std::cerr << "gcpipe node parse: ready, " << impl_->writer.matched_readers() << " reader(s) of "
-            << dds::kBlocksTopicName << " matched" << std::endl;
+            << impl_->options.output_topic << " matched" << std::endl;
   bool done = false;
   const double idle_timeout = impl_->participant.options().idle_timeout;
   auto last_sample = std::chrono::steady_clock::now();
@@ -185,7 +194,7 @@ int ParseNode::run() {
   }
   if (!impl_->writer.wait_acknowledged()) {
     std::cerr << "gcpipe node parse: not every batch was acknowledged by the readers of "
-              << dds::kBlocksTopicName << "\n";
+              << impl_->options.output_topic << "\n";
     impl_->status = 1;
   }
   return impl_->status;

@@ -3,6 +3,7 @@
 // Reads:  gcpipe_program (msg::ProgramChunk)  program text, chunk by chunk, from `gcpipe feed`
 // Writes: gcpipe_blocks  (msg::BlockBatch)    resolved blocks and line diagnostics, in batches,
 //                                             the last one marked end_of_program with the counts
+// (topic names: ParseNodeOptions, `--in` / `--out`)
 //
 // The node runs the very Parser that `gcpipe batch` runs, one line at a time in source order, so
 // the stream carries exactly what batch mode hands to its writer. Library gcpipe_parse_node keeps
@@ -11,6 +12,7 @@
 
 #include <cstddef>
 #include <memory>
+#include <string>
 
 #include "gcpipe/machine.hpp"
 #include "parse.hpp"
@@ -26,6 +28,8 @@ struct ParseNodeOptions {
   std::size_t batch_bytes = 32 * 1024;
   /// Serve programs until SIGINT/SIGTERM instead of leaving after the first complete one.
   bool forever = false;
+  std::string input_topic = "gcpipe_program";  //!< ProgramChunk topic read
+  std::string output_topic = "gcpipe_blocks";  //!< BlockBatch topic written
 };
 
 class ParseNode {

@@ -39,8 +39,8 @@ void append_comment(std::string& out, const std::string& c) {
 Writer::Writer(WriteOptions options) : opt_(options) {}
 
 void Writer::write_diagnostic(const Diagnostic& d, std::string& out) {
-  // Kept short enough for any control's line limit; the full text is in the diagnostics output.
-  constexpr std::size_t kMaxComment = 200;
+  // Kept within the parser's default 256-byte line limit; the full text is in diagnostics.txt.
+  constexpr std::size_t kMaxComment = 250;
   std::string c = "(gcpipe: line " + std::to_string(d.line) + (d.severity == Severity::kError ? " rejected: " : ": ");
   for (char ch : d.message) c.push_back(ch == '(' ? '[' : ch == ')' ? ']' : ch);
   if (c.size() > kMaxComment) {
@@ -63,6 +63,9 @@ void Writer::write(const ResolvedBlock& b, std::string& out) {
   // Division, not multiplication by 1/25.4: (v * 25.4) / 25.4 gives v back in most cases.
   auto len = [inch](double mm) { return inch ? mm / 25.4 : mm; };
   auto num = [&](char letter, double v) {
+    // Below 0.1 nm a value is arithmetic noise (a sum that should cancel), not a dimension: write
+    // 0 rather than 17 digits after a run of zeros. Within the 1e-9 round-trip tolerance.
+    if (std::fabs(v) < 1e-10) v = 0;
     if (!line.empty()) line.push_back(' ');
     line.push_back(letter);
     if (opt_.decimals < 0) append_shortest(line, v);

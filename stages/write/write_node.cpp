@@ -18,7 +18,7 @@ struct Program {
   std::string file;
   std::uint64_t next_batch = 0;
   std::uint64_t next_chunk = 0;
-  std::uint64_t blocks = 0, rejected = 0, deleted = 0;
+  dds::BatchArrivals arrived;
   std::uint64_t bytes = 0;        // text published so far [bytes]
   std::uint64_t last_line = 0;    // last source line written
   std::string text;               // text not yet published
@@ -39,7 +39,8 @@ struct WriteNode::Impl {
   msg::GcodeChunk chunk;
 
   Impl(dds::Participant& p, WriteOptions wo, WriteNodeOptions o)
-      : participant(p), write_options(wo), options(o), reader(p), writer(p) {}
+      : participant(p), write_options(wo), options(o), reader(p, o.input_topic),
+        writer(p, o.output_topic) {}
 
   bool publish(std::uint64_t id, Program& prog) {
     chunk.program_id(id);
@@ -62,39 +63,35 @@ struct WriteNode::Impl {
   void write_batch(Program& prog, std::uint64_t id, const msg::BlockBatch& batch) {
     ResolvedBlock block;
     Diagnostic diag;
-    LineStatus status{};
+    dds::DiagnosticKind kind{};
     std::string why;
     const auto& blocks = batch.blocks();
     const auto& diags = batch.diagnostics();
-    std::size_t b = 0, d = 0;
-    // Each line gave a block or a diagnostic; merging the two ordered lists restores the order
-    // in which batch mode handed them to its writer.
-    while (b < blocks.size() || d < diags.size()) {
-      const bool take_block =
-          d == diags.size() || (b < blocks.size() && blocks[b].line() < diags[d].line());
-      if (take_block) {
-        if (!dds::from_msg(blocks[b], block, &why)) {
-          fail(prog, id, "batch " + std::to_string(batch.sequence_number()) + ", line " +
-                             std::to_string(blocks[b].line()) + ": " + why);
-          return;
-        }
-        ++b;
-        ++prog.blocks;
-        prog.last_line = block.line;
-        prog.writer.write(block, prog.text);
-      } else {
-        if (!dds::from_msg(diags[d], diag, status, &why)) {
-          fail(prog, id, "batch " + std::to_string(batch.sequence_number()) + ", line " +
-                             std::to_string(diags[d].line()) + ": " + why);
-          return;
-        }
-        ++d;
-        ++(status == LineStatus::kRejected ? prog.rejected : prog.deleted);
-        prog.last_line = diag.line;
-        prog.writer.write_diagnostic(diag, prog.text);
-      }
-      if (prog.text.size() >= options.chunk_bytes && !publish(id, prog)) return;
-    }
+    auto flush = [&] { return prog.text.size() < options.chunk_bytes || publish(id, prog); };
+    dds::for_each_in_line_order(
+        batch,
+        [&](std::size_t b) {
+          if (!dds::from_msg(blocks[b], block, &why)) {
+            fail(prog, id, "batch " + std::to_string(batch.sequence_number()) + ", line " +
+                               std::to_string(blocks[b].line()) + ": " + why);
+            return false;
+          }
+          ++prog.arrived.blocks;
+          prog.last_line = block.line;
+          prog.writer.write(block, prog.text);
+          return flush();
+        },
+        [&](std::size_t d) {
+          if (!dds::from_msg(diags[d], diag, kind, &why)) {
+            fail(prog, id, "batch " + std::to_string(batch.sequence_number()) + ", line " +
+                               std::to_string(diags[d].line()) + ": " + why);
+            return false;
+          }
+          prog.arrived.count(kind);
+          prog.last_line = diag.line;
+          prog.writer.write_diagnostic(diag, prog.text);
+          return flush();
+        });
   }
 
   bool handle(const msg::BlockBatch& batch, double source_time) {
@@ -105,7 +102,7 @@ struct WriteNode::Impl {
     }
     auto it = programs.find(id);
     if (it == programs.end() && participant.published_before_start(source_time)) {
-      // Replayed from the parse node's history: an old program, not one sent to this node.
+      // Replayed from the upstream node's history: an old program, not one sent to this node.
       std::cerr << "gcpipe node write: skipping program " << id << " ('" << batch.file()
                 << "'), published before this node started (--replay takes it)\n";
       if (!batch.end_of_program()) skipped.insert(id);
@@ -117,7 +114,7 @@ struct WriteNode::Impl {
       if (batch.sequence_number() != 0)
         fail(it->second, id,
              "joined the program at batch " + std::to_string(batch.sequence_number()) +
-                 ": its beginning is no longer available from the parse node");
+                 ": its beginning is no longer available upstream");
       it->second.next_batch = batch.sequence_number();
     }
     Program& prog = it->second;
@@ -128,23 +125,23 @@ struct WriteNode::Impl {
     if (prog.error.empty()) write_batch(prog, id, batch);
     if (!batch.end_of_program()) return false;
 
-    const ParseSummary summary = dds::from_msg(batch.summary());
     if (!batch.error().empty()) fail(prog, id, "upstream: " + batch.error());
     if (prog.error.empty()) {
-      std::string counts = dds::check_counts(summary, prog.blocks, prog.rejected, prog.deleted);
+      std::string counts = dds::check_counts(dds::totals_of(batch), prog.arrived);
       if (!counts.empty()) fail(prog, id, counts);
     }
     chunk.end_of_program(true);
     chunk.byte_count(prog.bytes + prog.text.size());
-    chunk.blocks_written(prog.blocks);
-    chunk.diagnostics_written(prog.rejected + prog.deleted);
+    chunk.blocks_written(prog.arrived.blocks);
+    chunk.diagnostics_written(prog.arrived.diagnostics());
+    chunk.blocks_rejected(batch.blocks_rejected());
     chunk.stopped(batch.stopped());
     chunk.summary(batch.summary());
     chunk.error(prog.error);
     if (!prog.error.empty()) status = 1;
     publish(id, prog);
-    std::cerr << "gcpipe node write: program " << id << " '" << prog.file << "': " << prog.blocks
-              << " blocks, " << prog.rejected + prog.deleted << " diagnostics from "
+    std::cerr << "gcpipe node write: program " << id << " '" << prog.file << "': "
+              << prog.arrived.blocks << " blocks, " << prog.arrived.diagnostics() << " diagnostics from "
               << prog.next_batch << " batches; " << prog.bytes << " bytes in " << prog.next_chunk
               << " chunks; writes retried on a full history: " << writer.blocked_writes() << "\n";
     chunk = msg::GcodeChunk();
@@ -166,7 +163,7 @@ int WriteNode::run() {
   // written into a history that no reader drains.
   if (!impl_->writer.wait_for_readers()) return 130;
   std::cerr << "gcpipe node write: ready, " << impl_->writer.matched_readers() << " reader(s) of "
-            << dds::kGcodeTopicName << " matched" << std::endl;
+            << impl_->options.output_topic << " matched" << std::endl;
   bool done = false;
   const double idle_timeout = impl_->participant.options().idle_timeout;
   auto last_sample = std::chrono::steady_clock::now();
@@ -188,7 +185,7 @@ int WriteNode::run() {
   }
   if (!impl_->writer.wait_acknowledged()) {
     std::cerr << "gcpipe node write: not every chunk was acknowledged by the readers of "
-              << dds::kGcodeTopicName << "\n";
+              << impl_->options.output_topic << "\n";
     impl_->status = 1;
   }
   return impl_->status;

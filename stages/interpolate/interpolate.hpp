@@ -1,0 +1,134 @@
+// Stage `interpolate`: resolved blocks to per-axis commanded positions at the interpolation
+// period (ITP, 1 ms by default), followed by acceleration/deceleration after interpolation (the
+// smoothing time constant Ts of seed 002 Table 1).
+//
+// Each block becomes a parametric path p(s), s in [0, 1], travelled at constant speed for a
+// duration fixed by the feed (G94 along the tool-tip path or the XYZ path, G93 inverse time), the
+// rapid rule, or the dwell, and lengthened when an axis would exceed its velocity limit. The
+// path is sampled on one global clock (t = n * period), so block boundaries that fall between
+// samples cost no time and leave no velocity glitch. Each axis is then smoothed independently:
+// linear acc/dec (moving average over Ts) or exponential acc/dec (first-order lag, time constant
+// Ts). Maths and config keys: stages/interpolate/README.md.
+#pragma once
+
+#include <complex>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "gcpipe/block.hpp"
+
+namespace gcpipe {
+class Config;
+}
+
+namespace gcpipe::interpolate {
+
+enum class Smoothing : std::uint8_t {
+  kNone,         //!< raw interpolator output
+  kLinear,       //!< moving average over Ts: a velocity step becomes a ramp of length Ts
+  kExponential,  //!< first-order lag of time constant Ts: initial acceleration dv/Ts
+};
+
+struct InterpolateOptions {
+  double period = 0.001;                  //!< interpolation period ITP [s]
+  Smoothing smoothing = Smoothing::kExponential;
+  Axes smoothing_time{};                  //!< Ts per axis [s] (0: no smoothing on that axis)
+  Axes max_velocity{{500, 500, 500, 3600, 3600}};          //!< [mm/s, deg/s] (machine limits)
+  Axes max_acceleration{{5000, 5000, 5000, 36000, 36000}}; //!< [mm/s^2, deg/s^2] (machine limits)
+  Axes travel_min{{-1e9, -1e9, -1e9, -1e9, -1e9}};  //!< joint travel [mm, deg] (machine limits)
+  Axes travel_max{{1e9, 1e9, 1e9, 1e9, 1e9}};       //!< joint travel [mm, deg] (machine limits)
+  /// Optional length of the tool-tip path of a straight joint move [mm] (from forward
+  /// kinematics); when empty, G94 feed is along XYZ, or along A/C in deg/min when no linear axis
+  /// moves (the LinuxCNC rule).
+  std::function<double(const Axes& from, const Axes& to)> tip_path_length;
+};
+
+/// Reads the `interpolate` section (period, smoothing); unknown keys rejected. The limits come
+/// from the machine file (MachineKinematics::max_velocity / max_acceleration) and smoothing_time
+/// from the drives file (Table 1 Ts): the caller fills them in.
+InterpolateOptions load_interpolate_options(const Config& section);
+
+/// One axis of acceleration/deceleration after interpolation.
+class AxisSmoother {
+ public:
+  AxisSmoother() = default;
+  AxisSmoother(Smoothing kind, double Ts, double period, double start);
+  double filter(double x);
+  /// True when the output has reached `x` to within `tol`.
+  bool settled(double x, double tol) const;
+  /// Samples after which a held input is reached (linear) or 50 Ts (exponential).
+  std::size_t settle_samples() const;
+
+ private:
+  Smoothing kind_ = Smoothing::kNone;
+  std::vector<double> ring_;
+  std::size_t head_ = 0, count_ = 0;
+  double sum_ = 0, y_ = 0, a_ = 0;
+  std::size_t settle_ = 0;
+};
+
+/// Frequency response of the smoother applied to samples of period T, at omega [rad/s]:
+/// linear (1/N) sum_k e^{-j w k T}, exponential (1 - a) / (1 - a e^{-j w T}).
+std::complex<double> smoothing_response(Smoothing kind, double Ts, double period, double omega);
+
+/// Receives one commanded sample per period.
+class SampleSink {
+ public:
+  virtual ~SampleSink() = default;
+  virtual void sample(const Axes& command) = 0;
+  /// The raw (unsmoothed) path sample of the same tick, called just before sample(): the nominal
+  /// path for contour errors and the nominal angle of circle tests.
+  virtual void raw_sample(const Axes& raw) { (void)raw; }
+};
+
+enum class InterpolateStatus : std::uint8_t {
+  kOk,
+  kUnsupported,  //!< a motion this stage does not execute (G275 must be expanded first)
+  kInvalid,      //!< zero or negative feed, non-finite target, axis with no velocity limit
+};
+
+struct InterpolateResult {
+  InterpolateStatus status = InterpolateStatus::kOk;
+  std::string message;     //!< for kUnsupported / kInvalid: names the block and what to do
+  double duration = 0;     //!< time the block takes [s]
+  bool velocity_limited = false;  //!< the feed was lowered to respect an axis velocity limit
+};
+
+struct InterpolateStats {
+  std::uint64_t samples = 0;
+  std::uint64_t blocks = 0;
+  std::uint64_t velocity_limited_blocks = 0;
+  Axes peak_velocity{};      //!< of the smoothed commands [mm/s, deg/s]
+  Axes peak_acceleration{};  //!< of the smoothed commands [mm/s^2, deg/s^2]
+  std::array<std::uint64_t, kNumAxes> travel_violations{};  //!< samples outside travel per axis
+  std::uint64_t first_violation_line = 0;  //!< source line of the first such sample (0: none)
+};
+
+class Interpolator {
+ public:
+  /// Starts at rest at `start`. Throws ConfigError for a non-positive period or Ts < 0.
+  Interpolator(InterpolateOptions options, const Axes& start);
+  /// Emits the samples whose time falls inside this block. Never throws.
+  InterpolateResult add(const ResolvedBlock& block, SampleSink& sink);
+  /// Holds the last position until every smoother has settled.
+  void finish(SampleSink& sink);
+  /// End of the raw (unsmoothed) path so far [mm, deg].
+  const Axes& position() const { return raw_end_; }
+  const InterpolateStats& stats() const { return stats_; }
+  const InterpolateOptions& options() const { return opt_; }
+
+ private:
+  void emit(const Axes& raw, SampleSink& sink);
+  InterpolateOptions opt_;
+  std::array<AxisSmoother, kNumAxes> smooth_;
+  std::uint64_t line_ = 0;    // source line of the block being sampled
+  Axes raw_end_{};
+  double t_block_ = 0;        // start time of the next block on the raw clock [s]
+  std::uint64_t n_ = 0;       // index of the last emitted sample
+  Axes prev_{}, prev2_{};     // last two smoothed samples (for the peak figures)
+  InterpolateStats stats_;
+};
+
+}  // namespace gcpipe::interpolate

@@ -1,0 +1,302 @@
+#include "plot.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <stdexcept>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace gcpipe::plot {
+
+namespace {
+
+constexpr int kFont = cv::FONT_HERSHEY_SIMPLEX;
+const cv::Scalar kBlack(0, 0, 0), kGrey(200, 200, 200), kWhite(255, 255, 255);
+
+cv::Size text_size(const std::string& s, double scale, int thick, int* baseline = nullptr) {
+  int b = 0;
+  cv::Size sz = cv::getTextSize(s, kFont, scale, thick, &b);
+  if (baseline) *baseline = b;
+  return sz;
+}
+
+void put(cv::Mat& img, const std::string& s, cv::Point org, double scale, int thick = 1,
+         cv::Scalar colour = kBlack) {
+  cv::putText(img, s, org, kFont, scale, colour, thick, cv::LINE_AA);
+}
+
+// Text rotated 90 deg counter-clockwise (for the y label): drawn upright, then rotated.
+void put_vertical(cv::Mat& img, const std::string& s, cv::Point centre, double scale) {
+  int base = 0;
+  const cv::Size sz = text_size(s, scale, 1, &base);
+  cv::Mat tile(sz.height + base + 4, sz.width + 4, CV_8UC3, kWhite);
+  put(tile, s, {2, sz.height + 2}, scale);
+  cv::Mat rot;
+  cv::rotate(tile, rot, cv::ROTATE_90_COUNTERCLOCKWISE);
+  const int x = std::clamp(centre.x - rot.cols / 2, 0, std::max(0, img.cols - rot.cols));
+  const int y = std::clamp(centre.y - rot.rows / 2, 0, std::max(0, img.rows - rot.rows));
+  rot.copyTo(img(cv::Rect(x, y, rot.cols, rot.rows)));
+}
+
+int cv_map(ColourMap m) {
+  switch (m) {
+    case ColourMap::kViridis: return cv::COLORMAP_VIRIDIS;
+    case ColourMap::kTurbo: return cv::COLORMAP_TURBO;
+    case ColourMap::kInferno: return cv::COLORMAP_INFERNO;
+  }
+  return cv::COLORMAP_VIRIDIS;
+}
+
+}  // namespace
+
+cv::Scalar colour_at(ColourMap map, double t) {
+  static std::array<cv::Mat, 3> luts;
+  cv::Mat& lut = luts[std::size_t(map)];
+  if (lut.empty()) {
+    cv::Mat ramp(1, 256, CV_8UC1);
+    for (int i = 0; i < 256; ++i) ramp.at<std::uint8_t>(0, i) = std::uint8_t(i);
+    cv::applyColorMap(ramp, lut, cv_map(map));
+  }
+  const int i = std::clamp(int(std::lround(std::clamp(std::isfinite(t) ? t : 0.0, 0.0, 1.0) * 255)), 0, 255);
+  const cv::Vec3b c = lut.at<cv::Vec3b>(0, i);
+  return {double(c[0]), double(c[1]), double(c[2])};
+}
+
+cv::Scalar palette(int index) {
+  static const std::array<cv::Scalar, 10> tab10 = {
+      cv::Scalar(180, 119, 31), cv::Scalar(14, 127, 255), cv::Scalar(44, 160, 44),
+      cv::Scalar(40, 39, 214),  cv::Scalar(189, 103, 148), cv::Scalar(75, 86, 140),
+      cv::Scalar(194, 119, 227), cv::Scalar(127, 127, 127), cv::Scalar(34, 189, 188),
+      cv::Scalar(207, 190, 23)};
+  return tab10[std::size_t(((index % 10) + 10) % 10)];
+}
+
+std::vector<double> nice_ticks(double lo, double hi, int target) {
+  if (!(hi > lo) || !std::isfinite(lo) || !std::isfinite(hi)) return {lo};
+  const double raw = (hi - lo) / std::max(1, target);
+  const double mag = std::pow(10.0, std::floor(std::log10(raw)));
+  // The 1-2-5 step whose tick count comes closest to the target.
+  double step = mag;
+  double best = 1e300;
+  for (double m : {1.0, 2.0, 5.0, 10.0}) {
+    const double miss = std::abs((hi - lo) / (m * mag) - target);
+    if (miss < best) best = miss, step = m * mag;
+  }
+  std::vector<double> t;
+  for (double v = std::ceil(lo / step - 1e-9) * step; v <= hi + 1e-9 * step; v += step)
+    t.push_back(std::abs(v) < 1e-12 * step ? 0.0 : v);
+  return t;
+}
+
+std::string tick_label(double v, double step) {
+  int decimals = 0;
+  while (decimals < 9 && std::abs(step * std::pow(10.0, decimals) - std::round(step * std::pow(10.0, decimals))) > 1e-6)
+    ++decimals;
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+  return buf;
+}
+
+Figure::Figure(FigureStyle style) : style_(style) {}
+
+void Figure::limits(double xmin, double xmax, double ymin, double ymax) {
+  limits_ = std::array<double, 4>{xmin, xmax, ymin, ymax};
+}
+
+void Figure::line(std::vector<double> x, std::vector<double> y, cv::Scalar colour, int thickness,
+                  std::string label) {
+  series_.push_back({std::move(x), std::move(y), {}, colour, thickness, 0, std::move(label)});
+}
+
+void Figure::coloured_line(std::vector<double> x, std::vector<double> y, std::vector<double> value,
+                           int thickness) {
+  series_.push_back({std::move(x), std::move(y), std::move(value), kBlack, thickness, 0, {}});
+}
+
+void Figure::scatter(std::vector<double> x, std::vector<double> y, cv::Scalar colour, int radius,
+                     std::string label) {
+  series_.push_back({std::move(x), std::move(y), {}, colour, 1, std::max(1, radius), std::move(label)});
+}
+
+void Figure::colourbar(std::string label, double vmin, double vmax, ColourMap map) {
+  bar_ = Bar{std::move(label), vmin, vmax > vmin ? vmax : vmin + 1.0, map};
+}
+
+cv::Mat Figure::render() const {
+  const FigureStyle& st = style_;
+  cv::Mat img(st.height, st.width, CV_8UC3, kWhite);
+  const double fs = st.font_scale;
+  // Plot area; the colour bar and its labels take room on the right.
+  const int bar_room = bar_ ? st.colourbar_width + 110 : 0;
+  const int top = st.margin_top + int(notes_.size()) * int(std::lround(28 * fs / 0.6));
+  const cv::Rect area(st.margin_left, top, st.width - st.margin_left - st.margin_right - bar_room,
+                      st.height - top - st.margin_bottom);
+
+  // Data range.
+  double x0 = std::numeric_limits<double>::infinity(), x1 = -x0, y0 = x0, y1 = -x0;
+  if (limits_) {
+    x0 = (*limits_)[0];
+    x1 = (*limits_)[1];
+    y0 = (*limits_)[2];
+    y1 = (*limits_)[3];
+  } else {
+    for (const auto& s : series_)
+      for (std::size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
+        if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) continue;
+        x0 = std::min(x0, s.x[i]);
+        x1 = std::max(x1, s.x[i]);
+        y0 = std::min(y0, s.y[i]);
+        y1 = std::max(y1, s.y[i]);
+      }
+    if (!std::isfinite(x0)) x0 = 0, x1 = 1, y0 = 0, y1 = 1;
+    const double px = std::max(x1 - x0, 1e-9) * 0.03, py = std::max(y1 - y0, 1e-9) * 0.03;
+    x0 -= px, x1 += px, y0 -= py, y1 += py;
+  }
+  if (!(x1 > x0)) x0 -= 0.5, x1 += 0.5;
+  if (!(y1 > y0)) y0 -= 0.5, y1 += 0.5;
+  if (equal_) {
+    const double sx = area.width / (x1 - x0), sy = area.height / (y1 - y0);
+    if (sx > sy) {
+      const double w = area.width / sy, c = 0.5 * (x0 + x1);
+      x0 = c - 0.5 * w, x1 = c + 0.5 * w;
+    } else {
+      const double h = area.height / sx, c = 0.5 * (y0 + y1);
+      y0 = c - 0.5 * h, y1 = c + 0.5 * h;
+    }
+  }
+  auto to_px = [&](double x, double y) {
+    return cv::Point2d(area.x + (x - x0) / (x1 - x0) * area.width,
+                       area.y + area.height - (y - y0) / (y1 - y0) * area.height);
+  };
+
+  // Grid and ticks.
+  const auto xt = nice_ticks(x0, x1, std::max(3, area.width / 140));
+  const auto yt = nice_ticks(y0, y1, std::max(3, area.height / 90));
+  const double xstep = xt.size() > 1 ? xt[1] - xt[0] : 1.0, ystep = yt.size() > 1 ? yt[1] - yt[0] : 1.0;
+  for (double v : xt) {
+    const int px = int(std::lround(to_px(v, y0).x));
+    if (st.grid) cv::line(img, {px, area.y}, {px, area.y + area.height}, kGrey, 1, cv::LINE_AA);
+    cv::line(img, {px, area.y + area.height}, {px, area.y + area.height + 6}, kBlack, 1);
+    const std::string s = tick_label(v, xstep);
+    const cv::Size sz = text_size(s, fs, 1);
+    put(img, s, {px - sz.width / 2, area.y + area.height + 10 + sz.height}, fs);
+  }
+  int widest_ytick = 0;
+  for (double v : yt) {
+    const int py = int(std::lround(to_px(x0, v).y));
+    if (st.grid) cv::line(img, {area.x, py}, {area.x + area.width, py}, kGrey, 1, cv::LINE_AA);
+    cv::line(img, {area.x - 6, py}, {area.x, py}, kBlack, 1);
+    const std::string s = tick_label(v, ystep);
+    const cv::Size sz = text_size(s, fs, 1);
+    widest_ytick = std::max(widest_ytick, sz.width);
+    put(img, s, {area.x - 10 - sz.width, py + sz.height / 2}, fs);
+  }
+
+  // Data, clipped to the plot area.
+  cv::Mat plot = img(area);
+  auto local = [&](double x, double y) {
+    const cv::Point2d p = to_px(x, y);
+    // Sub-pixel precision with 4 fractional bits keeps dense paths smooth.
+    return cv::Point(int(std::lround((p.x - area.x) * 16)), int(std::lround((p.y - area.y) * 16)));
+  };
+  for (const auto& s : series_) {
+    const std::size_t n = std::min(s.x.size(), s.y.size());
+    if (s.marker_radius > 0) {
+      for (std::size_t i = 0; i < n; ++i)
+        cv::circle(plot, local(s.x[i], s.y[i]), s.marker_radius * 16, s.colour, cv::FILLED, cv::LINE_AA, 4);
+      continue;
+    }
+    for (std::size_t i = 0; i + 1 < n; ++i) {
+      cv::Scalar c = s.colour;
+      if (!s.value.empty() && bar_) {
+        const double v = i < s.value.size() ? s.value[i] : s.value.back();
+        c = colour_at(bar_->map, (v - bar_->vmin) / (bar_->vmax - bar_->vmin));
+      }
+      cv::line(plot, local(s.x[i], s.y[i]), local(s.x[i + 1], s.y[i + 1]), c, s.thickness, cv::LINE_AA, 4);
+    }
+  }
+  cv::rectangle(img, area, kBlack, 1);
+
+  // Labels and title.
+  if (!title_.empty()) {
+    const cv::Size sz = text_size(title_, fs * 1.4, 2);
+    put(img, title_, {std::max(4, area.x + area.width / 2 - sz.width / 2), st.margin_top / 2 + sz.height / 2}, fs * 1.4, 2);
+  }
+  if (!xlabel_.empty()) {
+    const cv::Size sz = text_size(xlabel_, fs * 1.15, 1);
+    put(img, xlabel_, {area.x + area.width / 2 - sz.width / 2, st.height - 18}, fs * 1.15);
+  }
+  if (!ylabel_.empty())
+    put_vertical(img, ylabel_, {std::max(14, area.x - widest_ytick - 32), area.y + area.height / 2}, fs * 1.15);
+
+  // Notes: small lines under the title, in the top margin.
+  int ny = st.margin_top / 2 + int(text_size("Ag", fs * 1.4, 2).height * 0.5) + 8;
+  for (const auto& n : notes_) {
+    const cv::Size sz = text_size(n, fs * 0.9, 1);
+    ny += sz.height + 8;
+    put(img, n, {std::max(4, area.x + area.width / 2 - sz.width / 2), ny}, fs * 0.9);
+  }
+
+  // Legend, top right inside the plot.
+  std::vector<const Series*> labelled;
+  for (const auto& s : series_)
+    if (!s.label.empty()) labelled.push_back(&s);
+  if (!labelled.empty()) {
+    int w = 0, h = 0;
+    for (auto* s : labelled) {
+      const cv::Size sz = text_size(s->label, fs, 1);
+      w = std::max(w, sz.width);
+      h = std::max(h, sz.height);
+    }
+    const int row = h + 10, bw = w + 60, bh = int(labelled.size()) * row + 10;
+    const cv::Rect box(area.x + area.width - bw - 8, area.y + 8, bw, bh);
+    cv::rectangle(img, box, kWhite, cv::FILLED);
+    cv::rectangle(img, box, kBlack, 1);
+    for (std::size_t i = 0; i < labelled.size(); ++i) {
+      const int cy = box.y + 5 + int(i) * row + row / 2;
+      if (labelled[i]->marker_radius > 0)
+        cv::circle(img, {box.x + 22, cy}, labelled[i]->marker_radius, labelled[i]->colour, cv::FILLED, cv::LINE_AA);
+      else
+        cv::line(img, {box.x + 8, cy}, {box.x + 38, cy}, labelled[i]->colour, labelled[i]->thickness, cv::LINE_AA);
+      put(img, labelled[i]->label, {box.x + 48, cy + h / 2}, fs);
+    }
+  }
+
+  // Colour bar.
+  if (bar_) {
+    const int bx = area.x + area.width + 30, by = area.y, bh = area.height;
+    for (int i = 0; i < bh; ++i) {
+      const double t = 1.0 - double(i) / std::max(1, bh - 1);
+      cv::line(img, {bx, by + i}, {bx + st.colourbar_width, by + i}, colour_at(bar_->map, t), 1);
+    }
+    cv::rectangle(img, {bx, by}, {bx + st.colourbar_width, by + bh}, kBlack, 1);
+    const auto bt = nice_ticks(bar_->vmin, bar_->vmax, 6);
+    const double bstep = bt.size() > 1 ? bt[1] - bt[0] : 1.0;
+    for (double v : bt) {
+      const int py = by + int(std::lround((1.0 - (v - bar_->vmin) / (bar_->vmax - bar_->vmin)) * (bh - 1)));
+      cv::line(img, {bx + st.colourbar_width, py}, {bx + st.colourbar_width + 5, py}, kBlack, 1);
+      const std::string s = tick_label(v, bstep);
+      const cv::Size sz = text_size(s, fs, 1);
+      put(img, s, {bx + st.colourbar_width + 8, py + sz.height / 2}, fs);
+    }
+    put_vertical(img, bar_->label, {std::min(st.width - 14, bx + st.colourbar_width + 80), by + bh / 2}, fs * 1.15);
+  }
+  return img;
+}
+
+void Figure::save_png(const std::filesystem::path& path) const {
+  const cv::Mat img = render();
+  bool ok = false;
+  try {
+    ok = cv::imwrite(path.string(), img);
+  } catch (const cv::Exception& e) {
+    throw std::runtime_error("cannot write PNG '" + path.string() + "': " + e.what());
+  }
+  if (!ok) throw std::runtime_error("cannot write PNG '" + path.string() + "'");
+}
+
+}  // namespace gcpipe::plot

@@ -1,0 +1,39 @@
+#include "contour.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace gcpipe::servo {
+
+namespace {
+
+double segment_distance(const Vec3& a, const Vec3& b, const Vec3& p) {
+  const double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+  const double w[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
+  const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  double s = dd > 0 ? (w[0] * d[0] + w[1] * d[1] + w[2] * d[2]) / dd : 0.0;
+  s = std::clamp(s, 0.0, 1.0);
+  const double e[3] = {w[0] - s * d[0], w[1] - s * d[1], w[2] - s * d[2]};
+  return std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+}
+
+}  // namespace
+
+ContourTracker::ContourTracker(std::size_t window) : window_(std::max<std::size_t>(window, 1)) {}
+
+void ContourTracker::add_nominal(const Vec3& p) {
+  pts_.push_back(p);
+  if (pts_.size() > window_ + 1) pts_.pop_front();
+}
+
+double ContourTracker::distance(const Vec3& actual) {
+  if (pts_.empty()) return 0.0;
+  if (pts_.size() == 1) return segment_distance(pts_[0], pts_[0], actual);
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i + 1 < pts_.size(); ++i)
+    best = std::min(best, segment_distance(pts_[i], pts_[i + 1], actual));
+  return best;
+}
+
+}  // namespace gcpipe::servo

@@ -1,0 +1,133 @@
+#include "trace.hpp"
+
+#include <charconv>
+#include <cmath>
+
+namespace gcpipe {
+
+namespace {
+
+void append_number(std::string& s, double v) {
+  char buf[64];
+  auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+  (void)ec;
+  s.append(buf, end);
+}
+
+void append_time(std::string& s, double v) {
+  char buf[64];
+  auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed, 6);
+  (void)ec;
+  s.append(buf, end);
+}
+
+constexpr const char* kColumns[11] = {"t", "X_cmd", "Y_cmd", "Z_cmd", "A_cmd", "C_cmd",
+                                      "X",   "Y",     "Z",     "A",     "C"};
+
+}  // namespace
+
+std::string format_trace_row(const TraceRow& r) {
+  std::string s;
+  append_time(s, r.t);
+  for (double v : r.command) {
+    s += ',';
+    append_number(s, v);
+  }
+  for (double v : r.actual) {
+    s += ',';
+    append_number(s, v);
+  }
+  return s;
+}
+
+TraceWriter::TraceWriter(std::ostream& out) : out_(out) { out_ << kTraceHeader << '\n'; }
+
+void TraceWriter::row(const TraceRow& r) {
+  line_ = format_trace_row(r);
+  line_ += '\n';
+  out_.write(line_.data(), static_cast<std::streamsize>(line_.size()));
+  ++rows_;
+}
+
+TraceReader::TraceReader(std::istream& in, std::string file) : in_(in), file_(std::move(file)) {}
+
+TraceStatus TraceReader::next(TraceRow& row, Diagnostic& diag) {
+  while (std::getline(in_, buf_)) {
+    ++line_;
+    std::string_view text = buf_;
+    if (!text.empty() && text.back() == '\r') text.remove_suffix(1);
+    diag = Diagnostic{};
+    diag.file = file_;
+    diag.line = line_;
+    diag.severity = Severity::kError;
+    if (!header_done_) {
+      header_done_ = true;
+      if (text != kTraceHeader) {
+        std::size_t col = 0;
+        while (col < text.size() && col < kTraceHeader.size() && text[col] == kTraceHeader[col]) ++col;
+        diag.column = static_cast<std::uint32_t>(col + 1);
+        diag.message = "trace header must be exactly '" + std::string(kTraceHeader) + "' (s, mm, deg)";
+        return TraceStatus::kError;
+      }
+      continue;
+    }
+    if (text.empty()) {
+      diag.column = 1;
+      diag.message = "empty line inside the trace";
+      return TraceStatus::kError;
+    }
+    return parse(text, row, diag);
+  }
+  return TraceStatus::kEnd;
+}
+
+TraceStatus TraceReader::parse(std::string_view text, TraceRow& row, Diagnostic& diag) {
+  double v[11];
+  std::size_t pos = 0;
+  for (int i = 0; i < 11; ++i) {
+    const std::size_t comma = text.find(',', pos);
+    const std::size_t end = comma == std::string_view::npos ? text.size() : comma;
+    const std::string_view field = text.substr(pos, end - pos);
+    diag.column = static_cast<std::uint32_t>(pos + 1);
+    if (field.empty()) {
+      diag.message = std::string("column '") + kColumns[i] + "' is empty";
+      return TraceStatus::kError;
+    }
+    auto [p, ec] = std::from_chars(field.data(), field.data() + field.size(), v[i]);
+    if (ec != std::errc() || p != field.data() + field.size()) {
+      diag.column = static_cast<std::uint32_t>(pos + 1 + (ec == std::errc() ? static_cast<std::size_t>(p - field.data()) : 0));
+      diag.message = std::string("column '") + kColumns[i] + "': '" + std::string(field) + "' is not a number";
+      return TraceStatus::kError;
+    }
+    if (!std::isfinite(v[i])) {
+      diag.message = std::string("column '") + kColumns[i] + "' is not finite";
+      return TraceStatus::kError;
+    }
+    if (i < 10 && comma == std::string_view::npos) {
+      diag.column = static_cast<std::uint32_t>(text.size() + 1);
+      diag.message = "row has " + std::to_string(i + 1) + " of 11 columns (truncated?)";
+      return TraceStatus::kError;
+    }
+    if (i == 10 && comma != std::string_view::npos) {
+      diag.column = static_cast<std::uint32_t>(comma + 1);
+      diag.message = "row has more than 11 columns";
+      return TraceStatus::kError;
+    }
+    pos = end + 1;
+  }
+  if (have_prev_ && !(v[0] > prev_t_)) {
+    diag.column = 1;
+    diag.message = "time " + std::string(text.substr(0, text.find(','))) + " s does not increase";
+    return TraceStatus::kError;
+  }
+  have_prev_ = true;
+  prev_t_ = v[0];
+  row.t = v[0];
+  for (std::size_t i = 0; i < 5; ++i) {
+    row.command[i] = v[1 + i];
+    row.actual[i] = v[6 + i];
+  }
+  return TraceStatus::kRow;
+}
+
+}  // namespace gcpipe

@@ -1,0 +1,71 @@
+// The axis trace shared by simulation and measured data: CSV with the header
+//   t,X_cmd,Y_cmd,Z_cmd,A_cmd,C_cmd,X,Y,Z,A,C
+// in s, mm and deg, one row per tick. Measured traces (SERVO GUIDE, halscope exports converted to
+// this layout) and simulated ones are read by the same reader, so the calibration loop compares
+// like with like.
+#pragma once
+
+#include <cstdint>
+#include <istream>
+#include <ostream>
+#include <string>
+#include <string_view>
+
+#include "gcpipe/block.hpp"
+#include "gcpipe/diagnostic.hpp"
+
+namespace gcpipe {
+
+/// The header line, exactly.
+inline constexpr std::string_view kTraceHeader = "t,X_cmd,Y_cmd,Z_cmd,A_cmd,C_cmd,X,Y,Z,A,C";
+
+/// One tick: time [s], commanded and actual joints [mm, deg].
+struct TraceRow {
+  double t = 0;
+  Axes command{};
+  Axes actual{};
+};
+
+/// Writes the header on construction, then one line per row. Time with 6 decimals (1 us),
+/// positions in the shortest text that reads back to the same double.
+class TraceWriter {
+ public:
+  explicit TraceWriter(std::ostream& out);
+  void row(const TraceRow& r);
+  std::uint64_t rows() const { return rows_; }
+
+ private:
+  std::ostream& out_;
+  std::string line_;
+  std::uint64_t rows_ = 0;
+};
+
+/// Formats one row without the line terminator (used by the writer and the tests).
+std::string format_trace_row(const TraceRow& r);
+
+enum class TraceStatus : std::uint8_t {
+  kRow,    //!< `row` holds the next tick
+  kError,  //!< `diag` says where (line:col) and why; the reader continues with the next line
+  kEnd,    //!< no more input
+};
+
+/// Reads a trace; every problem is a Diagnostic with line:col, never an exception. A wrong header
+/// is reported once on line 1 and every data line is still checked.
+class TraceReader {
+ public:
+  TraceReader(std::istream& in, std::string file);
+  TraceStatus next(TraceRow& row, Diagnostic& diag);
+  std::uint64_t line() const { return line_; }
+
+ private:
+  TraceStatus parse(std::string_view text, TraceRow& row, Diagnostic& diag);
+  std::istream& in_;
+  std::string file_;
+  std::string buf_;
+  std::uint64_t line_ = 0;
+  bool header_done_ = false;
+  bool have_prev_ = false;
+  double prev_t_ = 0;
+};
+
+}  // namespace gcpipe

@@ -1,0 +1,238 @@
+#include "trochoid_node.hpp"
+
+#include <chrono>
+#include <iostream>
+#include <map>
+#include <set>
+#include <vector>
+
+#include "dds_convert.hpp"
+#include "dds_runtime.hpp"
+
+namespace gcpipe {
+
+namespace {
+
+// One program in flight. Programs are told apart by id, so several feeders may share the topics.
+struct Program {
+  std::string file;
+  std::uint64_t next_batch = 0;   // input sequence number expected next
+  std::uint64_t next_out = 0;     // output sequence number
+  msg::BlockBatch out;            // output batch being filled
+  std::size_t out_size = 0;       // its serialized size so far [bytes]
+  bool strict = false;            // this node's option or the upstream's mode
+  bool stopped = false;           // strict mode met a rejected line or cycle: nothing more out
+  dds::BatchArrivals arrived;
+  std::uint64_t blocks_sent = 0, diagnostics_sent = 0, block_rejections_sent = 0;
+  std::uint64_t cycles_expanded = 0, cycles_rejected = 0;
+  std::string error;              // first sign of lost or corrupt input; processing stops there
+};
+
+}  // namespace
+
+struct TrochoidNode::Impl {
+  dds::Participant& participant;
+  TrochoidExpander expander;
+  TrochoidNodeOptions options;
+  dds::Reader<msg::BlockBatch> reader;
+  dds::Writer<msg::BlockBatch> writer;
+  std::map<std::uint64_t, Program> programs;
+  std::set<std::uint64_t> skipped;  // programs published before this node started
+  int status = 0;
+  // Reused for every block: one cycle may expand into tens of thousands of blocks.
+  ResolvedBlock block;
+  Diagnostic diag;
+  std::vector<ResolvedBlock> expanded;
+
+  Impl(dds::Participant& p, TrochoidOptions to, TrochoidNodeOptions o)
+      : participant(p), expander(to), options(std::move(o)), reader(p, options.input_topic),
+        writer(p, options.output_topic) {}
+
+  bool publish(std::uint64_t id, Program& prog) {
+    prog.out.program_id(id);
+    prog.out.file(prog.file);
+    prog.out.sequence_number(prog.next_out++);
+    prog.out.strict(prog.strict);
+    if (!writer.publish(prog.out)) return false;
+    prog.blocks_sent += prog.out.blocks().size();
+    prog.diagnostics_sent += prog.out.diagnostics().size();
+    prog.out.blocks().clear();
+    prog.out.diagnostics().clear();
+    prog.out_size = 0;
+    return true;
+  }
+
+  void fail(Program& prog, std::uint64_t id, const std::string& why) {
+    if (!prog.error.empty()) return;
+    prog.error = why;
+    std::cerr << "gcpipe node trochoid: program " << id << " (" << prog.file << "): " << why
+              << "\n";
+  }
+
+  // Appends one output item; publishes when the batch is full. False when publishing failed.
+  bool add_block(std::uint64_t id, Program& prog, const ResolvedBlock& b) {
+    msg::Block& m = prog.out.blocks().emplace_back();
+    dds::to_msg(b, m);
+    prog.out_size += msg::Block::getCdrSerializedSize(m);
+    return prog.out_size < options.batch_bytes || publish(id, prog);
+  }
+  bool add_diagnostic(std::uint64_t id, Program& prog, const msg::LineDiagnostic& m) {
+    if (m.line_status() == static_cast<std::uint8_t>(dds::DiagnosticKind::kBlockRejected))
+      ++prog.block_rejections_sent;
+    prog.out.diagnostics().push_back(m);
+    prog.out_size += msg::LineDiagnostic::getCdrSerializedSize(m);
+    return prog.out_size < options.batch_bytes || publish(id, prog);
+  }
+
+  // Batch mode's loop body for one input batch: diagnostics are forwarded, every block goes
+  // through step(); in strict mode nothing follows the first rejected line or cycle (arrivals are
+  // still counted, so the end marker's totals can be checked).
+  void process(Program& prog, std::uint64_t id, const msg::BlockBatch& batch) {
+    std::string why;
+    dds::DiagnosticKind kind{};
+    const auto& blocks = batch.blocks();
+    const auto& diags = batch.diagnostics();
+    dds::for_each_in_line_order(
+        batch,
+        [&](std::size_t b) {
+          if (!dds::from_msg(blocks[b], block, &why)) {
+            fail(prog, id, "batch " + std::to_string(batch.sequence_number()) + ", line " +
+                               std::to_string(blocks[b].line()) + ": " + why);
+            return false;
+          }
+          ++prog.arrived.blocks;
+          if (prog.stopped) return true;
+          expanded.clear();
+          const TrochoidExpander::Status st = expander.step(block, prog.file, expanded, diag);
+          if (!st.ok()) {
+            ++prog.cycles_rejected;
+            msg::LineDiagnostic m;
+            dds::to_msg(diag, dds::DiagnosticKind::kBlockRejected, m);
+            if (!add_diagnostic(id, prog, m)) return false;
+          } else if (st.code == TrochoidExpander::Status::Code::kExpanded) {
+            ++prog.cycles_expanded;
+          }
+          for (const ResolvedBlock& e : expanded)
+            if (!add_block(id, prog, e)) return false;
+          if (!st.ok() && prog.strict) prog.stopped = true;
+          return true;
+        },
+        [&](std::size_t d) {
+          if (!dds::from_msg(diags[d], diag, kind, &why)) {
+            fail(prog, id, "batch " + std::to_string(batch.sequence_number()) + ", line " +
+                               std::to_string(diags[d].line()) + ": " + why);
+            return false;
+          }
+          prog.arrived.count(kind);
+          if (prog.stopped) return true;
+          if (!add_diagnostic(id, prog, diags[d])) return false;
+          if (kind == dds::DiagnosticKind::kLineRejected && prog.strict) prog.stopped = true;
+          return true;
+        });
+  }
+
+  // Returns true when the program is finished (end marker published).
+  bool handle(const msg::BlockBatch& batch, double source_time) {
+    const std::uint64_t id = batch.program_id();
+    if (skipped.count(id) != 0) {
+      if (batch.end_of_program()) skipped.erase(id);
+      return false;
+    }
+    auto it = programs.find(id);
+    if (it == programs.end() && participant.published_before_start(source_time)) {
+      // Replayed from the upstream node's history: an old program, not one sent to this node.
+      std::cerr << "gcpipe node trochoid: skipping program " << id << " ('" << batch.file()
+                << "'), published before this node started (--replay takes it)\n";
+      if (!batch.end_of_program()) skipped.insert(id);
+      return false;
+    }
+    if (it == programs.end()) {
+      it = programs.try_emplace(id).first;
+      it->second.file = batch.file();
+      if (batch.sequence_number() != 0)
+        fail(it->second, id,
+             "joined the program at batch " + std::to_string(batch.sequence_number()) +
+                 ": its beginning is no longer available upstream");
+      it->second.next_batch = batch.sequence_number();
+    }
+    Program& prog = it->second;
+    prog.strict = prog.strict || options.strict || batch.strict();
+    if (batch.sequence_number() != prog.next_batch)
+      fail(prog, id, "batch " + std::to_string(prog.next_batch) + " is missing (got batch " +
+                         std::to_string(batch.sequence_number()) + ")");
+    prog.next_batch = batch.sequence_number() + 1;
+    if (prog.error.empty()) process(prog, id, batch);
+    if (!batch.end_of_program()) return false;
+
+    if (!batch.error().empty()) fail(prog, id, "upstream: " + batch.error());
+    const dds::BatchTotals upstream = dds::totals_of(batch);
+    if (prog.error.empty()) {
+      const std::string counts = dds::check_counts(upstream, prog.arrived);
+      if (!counts.empty()) fail(prog, id, counts);
+    }
+    prog.out.end_of_program(true);
+    dds::BatchTotals totals;
+    totals.summary = upstream.summary;
+    totals.blocks_sent = prog.blocks_sent + prog.out.blocks().size();
+    totals.diagnostics_sent = prog.diagnostics_sent + prog.out.diagnostics().size();
+    totals.blocks_rejected = prog.block_rejections_sent;
+    totals.stopped = upstream.stopped || prog.stopped;
+    dds::set_totals(totals, prog.out);
+    prog.out.error(prog.error);
+    if (!prog.error.empty()) status = 1;
+    publish(id, prog);
+    std::cerr << "gcpipe node trochoid: program " << id << " '" << prog.file << "': "
+              << prog.arrived.blocks << " blocks and " << prog.arrived.diagnostics()
+              << " diagnostics in " << prog.next_batch << " batches; " << prog.cycles_expanded
+              << " G275 cycles expanded, " << prog.cycles_rejected << " rejected; "
+              << totals.blocks_sent << " blocks and " << totals.diagnostics_sent
+              << " diagnostics out in " << prog.next_out << " batches"
+              << (prog.stopped ? " (strict stop)" : "")
+              << "; writes retried on a full history: " << writer.blocked_writes() << "\n";
+    programs.erase(it);
+    return true;
+  }
+};
+
+TrochoidNode::TrochoidNode(dds::Participant& participant, TrochoidOptions trochoid_options,
+                           TrochoidNodeOptions node_options)
+    : impl_(std::make_unique<Impl>(participant, trochoid_options, std::move(node_options))) {}
+
+TrochoidNode::~TrochoidNode() = default;
+
+int TrochoidNode::run() {
+  msg::BlockBatch batch;
+  double source_time = 0;
+  // Downstream first: input is taken only once someone will receive the output, so nothing is
+  // written into a history that no reader drains.
+  if (!impl_->writer.wait_for_readers()) return 130;
+  std::cerr << "gcpipe node trochoid: ready, " << impl_->writer.matched_readers()
+            << " reader(s) of " << impl_->options.output_topic << " matched" << std::endl;
+  bool done = false;
+  const double idle_timeout = impl_->participant.options().idle_timeout;
+  auto last_sample = std::chrono::steady_clock::now();
+  while (!done && !dds::stop_requested()) {
+    if (!impl_->reader.take(batch, 0.1, &source_time)) {
+      const std::chrono::duration<double> idle = std::chrono::steady_clock::now() - last_sample;
+      if (idle_timeout > 0 && idle.count() > idle_timeout && !impl_->options.forever) {
+        std::cerr << "gcpipe node trochoid: nothing arrived for " << idle_timeout << " s\n";
+        break;
+      }
+      continue;
+    }
+    last_sample = std::chrono::steady_clock::now();
+    if (impl_->handle(batch, source_time) && !impl_->options.forever) done = true;
+  }
+  if (!done && !impl_->options.forever) {
+    std::cerr << "gcpipe node trochoid: stopped before the end of the program\n";
+    impl_->status = 1;
+  }
+  if (!impl_->writer.wait_acknowledged()) {
+    std::cerr << "gcpipe node trochoid: not every batch was acknowledged by the readers of "
+              << impl_->options.output_topic << "\n";
+    impl_->status = 1;
+  }
+  return impl_->status;
+}
+
+}  // namespace gcpipe
