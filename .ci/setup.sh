@@ -28,7 +28,9 @@ if [ ${#missing[@]} -gt 0 ]; then
   apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 
-# clang: the same compiler builds the libFuzzer target; ccache keeps rebuilds short.
+# clang: the same compiler builds the libFuzzer target; ccache keeps rebuilds short, also across
+# fresh clones at other paths (CCACHE_BASEDIR makes its keys relative to the checkout).
+export CCACHE_BASEDIR="$PWD"
 echo "== configure and build (build/)"
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_COMPILER=clang++ >/dev/null
 cmake --build build -j"$(nproc)"

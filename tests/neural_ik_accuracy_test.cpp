@@ -6,8 +6,10 @@
 // magnitude. Seed 000 Table 5's errors are checked as well: the nets must beat them.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 
 #include "gcpipe/kinematics.hpp"
@@ -22,8 +24,12 @@ TEST(NeuralIkAccuracy, ImprovedPresetBeatsTable5AndMeetsMeasuredErrors) {
   const PipelineConfig pc =
       load_pipeline_config(std::string(GCPIPE_SOURCE_DIR) + "/pipeline_configs/default.yaml");
   const MachineKinematics m = load_kinematics(pc.machine_section);
+  NeuralTrainingOptions options = preset_options("improved");
+  // Seed 1 by default; GCPIPE_NEURAL_SEED=2 or 3 reproduces the other measured seeds.
+  if (const char* seed = std::getenv("GCPIPE_NEURAL_SEED")) options.seed = std::strtoull(seed, nullptr, 10);
+  std::printf("seed %llu\n", static_cast<unsigned long long>(options.seed));
   NeuralTrainingReport report;
-  const NeuralIk model = train_neural_ik(m, pc.machine.name, preset_options("improved"), &report);
+  const NeuralIk model = train_neural_ik(m, pc.machine.name, options, &report);
 
   // Seed 000 Table 5, MSE on normalised targets (test set).
   const double table5_test_mse[kNumAxes] = {0.0053, 0.0053, 0.0061, 1.236e-4, 0.982e-4};
@@ -37,7 +43,8 @@ TEST(NeuralIkAccuracy, ImprovedPresetBeatsTable5AndMeetsMeasuredErrors) {
     const double mse = a == kC ? r.test_mse_angle : r.test_mse;
     EXPECT_LT(mse, table5_test_mse[a] / 100) << "net " << kAxisLetters[a];
     EXPECT_LT(r.test_rms, max_test_rms[a]) << "net " << kAxisLetters[a];
-    // No overfitting: validation and test errors agree within a factor of 2 (measured <= 1.5).
+    // No overfitting: validation and test errors agree within a factor of 2 (measured <= 1.7,
+    // the C net of seed 2).
     EXPECT_LT(r.test_rms, 2 * r.validation_rms) << "net " << kAxisLetters[a];
     EXPECT_LT(r.validation_rms, 2 * r.test_rms) << "net " << kAxisLetters[a];
   }
@@ -51,7 +58,7 @@ TEST(NeuralIkAccuracy, ImprovedPresetBeatsTable5AndMeetsMeasuredErrors) {
     EXPECT_LT(report.end_to_end.rms[a], max_rms[a]) << "end to end, axis " << kAxisLetters[a];
   std::mt19937_64 rng(2024);
   const double tool = 100.0;
-  Axes sum_sq{};
+  Axes sum_sq{}, max_abs{};
   const int count = 4000;
   for (int i = 0; i < count; ++i) {
     Axes j;
@@ -60,7 +67,10 @@ TEST(NeuralIkAccuracy, ImprovedPresetBeatsTable5AndMeetsMeasuredErrors) {
     if (std::abs(j[kA]) < 5) j[kA] = -5;
     const NeuralIkPrediction p = model.predict(forward_kinematics(m, j, tool), tool, j);
     ASSERT_TRUE(p.finite);
-    for (int a = 0; a < kNumAxes; ++a) sum_sq[a] += (p.joints[a] - j[a]) * (p.joints[a] - j[a]);
+    for (int a = 0; a < kNumAxes; ++a) {
+      sum_sq[a] += (p.joints[a] - j[a]) * (p.joints[a] - j[a]);
+      max_abs[a] = std::max(max_abs[a], std::abs(p.joints[a] - j[a]));
+    }
   }
   // Measured RMS of this loop, seeds 1/2/3: X 0.154/0.158/0.141 mm, Y 0.407/0.259/0.225 mm,
   // Z 0.199/0.170/0.226 mm, A 9.6e-6/2.7e-5/2.6e-5 deg, C 0.064/0.067/0.056 deg.
@@ -71,5 +81,7 @@ TEST(NeuralIkAccuracy, ImprovedPresetBeatsTable5AndMeetsMeasuredErrors) {
     EXPECT_LT(std::sqrt(sum_sq[a] / count), max_predict_rms[a])
         << "predict, axis " << kAxisLetters[a];
   }
+  std::printf("; max");
+  for (int a = 0; a < kNumAxes; ++a) std::printf(" %c %.3g", kAxisLetters[a], max_abs[a]);
   std::printf(" [mm, deg]\n");
 }

@@ -147,6 +147,10 @@ TEST(NeuralIk, LoadingRejectsBadFilesWithAReason) {
   EXPECT_NE(truncated.find("unexpected end of model file"), std::string::npos) << truncated;
   EXPECT_NE(parse_error(good + "net X\n").find("unexpected text after the last net"),
             std::string::npos);
+  EXPECT_NE(parse_error(replace_line(good, "machine", "machine two words")).find("takes one value"),
+            std::string::npos);
+  EXPECT_THROW(NeuralIk({"two words", "custom", 1}, -1, COutput::kSinCos, tiny_model().nets()),
+               std::invalid_argument);
   EXPECT_THROW(NeuralIk::load("/nonexistent/dir/x.model"), std::runtime_error);
 }
 

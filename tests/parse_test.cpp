@@ -221,6 +221,7 @@ TEST(ParseErrors, EachClassNamesWordValueAndColumn) {
   expect_error("G1 X[sqrt[-1]] F1\n", "not a finite number", 6);
   expect_error("G1 X[10**400] F1\n", "overflow", 8);
   expect_error("G1 X99999999 F1\n", "out of range", 4);
+  expect_error("G91 G1 X60000 F1\nX60000\n", "takes X to 120000 mm, out of range", 1);  // found by parse_fuzz
   expect_error("G1 X0 Y0 F1\nG2 X1 I1e5\n", "'E' is not a word", 9);
   expect_error("G1 X0 Y0 F1\nG2 X1 I[10**60]\n", "I1e+60 is out of range", 7);
   expect_error("G1 X1e5 F1\n", "'E' is not a word", 6);

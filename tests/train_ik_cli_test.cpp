@@ -58,3 +58,24 @@ TEST(TrainIkCli, BadOptionsAreUsageErrors) {
   EXPECT_EQ(run(""), 2);  // no -o
   EXPECT_EQ(run("-o /nonexistent/dir/x.model --samples 240 --max-iterations 1 --quiet"), 1);
 }
+
+// A model learns one machine's geometry: gcpipe ik refuses a model trained for another machine.
+TEST(TrainIkCli, IkRefusesAModelOfAnotherMachine) {
+  ASSERT_TRUE(std::filesystem::exists(kGcpipe)) << kGcpipe << " not built";
+  const std::filesystem::path dir = std::filesystem::path(GCPIPE_BINARY_DIR) / "train_ik_cli_other";
+  std::filesystem::create_directories(dir);
+  const std::string model = (dir / "lc.model").string();
+  const std::string lc = std::string(GCPIPE_SOURCE_DIR) + "/pipeline_configs/linuxcnc_xyzac_trt.yaml";
+  const std::string train = kGcpipe + " train-ik --config " + lc + " -o " + model +
+                            " --samples 240 --max-iterations 2 --quiet > /dev/null 2>&1";
+  ASSERT_EQ(WEXITSTATUS(std::system(train.c_str())), 0);
+  const std::string sample = std::string(GCPIPE_SOURCE_DIR) + "/samples/five_axis_demo.nc";
+  const std::string err = (dir / "err.txt").string();
+  const std::string same = kGcpipe + " ik " + sample + " --csv --config " + lc + " --model " + model + " > /dev/null 2>&1";
+  EXPECT_NE(WEXITSTATUS(std::system(same.c_str())), 1);  // its own machine: accepted
+  const std::string other = kGcpipe + " ik " + sample + " --csv --config " + kConfig + " --model " + model +
+                            " > /dev/null 2> " + err;
+  EXPECT_EQ(WEXITSTATUS(std::system(other.c_str())), 1);
+  EXPECT_NE(slurp(err).find("trained for machine 'linuxcnc_xyzac_trt'"), std::string::npos) << slurp(err);
+  std::filesystem::remove_all(dir);
+}

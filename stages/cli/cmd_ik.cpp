@@ -1,4 +1,5 @@
 // gcpipe ik: parse + ik stage, one CSV row per resolved point (analytic and neural joints).
+#include <stdexcept>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -43,7 +44,14 @@ int run_ik(const std::vector<std::string>& argv) {
   if (args.flag("--tool-vector")) io.resolve_orientation = IkInputMode::kToolVector;
 
   std::optional<neural::NeuralIk> model;
-  if (const auto path = args.value("--model")) model.emplace(neural::NeuralIk::load(*path));
+  if (const auto path = args.value("--model")) {
+    model.emplace(neural::NeuralIk::load(*path));
+    // A model learns one machine's geometry; on another machine it would be confidently wrong.
+    if (model->provenance().machine != pc.machine.name)
+      throw std::runtime_error(*path + ": the model was trained for machine '" + model->provenance().machine +
+                               "', the config is for '" + pc.machine.name +
+                               "': train one with gcpipe train-ik --config <this config>");
+  }
 
   InputFile in(args.positional()[0]);
   Parser parser(po, pc.machine, in.name());

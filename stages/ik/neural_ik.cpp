@@ -80,11 +80,6 @@ class ModelReader {
     throw std::runtime_error(source_ + ":" + std::to_string(line_ + 1) + ": " + reason);
   }
 
-  std::string_view raw_line() {
-    if (line_ >= lines_.size()) fail("unexpected end of model file");
-    return lines_[line_];
-  }
-
   /// Tokens of the next non-empty line.
   std::vector<std::string_view> next_line() {
     while (true) {
@@ -216,6 +211,10 @@ NeuralIk::NeuralIk(ModelProvenance provenance, int branch_sign, COutput c_output
       branch_sign_(branch_sign),
       c_output_(c_output),
       nets_(std::move(nets)) {
+  for (const std::string* word : {&provenance_.machine, &provenance_.preset})
+    if (word->empty() || word->find_first_of(" \t\r\n") != std::string::npos)
+      throw std::invalid_argument("neural IK model: machine and preset names must be single "
+                                  "words, got '" + *word + "'");
   if (branch_sign_ != 1 && branch_sign_ != -1)
     throw std::invalid_argument("neural IK model: branch_sign is " + std::to_string(branch_sign_) +
                                 "; must be +1 or -1");

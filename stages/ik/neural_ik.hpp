@@ -78,8 +78,8 @@ struct ModelProvenance {
 class NeuralIk {
  public:
   /// Checks shapes (X/Y/Z nets 5 -> ... -> 1, A net 2 -> ... -> 1, C net 2 -> ... -> 1 or 2 as
-  /// `c_output` says), finite parameters and min < max for every range; throws
-  /// std::invalid_argument naming the net and the quantity otherwise.
+  /// `c_output` says), finite parameters, min < max for every range, and single-word machine and
+  /// preset names; throws std::invalid_argument naming the net and the quantity otherwise.
   NeuralIk(ModelProvenance provenance, int branch_sign, COutput c_output, AxisNets nets);
 
   /// Reads a model file; throws std::runtime_error "file:line: reason" for a wrong version,

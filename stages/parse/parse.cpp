@@ -726,6 +726,12 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
       return fail(w.col, std::string(1, L) + show(w.value) + " is out of range (|" + L + "| <= " +
                              show(lim) + (rotary ? " deg)" : " mm)"));
     target[a] = ns.incremental ? ns.position[a] + v : v + ns.origin[a];
+    // Incremental steps that are each in range can still add up to an absurd position, which the
+    // writer would then have to write as one absolute word: bound the result too.
+    if (std::fabs(target[a] - ns.origin[a]) > lim)
+      return fail(w.col, std::string(1, L) + show(w.value) + " takes " + L + " to " + show(target[a] - ns.origin[a]) +
+                             (rotary ? " deg" : " mm") + ", out of range (|" + L + "| <= " + show(lim) +
+                             (rotary ? " deg)" : " mm)"));
     mask = static_cast<std::uint8_t>(mask | (1u << a));
   }
   b.axis_words = mask;

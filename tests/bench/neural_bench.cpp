@@ -1,6 +1,7 @@
 // Neural IK throughput on one core (issue 3 item 8: at least 1 M poses/s batched, paper
-// architecture). The model is trained once at start-up (paper preset layer sizes, short LM run:
-// speed does not depend on how well the weights fit) for the mx330 config.
+// architecture). The models are trained once at start-up with a short LM run (speed does not
+// depend on how well the weights fit) for the mx330 config: Table 5's layer sizes exactly, and
+// the default preset's (C net 2-12-12-2).
 //
 // Run: build/tests/neural_bench --benchmark_min_time=2
 #include <benchmark/benchmark.h>
@@ -28,13 +29,17 @@ struct Fixture {
   std::vector<Axes> joints;
 };
 
-const Fixture& fixture() {
-  static const Fixture f = [] {
-    Fixture out;
-    const auto pc = gcpipe::load_pipeline_config(std::string(GCPIPE_SOURCE_DIR) +
-                                                 "/pipeline_configs/default.yaml");
-    out.kinematics = gcpipe::load_kinematics(pc.machine_section);
-    NeuralTrainingOptions o = preset_options("improved");  // Table 5 layer sizes
+Fixture make_fixture(bool paper_architecture) {
+  Fixture out;
+  const auto pc = gcpipe::load_pipeline_config(std::string(GCPIPE_SOURCE_DIR) +
+                                               "/pipeline_configs/default.yaml");
+  out.kinematics = gcpipe::load_kinematics(pc.machine_section);
+  NeuralTrainingOptions o = preset_options("improved");
+  if (paper_architecture) {  // Table 5 exactly: C net 2-6-12-1 with an angle output
+    o.hidden = preset_options("paper").hidden;
+    o.c_output = COutput::kAngle;
+  }
+  {
     o.position_samples = 600;
     o.position_split = {400, 100};
     o.rotary_samples = 300;
@@ -50,14 +55,22 @@ const Fixture& fixture() {
       out.joints.push_back(j);
       out.poses.push_back(gcpipe::forward_kinematics(out.kinematics, j, 0.0));
     }
-    return out;
-  }();
+  }
+  return out;
+}
+
+const Fixture& fixture() {
+  static const Fixture f = make_fixture(true);
+  return f;
+}
+
+const Fixture& improved_fixture() {
+  static const Fixture f = make_fixture(false);
   return f;
 }
 
 // All five nets per pose, batched: what the IK stage calls per batch of resolved points.
-void BM_NeuralIkBatched(benchmark::State& state) {
-  const Fixture& f = fixture();
+void run_batched(benchmark::State& state, const Fixture& f) {
   const auto batch = static_cast<std::size_t>(state.range(0));
   std::vector<NeuralIkPrediction> out(batch);
   std::size_t offset = 0;
@@ -72,7 +85,14 @@ void BM_NeuralIkBatched(benchmark::State& state) {
   state.counters["poses/s"] =
       benchmark::Counter(static_cast<double>(state.iterations() * batch), benchmark::Counter::kIsRate);
 }
+void BM_NeuralIkBatched(benchmark::State& state) { run_batched(state, fixture()); }
 BENCHMARK(BM_NeuralIkBatched)->Arg(1)->Arg(64)->Arg(1024)->Arg(16384);
+
+// The default (improved) preset's model: C net 2-12-12-2.
+void BM_NeuralIkBatchedImproved(benchmark::State& state) {
+  run_batched(state, improved_fixture());
+}
+BENCHMARK(BM_NeuralIkBatchedImproved)->Arg(1)->Arg(1024);
 
 // One X net (5-25-11-1) alone on normalised inputs: the cost of the paper's largest net, in the
 // float inference copy predict() uses and in the double training path.
