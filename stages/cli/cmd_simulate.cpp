@@ -202,11 +202,7 @@ int run_simulate(const std::vector<std::string>& argv) {
     }
     return true;
   };
-  sink.diagnostic = [&](const Diagnostic& d) {
-    if (d.severity == Severity::kError) ++errors;
-    std::cerr << format(d) << "\n";
-    return true;
-  };
+  sink.diagnostic = print_diagnostics(errors);
   std::string error;
   const bool complete = stream_program(in, parser, sink, args.flag("--progress"), error);
   if (interp) {

@@ -35,6 +35,14 @@ InputFile::~InputFile() {
   if (fd_ > 0) ::close(fd_);
 }
 
+std::function<bool(const Diagnostic&)> print_diagnostics(std::uint64_t& errors) {
+  return [&errors](const Diagnostic& d) {
+    if (d.severity == Severity::kError) ++errors;
+    std::fprintf(stderr, "%s\n", format(d).c_str());
+    return true;
+  };
+}
+
 bool stream_program(InputFile& in, Parser& parser, const LineSink& sink, bool progress,
                     std::string& error) {
   const std::size_t max_line = parser.options().max_line_length;

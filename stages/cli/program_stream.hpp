@@ -37,6 +37,9 @@ struct LineSink {
   std::function<bool(const Diagnostic&)> diagnostic;
 };
 
+/// The diagnostic handler of the single-stage commands: print to stderr, count the errors.
+std::function<bool(const Diagnostic&)> print_diagnostics(std::uint64_t& errors);
+
 /// Streams `in` through `parser`. Strict mode stops after the first rejected line. Prints a
 /// progress line to stderr about once a second when `progress` is set. Returns false if the
 /// stream was stopped early (strict mode, a sink returned false, or a read error in `error`).

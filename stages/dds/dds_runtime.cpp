@@ -324,4 +324,37 @@ int RawReader::matched_writers() const {
   return status.current_count;
 }
 
+int run_stage_node(const std::string& node, Participant& participant, RawWriter& output, bool forever,
+                   const std::function<Taken(double timeout)>& take, int& status) {
+  if (!output.wait_for_readers()) return 130;
+  std::cerr << "gcpipe node " << node << ": ready, " << output.matched_readers() << " reader(s) of "
+            << output.topic() << " matched" << std::endl;
+  bool done = false;
+  const double idle_timeout = participant.options().idle_timeout;
+  auto last_sample = std::chrono::steady_clock::now();
+  while (!done && !stop_requested()) {
+    const Taken t = take(0.1);
+    if (t == Taken::kNothing) {
+      const std::chrono::duration<double> idle = std::chrono::steady_clock::now() - last_sample;
+      if (idle_timeout > 0 && idle.count() > idle_timeout && !forever) {
+        std::cerr << "gcpipe node " << node << ": nothing arrived for " << idle_timeout << " s\n";
+        break;
+      }
+      continue;
+    }
+    last_sample = std::chrono::steady_clock::now();
+    if (t == Taken::kProgramEnd && !forever) done = true;
+  }
+  if (!done && !forever) {
+    std::cerr << "gcpipe node " << node << ": stopped before the end of the program\n";
+    status = 1;
+  }
+  if (!output.wait_acknowledged()) {
+    std::cerr << "gcpipe node " << node << ": not every sample was acknowledged by the readers of "
+              << output.topic() << "\n";
+    status = 1;
+  }
+  return status;
+}
+
 }  // namespace gcpipe::dds

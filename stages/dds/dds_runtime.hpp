@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -154,5 +155,21 @@ class Reader : public RawReader {
     return RawReader::take(&sample, timeout_s, source_time);
   }
 };
+
+/// What a stage node's input step reports to run_stage_node.
+enum class Taken : std::uint8_t {
+  kNothing,     //!< no sample within the timeout
+  kHandled,     //!< a sample was handled, the program goes on
+  kProgramEnd,  //!< a sample was handled and it completed a program
+};
+
+/// The loop every stage node (parse, trochoid, write) runs: wait until the output has readers
+/// (downstream first, so that no history fills with nobody to drain it), call `take` (which takes
+/// at most one input sample within the timeout [s] and handles it) until a program ended (or
+/// forever), give up after the participant's idle timeout, then wait until downstream has
+/// acknowledged every sample. `status` is the node's exit status, which `take` may also set;
+/// returns its final value.
+int run_stage_node(const std::string& node, Participant& participant, RawWriter& output, bool forever,
+                   const std::function<Taken(double timeout)>& take, int& status);
 
 }  // namespace gcpipe::dds

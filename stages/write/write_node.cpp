@@ -159,36 +159,13 @@ WriteNode::~WriteNode() = default;
 int WriteNode::run() {
   msg::BlockBatch batch;
   double source_time = 0;
-  // Downstream first: input is taken only once someone will receive the output, so nothing is
-  // written into a history that no reader drains.
-  if (!impl_->writer.wait_for_readers()) return 130;
-  std::cerr << "gcpipe node write: ready, " << impl_->writer.matched_readers() << " reader(s) of "
-            << impl_->options.output_topic << " matched" << std::endl;
-  bool done = false;
-  const double idle_timeout = impl_->participant.options().idle_timeout;
-  auto last_sample = std::chrono::steady_clock::now();
-  while (!done && !dds::stop_requested()) {
-    if (!impl_->reader.take(batch, 0.1, &source_time)) {
-      const std::chrono::duration<double> idle = std::chrono::steady_clock::now() - last_sample;
-      if (idle_timeout > 0 && idle.count() > idle_timeout && !impl_->options.forever) {
-        std::cerr << "gcpipe node write: nothing arrived for " << idle_timeout << " s\n";
-        break;
-      }
-      continue;
-    }
-    last_sample = std::chrono::steady_clock::now();
-    if (impl_->handle(batch, source_time) && !impl_->options.forever) done = true;
-  }
-  if (!done && !impl_->options.forever) {
-    std::cerr << "gcpipe node write: stopped before the end of the program\n";
-    impl_->status = 1;
-  }
-  if (!impl_->writer.wait_acknowledged()) {
-    std::cerr << "gcpipe node write: not every chunk was acknowledged by the readers of "
-              << impl_->options.output_topic << "\n";
-    impl_->status = 1;
-  }
-  return impl_->status;
+  return dds::run_stage_node(
+      "write", impl_->participant, impl_->writer, impl_->options.forever,
+      [&](double timeout) {
+        if (!impl_->reader.take(batch, timeout, &source_time)) return dds::Taken::kNothing;
+        return impl_->handle(batch, source_time) ? dds::Taken::kProgramEnd : dds::Taken::kHandled;
+      },
+      impl_->status);
 }
 
 }  // namespace gcpipe
