@@ -3,7 +3,7 @@
 // A streaming parser: one line in, at most one resolved block out, modal state carried between
 // lines. Per-line problems are returned as a Diagnostic, never thrown; construction with a bad
 // config throws ConfigError. Dialect: Fanuc first, LinuxCNC spellings where they do not conflict
-// (see stages/parse/README.md for the accepted language and every error).
+// (see README.md, "The parse stage", for the accepted language and every error).
 #pragma once
 
 #include <cstdint>
