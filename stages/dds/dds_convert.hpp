@@ -8,6 +8,9 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
+#include <map>
+#include <set>
 #include <string>
 
 #include "gcpipe.h"  // generated from idl/gcpipe.idl
@@ -84,5 +87,83 @@ void set_totals(const BatchTotals& totals, msg::BlockBatch& end_marker);
 ///  - rejected-line and deleted-line diagnostics received = the parser's counts, or at most
 ///    those when strict mode stopped the program downstream of the parser.
 std::string check_counts(const BatchTotals& sent, const BatchArrivals& received);
+
+/// What every consumer of a BlockBatch stream tracks per program (its own state derives from it).
+struct BatchProgram {
+  std::string file;
+  std::uint64_t next_batch = 0;  //!< input sequence number expected next
+  BatchArrivals arrived;         //!< what came in, checked against upstream's end marker
+  std::string error;             //!< first sign of lost or corrupt input; processing stops there
+};
+
+/// The bookkeeping every BlockBatch consumer (trochoid and write nodes) does around its own work:
+/// programs replayed from upstream's history are skipped whole, a program is opened on its first
+/// batch, batches must come in sequence from the start, and at the end marker upstream's error
+/// and counts are checked. `Program` derives from BatchProgram.
+template <class Program>
+class BatchIntake {
+ public:
+  explicit BatchIntake(std::string node) : node_(std::move(node)) {}
+
+  /// The program `batch` belongs to, or nullptr when it is skipped: `replayed` says the batch was
+  /// published before this node started (Participant::published_before_start). A new program is
+  /// built by `make()`; sequence problems are recorded as its error.
+  template <class Make>
+  Program* admit(const msg::BlockBatch& batch, bool replayed, Make make) {
+    const std::uint64_t id = batch.program_id();
+    if (skipped_.count(id) != 0) {
+      if (batch.end_of_program()) skipped_.erase(id);
+      return nullptr;
+    }
+    auto it = programs_.find(id);
+    if (it == programs_.end() && replayed) {
+      std::fprintf(stderr,
+                   "gcpipe node %s: skipping program %llu ('%s'), published before this node started "
+                   "(--replay takes it)\n",
+                   node_.c_str(), static_cast<unsigned long long>(id), batch.file().c_str());
+      if (!batch.end_of_program()) skipped_.insert(id);
+      return nullptr;
+    }
+    if (it == programs_.end()) {
+      it = programs_.emplace(id, make()).first;
+      it->second.file = batch.file();
+      if (batch.sequence_number() != 0)
+        fail(it->second, id,
+             "joined the program at batch " + std::to_string(batch.sequence_number()) +
+                 ": its beginning is no longer available upstream");
+      it->second.next_batch = batch.sequence_number();
+    }
+    Program& prog = it->second;
+    if (batch.sequence_number() != prog.next_batch)
+      fail(prog, id, "batch " + std::to_string(prog.next_batch) + " is missing (got batch " +
+                         std::to_string(batch.sequence_number()) + ")");
+    prog.next_batch = batch.sequence_number() + 1;
+    return &prog;
+  }
+
+  /// At the end marker: upstream's error, then whether what arrived matches what upstream sent.
+  void close(Program& prog, const msg::BlockBatch& end) const {
+    if (!end.error().empty()) fail(prog, end.program_id(), "upstream: " + end.error());
+    if (prog.error.empty()) {
+      const std::string counts = check_counts(totals_of(end), prog.arrived);
+      if (!counts.empty()) fail(prog, end.program_id(), counts);
+    }
+  }
+
+  /// Records a program's first error and says it on stderr.
+  void fail(Program& prog, std::uint64_t id, const std::string& why) const {
+    if (!prog.error.empty()) return;
+    prog.error = why;
+    std::fprintf(stderr, "gcpipe node %s: program %llu (%s): %s\n", node_.c_str(),
+                 static_cast<unsigned long long>(id), prog.file.c_str(), why.c_str());
+  }
+
+  void erase(std::uint64_t id) { programs_.erase(id); }
+
+ private:
+  std::string node_;
+  std::map<std::uint64_t, Program> programs_;
+  std::set<std::uint64_t> skipped_;  // programs published before this node started
+};
 
 }  // namespace gcpipe::dds

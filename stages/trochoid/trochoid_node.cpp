@@ -14,18 +14,14 @@ namespace gcpipe {
 namespace {
 
 // One program in flight. Programs are told apart by id, so several feeders may share the topics.
-struct Program {
-  std::string file;
-  std::uint64_t next_batch = 0;   // input sequence number expected next
+struct Program : dds::BatchProgram {
   std::uint64_t next_out = 0;     // output sequence number
   msg::BlockBatch out;            // output batch being filled
   std::size_t out_size = 0;       // its serialized size so far [bytes]
   bool strict = false;            // this node's option or the upstream's mode
   bool stopped = false;           // strict mode met a rejected line or cycle: nothing more out
-  dds::BatchArrivals arrived;
   std::uint64_t blocks_sent = 0, diagnostics_sent = 0, block_rejections_sent = 0;
   std::uint64_t cycles_expanded = 0, cycles_rejected = 0;
-  std::string error;              // first sign of lost or corrupt input; processing stops there
 };
 
 }  // namespace
@@ -36,8 +32,7 @@ struct TrochoidNode::Impl {
   TrochoidNodeOptions options;
   dds::Reader<msg::BlockBatch> reader;
   dds::Writer<msg::BlockBatch> writer;
-  std::map<std::uint64_t, Program> programs;
-  std::set<std::uint64_t> skipped;  // programs published before this node started
+  dds::BatchIntake<Program> intake{"trochoid"};
   int status = 0;
   // Reused for every block: one cycle may expand into tens of thousands of blocks.
   ResolvedBlock block;
@@ -62,12 +57,7 @@ struct TrochoidNode::Impl {
     return true;
   }
 
-  void fail(Program& prog, std::uint64_t id, const std::string& why) {
-    if (!prog.error.empty()) return;
-    prog.error = why;
-    std::cerr << "gcpipe node trochoid: program " << id << " (" << prog.file << "): " << why
-              << "\n";
-  }
+  void fail(Program& prog, std::uint64_t id, const std::string& why) { intake.fail(prog, id, why); }
 
   // Appends one output item; publishes when the batch is full. False when publishing failed.
   bool add_block(std::uint64_t id, Program& prog, const ResolvedBlock& b) {
@@ -134,42 +124,16 @@ struct TrochoidNode::Impl {
   // Returns true when the program is finished (end marker published).
   bool handle(const msg::BlockBatch& batch, double source_time) {
     const std::uint64_t id = batch.program_id();
-    if (skipped.count(id) != 0) {
-      if (batch.end_of_program()) skipped.erase(id);
-      return false;
-    }
-    auto it = programs.find(id);
-    if (it == programs.end() && participant.published_before_start(source_time)) {
-      // Replayed from the upstream node's history: an old program, not one sent to this node.
-      std::cerr << "gcpipe node trochoid: skipping program " << id << " ('" << batch.file()
-                << "'), published before this node started (--replay takes it)\n";
-      if (!batch.end_of_program()) skipped.insert(id);
-      return false;
-    }
-    if (it == programs.end()) {
-      it = programs.try_emplace(id).first;
-      it->second.file = batch.file();
-      if (batch.sequence_number() != 0)
-        fail(it->second, id,
-             "joined the program at batch " + std::to_string(batch.sequence_number()) +
-                 ": its beginning is no longer available upstream");
-      it->second.next_batch = batch.sequence_number();
-    }
-    Program& prog = it->second;
+    Program* found =
+        intake.admit(batch, participant.published_before_start(source_time), [] { return Program(); });
+    if (found == nullptr) return false;
+    Program& prog = *found;
     prog.strict = prog.strict || options.strict || batch.strict();
-    if (batch.sequence_number() != prog.next_batch)
-      fail(prog, id, "batch " + std::to_string(prog.next_batch) + " is missing (got batch " +
-                         std::to_string(batch.sequence_number()) + ")");
-    prog.next_batch = batch.sequence_number() + 1;
     if (prog.error.empty()) process(prog, id, batch);
     if (!batch.end_of_program()) return false;
 
-    if (!batch.error().empty()) fail(prog, id, "upstream: " + batch.error());
+    intake.close(prog, batch);
     const dds::BatchTotals upstream = dds::totals_of(batch);
-    if (prog.error.empty()) {
-      const std::string counts = dds::check_counts(upstream, prog.arrived);
-      if (!counts.empty()) fail(prog, id, counts);
-    }
     prog.out.end_of_program(true);
     dds::BatchTotals totals;
     totals.summary = upstream.summary;
@@ -189,7 +153,7 @@ struct TrochoidNode::Impl {
               << " diagnostics out in " << prog.next_out << " batches"
               << (prog.stopped ? " (strict stop)" : "")
               << "; writes retried on a full history: " << writer.blocked_writes() << "\n";
-    programs.erase(it);
+    intake.erase(id);
     return true;
   }
 };

@@ -12,17 +12,13 @@ namespace gcpipe {
 
 namespace {
 
-struct Program {
+struct Program : dds::BatchProgram {
   explicit Program(const WriteOptions& o) : writer(o) {}
   Writer writer;
-  std::string file;
-  std::uint64_t next_batch = 0;
   std::uint64_t next_chunk = 0;
-  dds::BatchArrivals arrived;
   std::uint64_t bytes = 0;        // text published so far [bytes]
   std::uint64_t last_line = 0;    // last source line written
   std::string text;               // text not yet published
-  std::string error;
 };
 
 }  // namespace
@@ -33,8 +29,7 @@ struct WriteNode::Impl {
   WriteNodeOptions options;
   dds::Reader<msg::BlockBatch> reader;
   dds::Writer<msg::GcodeChunk> writer;
-  std::map<std::uint64_t, Program> programs;
-  std::set<std::uint64_t> skipped;  // programs published before this node started
+  dds::BatchIntake<Program> intake{"write"};
   int status = 0;
   msg::GcodeChunk chunk;
 
@@ -54,11 +49,7 @@ struct WriteNode::Impl {
     return ok;
   }
 
-  void fail(Program& prog, std::uint64_t id, const std::string& why) {
-    if (!prog.error.empty()) return;
-    prog.error = why;
-    std::cerr << "gcpipe node write: program " << id << " (" << prog.file << "): " << why << "\n";
-  }
+  void fail(Program& prog, std::uint64_t id, const std::string& why) { intake.fail(prog, id, why); }
 
   void write_batch(Program& prog, std::uint64_t id, const msg::BlockBatch& batch) {
     ResolvedBlock block;
@@ -96,40 +87,14 @@ struct WriteNode::Impl {
 
   bool handle(const msg::BlockBatch& batch, double source_time) {
     const std::uint64_t id = batch.program_id();
-    if (skipped.count(id) != 0) {
-      if (batch.end_of_program()) skipped.erase(id);
-      return false;
-    }
-    auto it = programs.find(id);
-    if (it == programs.end() && participant.published_before_start(source_time)) {
-      // Replayed from the upstream node's history: an old program, not one sent to this node.
-      std::cerr << "gcpipe node write: skipping program " << id << " ('" << batch.file()
-                << "'), published before this node started (--replay takes it)\n";
-      if (!batch.end_of_program()) skipped.insert(id);
-      return false;
-    }
-    if (it == programs.end()) {
-      it = programs.emplace(id, Program(write_options)).first;
-      it->second.file = batch.file();
-      if (batch.sequence_number() != 0)
-        fail(it->second, id,
-             "joined the program at batch " + std::to_string(batch.sequence_number()) +
-                 ": its beginning is no longer available upstream");
-      it->second.next_batch = batch.sequence_number();
-    }
-    Program& prog = it->second;
-    if (batch.sequence_number() != prog.next_batch)
-      fail(prog, id, "batch " + std::to_string(prog.next_batch) + " is missing (got batch " +
-                         std::to_string(batch.sequence_number()) + ")");
-    prog.next_batch = batch.sequence_number() + 1;
+    Program* found = intake.admit(batch, participant.published_before_start(source_time),
+                                  [&] { return Program(write_options); });
+    if (found == nullptr) return false;
+    Program& prog = *found;
     if (prog.error.empty()) write_batch(prog, id, batch);
     if (!batch.end_of_program()) return false;
 
-    if (!batch.error().empty()) fail(prog, id, "upstream: " + batch.error());
-    if (prog.error.empty()) {
-      std::string counts = dds::check_counts(dds::totals_of(batch), prog.arrived);
-      if (!counts.empty()) fail(prog, id, counts);
-    }
+    intake.close(prog, batch);
     chunk.end_of_program(true);
     chunk.byte_count(prog.bytes + prog.text.size());
     chunk.blocks_written(prog.arrived.blocks);
@@ -145,7 +110,7 @@ struct WriteNode::Impl {
               << prog.next_batch << " batches; " << prog.bytes << " bytes in " << prog.next_chunk
               << " chunks; writes retried on a full history: " << writer.blocked_writes() << "\n";
     chunk = msg::GcodeChunk();
-    programs.erase(it);
+    intake.erase(id);
     return true;
   }
 };
