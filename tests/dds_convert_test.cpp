@@ -52,6 +52,8 @@ ResolvedBlock random_block(std::mt19937_64& rng) {
   b.tool_length = u(rng);
   b.tool_length_active = rng() & 1;
   b.tcp = rng() & 1;
+  b.tool_vector = vec();
+  b.tool_vector_mode = rng() & 1;
   b.coolant = static_cast<std::uint8_t>(rng() % 4);
   b.work_offset = pick({54, 55, 56, 57, 58, 59});
   b.work_origin = axes();
@@ -86,7 +88,8 @@ void expect_identical(const ResolvedBlock& a, const ResolvedBlock& b) {
   SAME(axis_words); SAME(plane); SAME_BITS(centre); SAME_BITS(radius); SAME(turns);
   SAME_BITS(feed); SAME(feed_mode); SAME_BITS(dwell); SAME_BITS(spindle_speed); SAME(spindle);
   SAME(tool); SAME(tool_in_spindle); SAME(tool_length_offset); SAME_BITS(tool_length);
-  SAME(tool_length_active); SAME(tcp); SAME(coolant); SAME(work_offset); SAME_BITS(work_origin);
+  SAME(tool_length_active); SAME(tcp); SAME_BITS(tool_vector);
+  SAME(tool_vector_mode); SAME(coolant); SAME(work_offset); SAME_BITS(work_origin);
   SAME(source_units); SAME(tool_change); SAME(stop); SAME(program_number); SAME(percent);
   SAME_BITS(slot.start); SAME_BITS(slot.end); SAME_BITS(slot.bottom); SAME_BITS(slot.clearance);
   SAME_BITS(slot.width); SAME_BITS(slot.step); SAME_BITS(slot.depth_step);
@@ -142,7 +145,7 @@ TEST(DdsConvert, ResolvedBlockLayoutIsTheOneMirroredInTheIdl) {
   // A tripwire: a field added to ResolvedBlock changes its size. Mirror it in idl/gcpipe.idl
   // (struct Block), in dds_convert.cpp and in random_block()/expect_identical() above, then
   // update this number.
-  EXPECT_EQ(sizeof(ResolvedBlock), 432u);
+  EXPECT_EQ(sizeof(ResolvedBlock), 464u);
 }
 
 TEST(DdsConvert, SummaryRoundTripsAndCountsAreChecked) {

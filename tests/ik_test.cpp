@@ -293,3 +293,61 @@ TEST(IkStage, NeuralSolverRunsBesideTheAnalyticOne) {
   EXPECT_EQ(pb.status, IkStatus::kDegraded);
   EXPECT_EQ(pb.joints, pa.joints);            // the analytic answer is untouched
 }
+
+// samples/tool_vector_demo.nc (MX-330, Fanuc G43.5): every move gives the tip and the tool vector;
+// the IK chooses A and C. Checked: A on the side the travel allows, within travel, C unwrapped
+// past -360 deg without a jump, the vertical tool handled at the pole, and FK(joints) giving the
+// programmed tip and vector back.
+TEST(IkStage, ToolVectorSampleThroughIkAndFk) {
+  const PipelineConfig pc =
+      load_pipeline_config(fs::path(GCPIPE_SOURCE_DIR) / "pipeline_configs" / "default.yaml");
+  const MachineKinematics& m = pc.machine.kinematics;
+  const fs::path path = fs::path(GCPIPE_SOURCE_DIR) / "samples" / "tool_vector_demo.nc";
+  Parser parser(load_parse_options(pc.root.section("parse")), pc.machine, path.string());
+  IkStage stage(m, load_ik_options(pc.root.section("ik")), pc.machine.initial_position);
+  std::ifstream in(path);
+  ASSERT_TRUE(in) << path;
+  ResolvedBlock block;
+  Diagnostic diag;
+  IkPoint p;
+  std::vector<IkPoint> points;
+  std::vector<ResolvedBlock> blocks;
+  for (std::string line; std::getline(in, line);) {
+    const LineStatus st = parser.parse_line(line, block, diag);
+    ASSERT_NE(st, LineStatus::kRejected) << format(diag);
+    if (st != LineStatus::kBlock || !stage.step(block, p)) continue;
+    points.push_back(p);
+    blocks.push_back(block);
+  }
+  ASSERT_EQ(points.size(), 30u);
+  double min_c = 0, worst_tip = 0, worst_axis = 0;
+  int kept = 0, near_singular = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const IkPoint& q = points[i];
+    const ResolvedBlock& b = blocks[i];
+    SCOPED_TRACE("line " + std::to_string(q.line) + ": " + b.text);
+    ASSERT_TRUE(b.tool_vector_mode);
+    EXPECT_EQ(q.mode, IkInputMode::kToolVector);
+    EXPECT_NE(q.status, IkStatus::kFailed) << ik_flags_to_string(q.flags);
+    EXPECT_EQ(joints_outside_travel(m, q.joints), 0) << q.joints[kA] << " " << q.joints[kC];
+    const ToolPose fk = forward_kinematics(m, q.joints, b.tool_length);
+    worst_tip = std::max(worst_tip, distance(fk.tip, {b.target[kX], b.target[kY], b.target[kZ]}));
+    const double axis_err = angle_between_deg(fk.axis, b.tool_vector);
+    // At the vertical tool C is held and A = 0 exactly, the axis is exact as well.
+    worst_axis = std::max(worst_axis, axis_err);
+    if (q.flags & kIkCKeptAtSingularity) ++kept;
+    if (q.flags & kIkNearSingular) ++near_singular;
+    // 20 deg of tilt is only reachable on the negative side (A travel -125..+10 deg).
+    const double tilt = std::acos(std::clamp(b.tool_vector[2], -1.0, 1.0)) * 180 / M_PI;
+    if (tilt > 10) EXPECT_NEAR(q.joints[kA], -tilt, 1e-9);
+    if (i > 0) EXPECT_LT(std::fabs(q.joints[kC] - points[i - 1].joints[kC]), 180.0);
+    min_c = std::min(min_c, q.joints[kC]);
+  }
+  EXPECT_LE(worst_tip, 1e-9);
+  EXPECT_LE(worst_axis * M_PI / 180, 1e-9);  // [rad]: 1e-9 on the unit vector
+  EXPECT_LT(min_c, -360.0);                  // the helix turns C past a full turn
+  EXPECT_NEAR(min_c, -540.0, 1e-9);          // -90 - 450 deg, C = -90 - theta on the helix
+  EXPECT_EQ(kept, 5);           // the three vertical moves at the start, the one on Y40, the retract
+  EXPECT_GE(near_singular, 7);  // and the moves with 0.5 deg of tilt
+  EXPECT_EQ(stage.summary().failed, 0u);
+}

@@ -405,3 +405,72 @@ TEST(ParseReal, ImpellerReachesMinus400DegreesOfC) {
   EXPECT_NEAR(cmin, -399.81, 0.01);  // the program's own summary comment: Cmin -399.81
   EXPECT_NEAR(amin, -74.49, 0.01);   // Amin -74.49
 }
+
+// G43.5 (Fanuc TCP type 2): the tool axis programmed as a vector I J K in the workpiece frame.
+TEST(ParseToolVector, G435ProgramsTheToolAxisModally) {
+  Parsed p = parse_text(
+      "G43.5 H1\n"                           // 1
+      "G0 X10 Y0 Z5 I0 J0 K2\n"              // 2: any length, normalised
+      "G1 X20 F100\n"                        // 3: no I J K: the vector in force stays
+      "G1 I3 J4\n"                           // 4: K omitted = 0; a move without axis words
+      "G91 G1 X1 I1 J1 K1\n"                 // 5: a direction is absolute in G91 too
+      "G90 G2 X23 Y2 I1 J1\n"                // 6: arc: I J are the centre, the vector stays
+      "G43.5 H2\n"                           // 7: a new H keeps the vector
+      "G43.4 H1\n"                           // 8: G43.4 ends G43.5 (one modal group)
+      "G43.5 H1\nG0 X0 I0 J0 K1\nG49\n");    // 9..11
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.blocks.size(), 11u);
+  const auto& b = p.blocks;
+  EXPECT_TRUE(b[0].tool_vector_mode);
+  EXPECT_TRUE(b[0].tcp);
+  EXPECT_DOUBLE_EQ(b[0].tool_length, 100);
+  EXPECT_EQ(b[1].motion, Motion::kRapid);
+  EXPECT_EQ(b[1].tool_vector, (Vec3{0, 0, 1}));
+  EXPECT_EQ(b[2].tool_vector, (Vec3{0, 0, 1}));
+  EXPECT_EQ(b[3].motion, Motion::kLinear);  // I J K alone make a move (the rotaries turn)
+  EXPECT_EQ(b[3].axis_words, 0);
+  EXPECT_NEAR(b[3].tool_vector[0], 0.6, 1e-15);
+  EXPECT_NEAR(b[3].tool_vector[1], 0.8, 1e-15);
+  EXPECT_EQ(b[3].tool_vector[2], 0);
+  const double r3 = 1 / std::sqrt(3.0);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(b[4].tool_vector[static_cast<std::size_t>(k)], r3, 1e-15);
+  EXPECT_DOUBLE_EQ(b[4].target[kX], 21);
+  EXPECT_EQ(b[5].motion, Motion::kArcCW);
+  EXPECT_DOUBLE_EQ(b[5].centre[0], 22);
+  EXPECT_DOUBLE_EQ(b[5].centre[1], 1);
+  EXPECT_EQ(b[5].tool_vector, b[4].tool_vector);
+  EXPECT_TRUE(b[6].tool_vector_mode);
+  EXPECT_DOUBLE_EQ(b[6].tool_length, 110);
+  EXPECT_EQ(b[6].tool_vector, b[4].tool_vector);
+  EXPECT_FALSE(b[7].tool_vector_mode);
+  EXPECT_TRUE(b[7].tcp);
+  EXPECT_EQ(b[7].tool_vector, (Vec3{0, 0, 1}));
+  EXPECT_TRUE(b[9].tool_vector_mode);
+  EXPECT_FALSE(b[10].tool_vector_mode);
+  EXPECT_FALSE(b[10].tcp);
+  // G43 alone (length only) also ends it.
+  Parsed g43 = parse_text("G43.5 H1\nG0 X1 I0 J0 K1\nG43 H1\n");
+  ASSERT_EQ(g43.blocks.size(), 3u);
+  EXPECT_FALSE(g43.blocks[2].tool_vector_mode);
+  EXPECT_FALSE(g43.blocks[2].tcp);
+}
+
+TEST(ParseToolVector, ErrorsNameWordValueAndColumn) {
+  expect_error("G43.5 H1\nG0 X1 I0 J0 K0\n", "zero length", 7);
+  expect_error("G43.5 H1\nG0 X1 I[1/10**12] J0 K0\n", "zero length", 7);
+  expect_error("G43.5 H1\nG0 X1 I[10**7]\n", "tool vector component I1e+07 is out of range", 7);
+  expect_error("G43.5 H1\nG0 X1 I0 J0 K1\nG1 X2 A10 F100\n", "rotary word A10 in G43.5 mode", 7);
+  expect_error("G43.5 H1\nG0 C90 I0 J0 K1\n", "rotary word C90 in G43.5 mode", 4);
+  expect_error("G43.5 H1\nG0 X1 Y2 Z3\n", "first move in G43.5 mode without a tool vector", 1);
+  expect_error("G43.5 H1\nG80 I0 J0 K1\n", "without a motion mode", 5);
+  expect_error("G43.5 H9\n", "tool 9 is not in the machine config", 7);
+  expect_error("G0 X1 I0 J0 K1\n", "word K1 has no meaning here", 13);  // not in G43.5
+  ParseOptions lc;
+  lc.dialect = Dialect::kLinuxCnc;
+  expect_error("G43.5 H1\nG0 X1 I0 J0 K1\n", "LinuxCNC has no tool-vector TCP", 1, lc);
+  // The message carries file:line:col.
+  Parsed p = parse_text("G43.5 H1\nG0 X1 I0 J0 K0\n");
+  ASSERT_NE(p.first_error(), nullptr);
+  EXPECT_EQ(format(*p.first_error()).rfind("t.nc:2:7: error: tool vector I0 J0 K0 has zero length", 0), 0u)
+      << format(*p.first_error());
+}

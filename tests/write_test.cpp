@@ -178,3 +178,98 @@ TEST(WriteRoundTrip, SeededRandomPrograms) {
     expect_round_trip(first, {}, {}, kTol, "random program seed " + std::to_string(seed));
   }
 }
+
+// G43.5 programs (tool vector I J K): parse(write(parse(p))) keeps every vector and mode.
+TEST(WriteRoundTrip, ToolVectorPrograms) {
+  const std::string prog =
+      "G43.5 H1\n"
+      "G0 X10 Y0 Z5 I0 J0 K2\n"
+      "G1 X20 F100\n"
+      "G1 I3 J4\n"                      // a move made only of the vector
+      "G1 I3 J4\n"                      // the same vector again: still a move
+      "G91 G1 X1 I1 J1 K1\n"
+      "G90 G2 X23 Y2 I1 J1\n"           // arc centre, vector unchanged
+      "G43.5 H2\n"
+      "G1 X30 Y5 I-0.1 J0.2 K0.97\n"
+      "G43.4 H1\nG0 X0 A10 C20\n"
+      "G43.5 H1\nG0 X1 I0.5 J-0.5 K0.7071\n"
+      "G49\nG0 Z50\nM30\n";
+  Parsed first = parse_text(prog);
+  ASSERT_EQ(first.first_error(), nullptr) << format(*first.first_error());
+  expect_round_trip(first, {}, {}, kTol, "tool-vector program, shortest numbers");
+  // With 4 decimals for coordinates the vector still goes out exactly enough (12 places).
+  WriteOptions four;
+  four.decimals = 4;
+  expect_round_trip(first, {}, four, kTol, "tool-vector program, 4 decimals");
+  const std::string text = write_all(first, {});
+  EXPECT_NE(text.find("G43.5 H1"), std::string::npos) << text;
+  EXPECT_NE(text.find("I0.6 J0.8 K0"), std::string::npos) << text;
+}
+
+TEST(WriteRoundTrip, ToolVectorSampleAndSeededRandomPrograms) {
+  Parsed sample = parse_text(read_file(std::filesystem::path(GCPIPE_SOURCE_DIR) / "samples" / "tool_vector_demo.nc"));
+  ASSERT_EQ(sample.first_error(), nullptr) << format(*sample.first_error());
+  expect_round_trip(sample, {}, {}, kTol, "tool_vector_demo.nc");
+  for (int seed = 1; seed <= 100; ++seed) {
+    std::mt19937_64 rng(static_cast<std::uint64_t>(seed));
+    std::uniform_real_distribution<double> pos(-200, 200), comp(-1, 1), unit(0, 1);
+    std::string prog = "G43.5 H1\nG0 X0 Y0 Z10 I0 J0 K1\n";
+    bool in_mode = true;
+    for (int i = 0; i < 40; ++i) {
+      char buf[200];
+      const double r = unit(rng);
+      if (r < 0.08) {
+        prog += in_mode ? (unit(rng) < 0.5 ? "G49\n" : "G43.4 H2\n") : "G43.5 H2\nG1 I0 J0 K1 F500\n";
+        in_mode = !in_mode;
+      } else if (r < 0.12) {
+        prog += unit(rng) < 0.5 ? "G91\n" : "G90\n";
+      } else if (in_mode) {
+        const int words = static_cast<int>(unit(rng) * 4);  // 0: axes only, 1: vector only, else both
+        std::string line = unit(rng) < 0.3 ? "G0" : "G1";
+        if (words != 1) {
+          std::snprintf(buf, sizeof buf, " X%.5f Y%.5f Z%.5f", pos(rng) / 10, pos(rng) / 10, pos(rng) / 40);
+          line += buf;
+        }
+        if (words != 0) {
+          std::snprintf(buf, sizeof buf, " I%.7f J%.7f K%.7f", comp(rng), comp(rng), 0.2 + unit(rng));
+          line += buf;
+        }
+        std::snprintf(buf, sizeof buf, " F%.1f\n", 10 + 1000 * unit(rng));
+        prog += line + buf;
+      } else {
+        std::snprintf(buf, sizeof buf, "G1 X%.4f A%.3f C%.3f F500\n", pos(rng) / 10, -30 * unit(rng), 360 * unit(rng));
+        prog += buf;
+      }
+    }
+    prog += "M30\n";
+    Parsed first = parse_text(prog);
+    ASSERT_EQ(first.first_error(), nullptr) << "seed " << seed << ": " << format(*first.first_error()) << "\n" << prog;
+    expect_round_trip(first, {}, {}, kTol, "random tool-vector program seed " + std::to_string(seed));
+  }
+}
+
+// LinuxCNC cannot say G43.5: the writer refuses those blocks with a line naming them, returns
+// false and counts them; the blocks outside G43.5 are written and read back as before.
+TEST(WriteFormat, LinuxcncDialectRefusesToolVectorBlocks) {
+  Parsed p = parse_text("G43.4 H1\nG0 X1 A5 C10\nG43.5 H1\nG0 X2 I0 J0.1 K1\nG1 X3 F100\nG49\nG0 X4\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  WriteOptions lc;
+  lc.dialect = Dialect::kLinuxCnc;
+  Writer w(lc);
+  std::string out;
+  std::vector<bool> written;
+  for (const auto& b : p.blocks) written.push_back(w.write(b, out));
+  EXPECT_EQ(written, (std::vector<bool>{true, true, false, false, false, true, true}));
+  EXPECT_EQ(w.refused_blocks(), 3u);
+  EXPECT_NE(out.find("(gcpipe: line 4 not written: G43.5 tool-vector TCP has no LinuxCNC equivalent"),
+            std::string::npos) << out;
+  EXPECT_EQ(out.find("G43.5"), out.find("G43.5 tool-vector"));  // only inside the comments
+  ParseOptions lcp;
+  lcp.dialect = Dialect::kLinuxCnc;
+  Parsed back = parse_text(out, lcp);
+  ASSERT_EQ(back.first_error(), nullptr) << format(*back.first_error()) << "\n" << out;
+  const auto moves = active(back);
+  ASSERT_EQ(moves.size(), 2u) << out;  // G0 X1 A5 C10 and G0 X4
+  EXPECT_DOUBLE_EQ(moves[1].target[kX], 4);
+  EXPECT_FALSE(moves[1].tcp);
+}

@@ -51,6 +51,8 @@ int run_ik(const std::vector<std::string>& argv) {
       throw std::runtime_error(*path + ": the model was trained for machine '" + model->provenance().machine +
                                "', the config is for '" + pc.machine.name +
                                "': train one with gcpipe train-ik --config <this config>");
+  } else {
+    model = load_ik_model(io, pc.machine.name);  // the config's ik.model, if it names one
   }
 
   InputFile in(args.positional()[0]);
@@ -95,14 +97,14 @@ constinit const Command kIkCommand{
     "  line,X,Y,Z,A,C,Xn,Yn,Zn,An,Cn,flags\n"
     "analytic joints, then the neural model's (mm, deg, 6 decimals), then the flags joined by\n"
     "'|' (near_singular, c_kept, branch_switch, branch_by_limit, travel_limit, unreachable,\n"
-    "neural_diverged, neural_outside_envelope, neural_failed). Without --model the neural\n"
-    "columns are empty. A summary (counts per status and flag, neural - analytic max and RMS\n"
-    "per axis) goes to stderr.\n"
+    "neural_diverged, neural_outside_envelope, neural_failed). Without a model (--model or\n"
+    "the config's ik.model) the neural columns are empty. A summary (counts per status and\n"
+    "flag, neural - analytic max and RMS per axis) goes to stderr.\n"
     "\n"
     "  --csv          CSV output (required)\n"
     "  --config CFG   pipeline config (default pipeline_configs/default.yaml); its `ik` section\n"
     "                 sets resolve_orientation, neural_tolerance, downstream\n"
-    "  --model MODEL  neural IK model written by `gcpipe train-ik`\n"
+    "  --model MODEL  neural IK model written by `gcpipe train-ik` (default: the config's ik.model)\n"
     "  --tool-vector  TCP blocks give only their tool vector; the IK chooses A and C itself\n"
     "  --progress     progress on stderr for long inputs\n"
     "  -o OUT         write to OUT instead of stdout\n"

@@ -81,6 +81,8 @@ bool same_meaning(const ResolvedBlock& a, const ResolvedBlock& b, double tol, st
   c.eq("tool_length_active", a.tool_length_active, b.tool_length_active);
   c.num("tool_length", a.tool_length, b.tool_length);
   c.eq("tcp", a.tcp, b.tcp);
+  c.eq("tool_vector_mode", a.tool_vector_mode, b.tool_vector_mode);
+  if (a.tool_vector_mode) c.vec("tool_vector", a.tool_vector.data(), b.tool_vector.data(), 3);
   c.eq("coolant", a.coolant, b.coolant);
   c.eq("work_offset", a.work_offset, b.work_offset);
   c.vec("work_origin", a.work_origin.data(), b.work_origin.data(), kNumAxes);
@@ -185,6 +187,11 @@ void append_json(std::string& o, const ResolvedBlock& b) {
   o += b.tool_length_active ? "true" : "false";
   key("tcp");
   o += b.tcp ? "true" : "false";
+  if (b.tool_vector_mode) {  // only in G43.5 mode, so that other programs' JSON is unchanged
+    key("tool_vector_mode");
+    o += "true";
+    arr("tool_vector", b.tool_vector.data(), 3);
+  }
   num("coolant", b.coolant);
   num("work_offset", b.work_offset);
   arr("work_origin", b.work_origin.data(), kNumAxes);

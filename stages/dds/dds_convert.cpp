@@ -73,6 +73,8 @@ void to_msg(const ResolvedBlock& b, msg::Block& o) {
   o.tool_length(b.tool_length);
   o.tool_length_active(b.tool_length_active);
   o.tcp(b.tcp);
+  copy_array(b.tool_vector, o.tool_vector());
+  o.tool_vector_mode(b.tool_vector_mode);
   o.coolant(b.coolant);
   o.work_offset(b.work_offset);
   copy_array(b.work_origin, o.work_origin());
@@ -121,6 +123,8 @@ bool from_msg(const msg::Block& i, ResolvedBlock& b, std::string* why) {
   b.tool_length = i.tool_length();
   b.tool_length_active = i.tool_length_active();
   b.tcp = i.tcp();
+  copy_array(i.tool_vector(), b.tool_vector);
+  b.tool_vector_mode = i.tool_vector_mode();
   b.coolant = i.coolant();
   b.work_offset = i.work_offset();
   copy_array(i.work_origin(), b.work_origin);

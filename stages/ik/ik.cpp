@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 
 #include "gcpipe/config.hpp"
 #include "neural_ik.hpp"
@@ -19,7 +20,7 @@ const char* to_string(IkInputMode m) {
 }
 
 IkOptions load_ik_options(const Config& s) {
-  s.reject_unknown({"resolve_orientation", "neural_tolerance", "downstream"});
+  s.reject_unknown({"resolve_orientation", "neural_tolerance", "downstream", "model"});
   IkOptions o;
   o.resolve_orientation =
       s.choice("resolve_orientation", "programmed", {"programmed", "tool_vector"}) == "tool_vector"
@@ -33,7 +34,30 @@ IkOptions load_ik_options(const Config& s) {
   o.downstream = s.choice("downstream", "analytic", {"analytic", "neural"}) == "neural"
                      ? IkDownstream::kNeural
                      : IkDownstream::kAnalytic;
+  if (s.has("model")) {
+    const std::string rel = s.string("model", "");
+    if (rel.empty()) throw s.error("model", "is empty: name a model file written by gcpipe train-ik, or drop the key");
+    o.model = s.resolve(rel);
+    if (!std::filesystem::is_regular_file(o.model))
+      throw s.error("model", "'" + rel + "': no such file (" + o.model.string() +
+                                 "; the path is relative to the config file)");
+  }
   return o;
+}
+
+std::optional<neural::NeuralIk> load_ik_model(const IkOptions& o, const std::string& machine_name) {
+  if (o.model.empty()) return std::nullopt;
+  std::optional<neural::NeuralIk> model;
+  try {
+    model.emplace(neural::NeuralIk::load(o.model));
+  } catch (const std::exception& e) {
+    throw ConfigError(std::string("ik.model: ") + e.what());
+  }
+  if (model->provenance().machine != machine_name)
+    throw ConfigError("ik.model: " + o.model.string() + " was trained for machine '" +
+                      model->provenance().machine + "', the config is for '" + machine_name +
+                      "': train one with gcpipe train-ik --config <this config>");
+  return model;
 }
 
 IkStage::IkStage(const MachineKinematics& model, IkOptions options, Axes initial_joints,
@@ -58,7 +82,12 @@ bool IkStage::input_from_block(const ResolvedBlock& b, IkInput& in) const {
     return true;
   }
   in.tip = {b.target[kX], b.target[kY], b.target[kZ]};
-  if (options_.resolve_orientation == IkInputMode::kToolVector) {
+  if (b.tool_vector_mode) {
+    // G43.5: the program gives the tool axis, not A C; the IK chooses them (the block's A C
+    // are only the state carried over from before and mean nothing here).
+    in.mode = IkInputMode::kToolVector;
+    in.tool_vector = b.tool_vector;
+  } else if (options_.resolve_orientation == IkInputMode::kToolVector) {
     in.mode = IkInputMode::kToolVector;
     in.tool_vector = tool_axis(model_, b.target[kA], b.target[kC]);
   } else {
@@ -115,10 +144,20 @@ bool IkStage::step(const ResolvedBlock& block, IkPoint& out) {
 }
 
 void IkStage::run_neural(IkPoint& p, double tool_length) const {
-  const neural::NeuralIkPrediction n =
-      p.mode == IkInputMode::kTcpAngles
+  // With the tool along the C axis (the analytic IK held C, or machine axes at A = 0 as in every
+  // three-axis program) every C is a right answer and the neural C net's is as arbitrary: a C
+  // half a turn away puts the machine's X Y elsewhere for the same tool pose (tens of mm), a
+  // difference of choice, not of accuracy. There the position nets are compared at the analytic
+  // A C, and the point is marked outside the rotary nets' envelope.
+  const Vec3& u = p.pose.axis;
+  const double tilt_deg = std::atan2(std::hypot(u[0], u[1]), u[2]) * 180.0 / std::numbers::pi;
+  const bool c_undefined = (p.flags & kIkCKeptAtSingularity) != 0 ||
+                           (p.mode == IkInputMode::kMachineAxes && tilt_deg <= model_.c_hold_tilt);
+  neural::NeuralIkPrediction n =
+      p.mode == IkInputMode::kTcpAngles || c_undefined
           ? neural_->predict_linear(p.pose, tool_length, p.joints[kA], p.joints[kC])
           : neural_->predict(p.pose, tool_length, p.joints);
+  if (c_undefined) n.outside_envelope |= static_cast<neural::EnvelopeBits>(1u << kC);
   p.has_neural = true;
   p.neural_joints = n.joints;
   std::uint32_t flags = 0;

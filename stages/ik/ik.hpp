@@ -11,26 +11,27 @@
 //                continuity with the previous point; C unwrapped; C held at the pole).
 //   kMachineAxes plain machine axes (no TCP): the joints are the program's, forward kinematics
 //                gives the tool path in the workpiece frame.
-// A block carries no tool vector of its own (ResolvedBlock has no I J K tool-axis words), so the
-// tool-vector mode is reached by `IkOptions::resolve_orientation = kToolVector`, which turns the
-// programmed A C of a TCP block into its tool vector and lets the IK choose A and C itself, or
-// directly through IkStage::solve() with an IkInput.
+// The tool-vector mode is reached three ways: a block in G43.5 mode (ResolvedBlock::tool_vector_mode,
+// I J K programmed: always kToolVector with the block's vector); `IkOptions::resolve_orientation =
+// kToolVector`, which turns the programmed A C of a G43.4/M428 block into its tool vector and lets
+// the IK choose A and C itself (checks a CAM's branch choice against ours); or IkStage::solve()
+// with an IkInput.
 //
 // Per point never throws; construction and option loading throw ConfigError.
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
+#include <optional>
 #include <string>
 
 #include "gcpipe/block.hpp"
 #include "gcpipe/kinematics.hpp"
+#include "neural_ik.hpp"
 
 namespace gcpipe {
 
 class Config;
-namespace neural {
-class NeuralIk;
-}
 
 enum class IkInputMode : std::uint8_t { kTcpAngles = 0, kToolVector = 1, kMachineAxes = 2 };
 const char* to_string(IkInputMode m);
@@ -40,17 +41,30 @@ enum class IkDownstream : std::uint8_t { kAnalytic = 0, kNeural = 1 };
 
 /// Options of the `ik` section of a pipeline config (all optional; README lists them).
 struct IkOptions {
-  /// kTcpAngles: TCP blocks use their programmed A C. kToolVector: TCP blocks give only their tool
-  /// vector and the IK chooses A and C (checks a CAM's branch choice against ours).
+  /// For G43.4/M428 blocks: kTcpAngles uses their programmed A C; kToolVector gives only their
+  /// tool vector and the IK chooses A and C (checks a CAM's branch choice against ours). G43.5
+  /// blocks always give their I J K vector, whatever this says.
   IkInputMode resolve_orientation = IkInputMode::kTcpAngles;
   /// Neural minus analytic joint difference above which kIkNeuralDiverged is set, per axis
   /// [mm, mm, mm, deg, deg].
   Axes neural_tolerance{0.05, 0.05, 0.05, 0.05, 0.05};
   IkDownstream downstream = IkDownstream::kAnalytic;
+  /// Neural model file (`model:`, relative to the config file like `servo.drives`); empty = no
+  /// neural solver. Loaded by load_ik_model().
+  std::filesystem::path model;
 };
 
-/// Reads the `ik` section (unknown keys rejected); throws ConfigError.
+/// Reads the `ik` section (unknown keys rejected); throws ConfigError (also when `model` names
+/// a file that does not exist).
 IkOptions load_ik_options(const Config& ik_section);
+
+/// Loads `options.model` when set (std::nullopt when empty). Throws ConfigError when the file is
+/// not a valid model or was trained for another machine than `machine_name` (a model learns one
+/// machine's geometry; on another it would be confidently wrong). Typical use:
+///   const IkOptions o = load_ik_options(pc.root.section("ik"));
+///   const auto model = load_ik_model(o, pc.machine.name);
+///   IkStage stage(pc.machine.kinematics, o, pc.machine.initial_position, model ? &*model : nullptr);
+std::optional<neural::NeuralIk> load_ik_model(const IkOptions& options, const std::string& machine_name);
 
 /// What the stage solves for one point.
 struct IkInput {

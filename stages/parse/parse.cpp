@@ -83,7 +83,7 @@ int g_group(int code) {
     case 930: case 940: return kGFeedMode;
     case 200: case 210: return kGUnits;
     case 400: return kGCutterComp;
-    case 430: case 434: case 490: return kGToolLength;
+    case 430: case 434: case 435: case 490: return kGToolLength;
     case 540: case 550: case 560: case 570: case 580: case 590: return kGCoordSystem;
     case 610: case 611: case 640: return kGPathMode;
     case 800: return kGMotion;  // G80 cancels the (canned) motion mode
@@ -181,6 +181,9 @@ struct ModalState {
   double tool_length = 0;
   bool tlo_active = false;
   bool tcp = false;
+  bool tool_vector_mode = false;  // G43.5: orientation programmed as I J K
+  bool tool_vector_set = false;   // a vector has been programmed since G43.5 began
+  Vec3 tool_vector{0, 0, 1};      // unit, workpiece frame
   std::uint8_t coolant = 0;
   std::int32_t work_offset = 54;
   Axes origin{};
@@ -641,7 +644,13 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
       ns.tlo_h = 0;
       ns.tool_length = 0;
       if (opt.dialect == Dialect::kFanuc) ns.tcp = false;  // G49 ends G43.4 too (one modal group)
+      ns.tool_vector_mode = false;
     } else {
+      if (code == 435 && opt.dialect == Dialect::kLinuxCnc)
+        return fail(group_col[kGToolLength],
+                    "G43.5 (tool centre point with the tool axis programmed as a vector I J K) does not "
+                    "exist in LinuxCNC: LinuxCNC has no tool-vector TCP; program A and C with M428 "
+                    "(TCP kinematics), or parse this program with dialect fanuc");
       int h = ns.tool_in_spindle;  // G43 without H takes the loaded tool, as LinuxCNC does
       if (s.has('H')) {
         const Word& w = s.w('H');
@@ -661,13 +670,31 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
       ns.tlo_h = h;
       ns.tool_length = len;
       ns.tlo_active = h != 0;  // H0 means "no length", as on Fanuc
-      if (code == 434) ns.tcp = true;
+      if (code == 434 || code == 435) ns.tcp = true;
       else if (opt.dialect == Dialect::kFanuc) ns.tcp = false;  // G43 replaces G43.4
+      if (code == 435) {
+        // Entering G43.5 starts without a vector (the parser does not know the tool axis of the
+        // current A C); staying in it (a new H) keeps the vector in force.
+        if (!ns.tool_vector_mode) {
+          ns.tool_vector_set = false;
+          ns.tool_vector = {0, 0, 1};
+        }
+        ns.tool_vector_mode = true;
+      } else {
+        ns.tool_vector_mode = false;  // G43 and G43.4 share G43.5's modal group
+      }
     }
   } else if (s.has('H')) {
-    return fail(s.w('H').col, "H" + show(s.w('H').value) + " without G43 or G43.4: H selects a tool length only with them");
+    return fail(s.w('H').col, "H" + show(s.w('H').value) + " without G43, G43.4 or G43.5: H selects a tool length only with them");
   }
-  if (m_col[kMKins]) ns.tcp = m_code[kMKins] == 4280;  // M428 TCP on; M429/M430 joint mode
+  if (m_col[kMKins]) {
+    ns.tcp = m_code[kMKins] == 4280;  // M428 TCP on; M429/M430 joint mode
+    ns.tool_vector_mode = false;      // M428 is TCP with A C programmed
+  }
+  if (!ns.tool_vector_mode) {
+    ns.tool_vector_set = false;
+    ns.tool_vector = {0, 0, 1};
+  }
   if (group_col[kGCoordSystem]) {
     ns.work_offset = group_code[kGCoordSystem] / 10;
     ns.origin = machine.work_offsets[static_cast<std::size_t>(ns.work_offset - 54)];
@@ -687,8 +714,19 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
 
   // -- Words that only some blocks may carry.
   const bool arc_mode = !g4 && !g275 && (ns.motion == Motion::kArcCW || ns.motion == Motion::kArcCCW);
+  // In G43.5, I J K of a block that is not an arc are the tool axis (on arcs they stay centres).
+  const bool vector_words = ns.tool_vector_mode && !arc_mode && !g4 && !g275 &&
+                            (s.has('I') || s.has('J') || s.has('K'));
+  if (ns.tool_vector_mode) {
+    for (char L : {'A', 'C'})
+      if (s.has(L))
+        return fail(s.w(L).col, std::string("rotary word ") + L + show(s.w(L).value) +
+                                    " in G43.5 mode: the orientation is the tool vector I J K and the "
+                                    "IK chooses A and C; program I J K, or leave G43.5 (G43.4 H, G43 H, G49)");
+  }
   for (char L : {'D', 'W', 'Q', 'K', 'I', 'J', 'R', 'P', 'L'}) {
     if (!s.has(L)) continue;
+    if (vector_words && (L == 'I' || L == 'J' || L == 'K')) continue;
     const bool slot_word = L == 'D' || L == 'W' || L == 'Q' || L == 'K' || L == 'R' || L == 'P';
     const bool arc_word = L == 'I' || L == 'J' || L == 'K' || L == 'R' || L == 'P';
     const bool dwell_word = L == 'P' && g4;
@@ -705,10 +743,32 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
   // the axes, so no absurd value can reach the geometry or the writer.
   for (char L : {'I', 'J', 'K', 'R', 'D', 'W', 'Q'}) {
     if (!s.has(L)) continue;
+    if (vector_words && (L == 'I' || L == 'J' || L == 'K')) continue;  // checked below
     const Word& w = s.w(L);
     if (std::fabs(linear_value(w, ns.units)) > kMaxLinear)
       return fail(w.col, std::string(1, L) + show(w.value) + " is out of range (|" + L + "| <= " +
                              show(kMaxLinear) + " mm)");
+  }
+
+  // -- The tool vector (G43.5): a direction, so absolute in G91 too and without units; an
+  // omitted component is 0 (as on Fanuc) and a block without I J K keeps the vector in force.
+  Vec3 vector = ns.tool_vector;
+  if (vector_words) {
+    const std::uint32_t vcol = s.has('I') ? s.w('I').col : s.has('J') ? s.w('J').col : s.w('K').col;
+    double ijk[3] = {0, 0, 0};
+    for (int k = 0; k < 3; ++k) {
+      const char L = static_cast<char>('I' + k);
+      if (!s.has(L)) continue;
+      ijk[k] = angle_value(s.w(L));  // dimensionless: only the decimal-point rule applies
+      if (!std::isfinite(ijk[k]) || std::fabs(ijk[k]) > kMaxLinear)
+        return fail(s.w(L).col, std::string("tool vector component ") + L + show(s.w(L).value) +
+                                    " is out of range (|" + L + "| <= " + show(kMaxLinear) + ")");
+    }
+    const double n = std::sqrt(ijk[0] * ijk[0] + ijk[1] * ijk[1] + ijk[2] * ijk[2]);
+    if (!(n >= 1e-9))
+      return fail(vcol, "tool vector I" + show(ijk[0]) + " J" + show(ijk[1]) + " K" + show(ijk[2]) +
+                            " has zero length (|(I, J, K)| < 1e-9): it gives no tool axis direction");
+    vector = {ijk[0] / n, ijk[1] / n, ijk[2] / n};
   }
 
   // -- Axis words to targets.
@@ -764,7 +824,10 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
   }
 
   const bool has_centre = s.has('I') || s.has('J') || s.has('K') || s.has('R');
-  if (mask == 0 && !(arc_mode && has_centre)) {
+  if (vector_words && ns.motion == Motion::kNone)
+    return fail(s.has('I') ? s.w('I').col : s.has('J') ? s.w('J').col : s.w('K').col,
+                "tool vector I J K without a motion mode: program G0 or G1 first");
+  if (mask == 0 && !(arc_mode && has_centre) && !vector_words) {
     b.motion = Motion::kNone;
     b.target = ns.position;
     return true;
@@ -784,9 +847,18 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
       return fail(col, std::string(ns.motion == Motion::kLinear ? "G1" : ns.motion == Motion::kArcCW ? "G2" : "G3") +
                            " without a feed: program F (mm/min) in this block or before it");
   }
+  if (ns.tool_vector_mode && !vector_words && !ns.tool_vector_set) {
+    const std::uint32_t col = motion_col ? motion_col : s.has('X') ? s.w('X').col : s.has('Y') ? s.w('Y').col : 1;
+    return fail(col, "first move in G43.5 mode without a tool vector: program I J K (the tool axis, "
+                     "tip to spindle, in the workpiece frame) in the first G0/G1 after G43.5");
+  }
   b.motion = ns.motion;
   b.target = target;
   if (arc_mode) return arc(s, b, ns, ns.motion == Motion::kArcCW);
+  if (vector_words) {
+    ns.tool_vector = vector;
+    ns.tool_vector_set = true;
+  }
   ns.position = target;
   return true;
 }
@@ -1036,6 +1108,8 @@ LineStatus Parser::parse_line(std::string_view line, ResolvedBlock& b, Diagnosti
   b.tool_length = s.tool_length;
   b.tool_length_active = s.tlo_active;
   b.tcp = s.tcp;
+  b.tool_vector_mode = s.tool_vector_mode;
+  b.tool_vector = s.tool_vector;
   b.coolant = s.coolant;
   b.work_offset = s.work_offset;
   b.work_origin = s.origin;

@@ -1,5 +1,6 @@
 #include "write.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "gcpipe/config.hpp"
@@ -51,7 +52,16 @@ void Writer::write_diagnostic(const Diagnostic& d, std::string& out) {
   out += ")\n";
 }
 
-void Writer::write(const ResolvedBlock& b, std::string& out) {
+bool Writer::write(const ResolvedBlock& b, std::string& out) {
+  if (b.tool_vector_mode && opt_.dialect == Dialect::kLinuxCnc) {
+    // LinuxCNC has no tool-vector TCP, and the writer knows no kinematics to turn I J K into A C:
+    // say so in the output rather than drop the orientation and cut the part wrong.
+    ++refused_;
+    out += "(gcpipe: line " + std::to_string(b.line) +
+           " not written: G43.5 tool-vector TCP has no LinuxCNC equivalent; run it through the "
+           "IK stage for A C, or write with dialect fanuc)\n";
+    return false;
+  }
   std::string line;
   auto word = [&](const char* w) {
     if (!line.empty()) line.push_back(' ');
@@ -81,7 +91,7 @@ void Writer::write(const ResolvedBlock& b, std::string& out) {
     out += '%';
     out += b.comment;  // "%" lines keep their trailing text verbatim
     out += '\n';
-    return;
+    return true;
   }
   if (b.program_number >= 0) {
     integer('O', b.program_number);  // a program number line carries no N
@@ -116,9 +126,15 @@ void Writer::write(const ResolvedBlock& b, std::string& out) {
       }
     }
     if (b.tcp != tcp_) word(b.tcp ? "M428" : "M429");
-  } else if (b.tool_length_active != tlo_active_ || b.tool_length_offset != tlo_ || b.tcp != tcp_) {
-    // One modal group: G43.4 H (TCP, H0 = no length), G43 H (length only), G49 (neither).
-    if (b.tcp) {
+  } else if (b.tool_length_active != tlo_active_ || b.tool_length_offset != tlo_ || b.tcp != tcp_ ||
+             b.tool_vector_mode != tool_vector_mode_) {
+    // One modal group: G43.4 H (TCP, H0 = no length), G43.5 H (TCP with a tool vector), G43 H
+    // (length only), G49 (neither).
+    if (b.tool_vector_mode) {
+      word("G43.5");
+      integer('H', b.tool_length_active ? b.tool_length_offset : 0);
+      if (!tool_vector_mode_) tool_vector_written_ = false;  // the parser starts G43.5 without a vector
+    } else if (b.tcp) {
       word("G43.4");
       integer('H', b.tool_length_active ? b.tool_length_offset : 0);
     } else if (b.tool_length_active) {
@@ -131,6 +147,7 @@ void Writer::write(const ResolvedBlock& b, std::string& out) {
   tlo_active_ = b.tool_length_active;
   tlo_ = b.tool_length_offset;
   tcp_ = b.tcp;
+  tool_vector_mode_ = b.tool_vector_mode;
   if (b.feed_mode != feed_mode_) {
     word(b.feed_mode == FeedMode::kInverseTime ? "G93" : "G94");
     feed_ = 0;  // the parser drops the feed on a mode switch: F means something else now
@@ -189,6 +206,23 @@ void Writer::write(const ResolvedBlock& b, std::string& out) {
       feed_ = b.feed;
     }
   };
+  // G43.5 tool vector: written when it changed, on the first move after G43.5, and on a move
+  // without axis words (there I J K are what makes it a move). Unit components, so the
+  // shortest exact text (or 12 places): the coordinates' `decimals` would tilt the axis.
+  auto tool_vector = [&] {
+    if (!b.tool_vector_mode) return;
+    if (tool_vector_written_ && b.tool_vector == tool_vector_ && b.axis_words != 0) return;
+    for (int k = 0; k < 3; ++k) {
+      double v = b.tool_vector[static_cast<std::size_t>(k)];
+      if (std::fabs(v) < 1e-15) v = 0;
+      if (!line.empty()) line.push_back(' ');
+      line.push_back(static_cast<char>('I' + k));
+      if (opt_.decimals < 0) append_shortest(line, v);
+      else append_fixed(line, v, std::max(opt_.decimals, 12));
+    }
+    tool_vector_ = b.tool_vector;
+    tool_vector_written_ = true;
+  };
   const bool inverse = b.feed_mode == FeedMode::kInverseTime;
   switch (b.motion) {
     case Motion::kNone:
@@ -197,11 +231,13 @@ void Writer::write(const ResolvedBlock& b, std::string& out) {
     case Motion::kRapid:
       motion_word(Motion::kRapid, "G0");
       axes(b.axis_words);
+      tool_vector();
       feed(false);
       break;
     case Motion::kLinear:
       motion_word(Motion::kLinear, "G1");
       axes(b.axis_words);
+      tool_vector();
       feed(inverse);
       break;
     case Motion::kArcCW:
@@ -259,6 +295,7 @@ void Writer::write(const ResolvedBlock& b, std::string& out) {
   append_comment(line, b.comment);
   out += line;
   out += '\n';
+  return true;
 }
 
 }  // namespace gcpipe

@@ -22,8 +22,9 @@ class Config;
 struct WriteOptions {
   /// Decimal places for coordinates; -1 = the shortest text that reads back to the same double.
   int decimals = -1;
-  /// Fanuc: `G4 X<s>`, TCP as G43.4 H / G43 / G49. LinuxCNC: `G4 P<s>`, TCP as M428 / M429.
-  /// Parse the output with the same dialect.
+  /// Fanuc: `G4 X<s>`, TCP as G43.4 H / G43.5 H (tool vector I J K) / G43 / G49. LinuxCNC:
+  /// `G4 P<s>`, TCP as M428 / M429; LinuxCNC has no tool-vector TCP, so blocks in G43.5 mode are
+  /// refused (see Writer::write). Parse the output with the same dialect.
   Dialect dialect = Dialect::kFanuc;
   /// Write `N<source line>` on each block.
   bool source_line_numbers = true;
@@ -37,7 +38,13 @@ class Writer {
   explicit Writer(WriteOptions options = {});
 
   /// Appends the text of one block (one line, or nothing for a block with nothing to say).
-  void write(const ResolvedBlock& block, std::string& out);
+  /// Returns false when the block cannot be said in the output dialect: a block in G43.5 mode
+  /// (tool vector) with dialect linuxcnc. Such a block is replaced by a comment line
+  /// `(gcpipe: line N not written: ...)` and counted in refused_blocks(); the writer's state does
+  /// not advance, so the next writable block restates whatever it needs.
+  bool write(const ResolvedBlock& block, std::string& out);
+  /// Blocks refused so far (see write()).
+  std::uint64_t refused_blocks() const { return refused_; }
   /// Appends a comment line recording a source line that produced no block (rejected, or skipped
   /// by block delete), so the output shows what was dropped and why.
   void write_diagnostic(const Diagnostic& diag, std::string& out);
@@ -58,6 +65,10 @@ class Writer {
   bool tlo_active_ = false;
   std::int32_t tlo_ = 0;
   bool tcp_ = false;
+  bool tool_vector_mode_ = false;
+  bool tool_vector_written_ = false;  // an I J K vector has been written since G43.5
+  Vec3 tool_vector_{0, 0, 1};
+  std::uint64_t refused_ = 0;
   double spindle_speed_ = 0;
   Spindle spindle_ = Spindle::kOff;
   std::int32_t tool_ = 0;

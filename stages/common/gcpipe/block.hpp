@@ -97,7 +97,9 @@ struct ResolvedBlock {
   std::int32_t tool_length_offset = 0;      //!< H register in force (0 = none)
   double tool_length = 0;                   //!< length from the H register [mm] when active
   bool tool_length_active = false;          //!< G43 / G43.4 in force
-  bool tcp = false;                         //!< tool-centre-point mode (G43.4, M428) in force
+  bool tcp = false;                         //!< tool-centre-point mode (G43.4, G43.5, M428) in force
+  Vec3 tool_vector{0, 0, 1};   //!< unit tool axis tip->spindle in the workpiece frame (G43.5 I J K); valid when tool_vector_mode
+  bool tool_vector_mode = false; //!< G43.5 in force: orientation programmed as I J K, the IK chooses A and C
   std::uint8_t coolant = kCoolantOff;       //!< Coolant bits
   std::int32_t work_offset = 54;            //!< G54..G59
   Axes work_origin{};                       //!< origin of that system [mm, deg] (machine config)
