@@ -37,7 +37,14 @@ struct Simulation final : interpolate::SampleSink {
   OutputFile* report;
   std::optional<servo::CircleTest> circle;
   std::string trace_buf, report_buf;
-  std::deque<Axes> raw;           // raw path samples not yet matched with a servo tick
+  // Raw path samples not yet matched with a servo tick, with the tool length in force when they
+  // were interpolated: the actual tip of that tick is computed with the same length, so a G49 or
+  // an H change does not show up as a contour error of the length difference.
+  struct Nominal {
+    Axes joints;
+    double tool_length;
+  };
+  std::deque<Nominal> raw;
   servo::ContourTracker contour;
   double tool_length = 0;
   // summary
@@ -51,6 +58,7 @@ struct Simulation final : interpolate::SampleSink {
       : sim(d, period), kin(k), trace(t), report(r) {}
 
   Vec3 tip(const Axes& j) const { return forward_kinematics(kin, j, tool_length).tip; }
+  Vec3 tip(const Axes& j, double length) const { return forward_kinematics(kin, j, length).tip; }
 
   void start(const Axes& position) {
     trace_buf = std::string(kTraceHeader) + "\n";
@@ -59,12 +67,12 @@ struct Simulation final : interpolate::SampleSink {
       if (circle) report_buf += ",alpha,beta,alpha_minus_beta,radius_decrease,shape_error";
       report_buf += "\n";
     }
-    raw.push_back(position);
+    raw.push_back({position, tool_length});
     contour.add_nominal(tip(position));
     tick(sim.reset(position, 0.0));
   }
   void raw_sample(const Axes& r) override {
-    raw.push_back(r);
+    raw.push_back({r, tool_length});
     contour.add_nominal(tip(r));
   }
   void sample(const Axes& command) override {
@@ -78,7 +86,8 @@ struct Simulation final : interpolate::SampleSink {
     if (report) report->write(report_buf, true);
   }
   void tick(const servo::ServoSample& s) {
-    const Axes nominal = raw.front();
+    const Axes nominal = raw.front().joints;
+    const double length = raw.front().tool_length;
     raw.pop_front();
     ++ticks;
     TraceRow row{s.t, s.command, s.actual};
@@ -90,7 +99,7 @@ struct Simulation final : interpolate::SampleSink {
       peak_torque[i] = std::max(peak_torque[i], std::abs(s.torque[i]));
       if (s.saturated & (1u << i)) ++saturated_ticks[i];
     }
-    const Vec3 p = tip(s.actual);
+    const Vec3 p = tip(s.actual, length);
     const double e = contour.distance(p);
     max_contour = std::max(max_contour, e);
     if (!report) return;
@@ -159,20 +168,9 @@ int run_simulate(const std::vector<std::string>& argv) {
   if (const auto r = args.value("--report")) report.emplace(*r);
   Simulation simulation(drives, io.period, kin, trace, report ? &*report : nullptr);
   simulation.circle = circle;
-  io.tip_path_length = [&](const Axes& a, const Axes& b) {
-    // Length of the tool-tip path of a straight joint move, from 16 chords through FK.
-    double len = 0;
-    Vec3 prev = simulation.tip(a);
-    for (int k = 1; k <= 16; ++k) {
-      Axes j;
-      for (std::size_t i = 0; i < kNumAxes; ++i) j[i] = a[i] + (b[i] - a[i]) * k / 16.0;
-      const Vec3 p = simulation.tip(j);
-      len += std::sqrt((p[0] - prev[0]) * (p[0] - prev[0]) + (p[1] - prev[1]) * (p[1] - prev[1]) +
-                       (p[2] - prev[2]) * (p[2] - prev[2]));
-      prev = p;
-    }
-    return len;
-  };
+  // TCP blocks are interpolated in the workpiece frame and turned into joints per tick; G94
+  // feed of joint moves that turn A or C is along the tool-tip path (stages/interpolate/README.md).
+  io.kinematics = &kin;
 
   std::optional<interpolate::Interpolator> interp;
   std::uint64_t errors = 0;
@@ -182,12 +180,21 @@ int run_simulate(const std::vector<std::string>& argv) {
     simulation.tool_length = b.tool_length_active ? b.tool_length : kin.tool_length;
     if (!interp) {
       if (b.motion == Motion::kNone) return true;
-      interp.emplace(io, b.start);
+      // The machine starts at rest where the program believes it is: in TCP mode the parser's
+      // position is a tool tip (and A C or the tool vector), so it is turned into joints.
+      Axes start = b.start;
+      if (b.tcp) {
+        const Vec3 tip{b.start[kX], b.start[kY], b.start[kZ]};
+        start = b.tool_vector_mode
+                    ? inverse_kinematics(kin, ToolPose{tip, b.tool_vector}, b.start, simulation.tool_length).joints
+                    : inverse_kinematics_ac(kin, tip, b.start[kA], b.start[kC], simulation.tool_length).joints;
+      }
+      interp.emplace(io, start);
       if (circle) {
-        circle->c_start = b.start[kC];
+        circle->c_start = start[kC];
         simulation.circle = circle;
       }
-      simulation.start(b.start);
+      simulation.start(start);
     }
     const auto r = interp->add(b, simulation);
     if (r.status != interpolate::InterpolateStatus::kOk) {
@@ -239,6 +246,14 @@ int run_simulate(const std::vector<std::string>& argv) {
                    kAxisLetters[i], kin.travel[static_cast<std::size_t>(i)].min, kin.travel[static_cast<std::size_t>(i)].max,
                    static_cast<unsigned long long>(n));
     }
+    const auto& st = interp->stats();
+    if (st.ik_failed_samples) {
+      out_of_travel = true;
+      std::fprintf(stderr, "%s:%llu: error: tool-centre-point motion has no joint solution within travel in %llu samples (%llu without any finite solution; first in this block)\n",
+                   in.name().c_str(), static_cast<unsigned long long>(st.first_ik_failure_line),
+                   static_cast<unsigned long long>(st.ik_failed_samples),
+                   static_cast<unsigned long long>(st.ik_unreachable_samples));
+    }
   }
   if (!complete || !stop_reason.empty()) {
     std::cerr << "gcpipe simulate: " << (stop_reason.empty() ? error : stop_reason) << "\n";
@@ -267,6 +282,8 @@ constinit const Command kSimulateCommand{
     "                   (eqs. 11, 6); the nominal angle is the raw commanded C\n"
     "  --strict         stop at the first rejected line\n"
     "  --progress       progress on stderr\n"
+    "Tool-centre-point blocks (G43.4, M428, G43.5) move the tool tip along the programmed path\n"
+    "in the workpiece frame; joints come from the machine's inverse kinematics every tick.\n"
     "Exit status: 0 ok, 3 some lines rejected or an axis left its travel, 1 stopped (strict, I/O, or a block the machine\n"
     "cannot run), 2 usage.\n",
     run_simulate};

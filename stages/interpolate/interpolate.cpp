@@ -82,7 +82,9 @@ std::complex<double> smoothing_response(Smoothing kind, double Ts, double period
 namespace {
 
 struct Path {
-  // Straight joint move, or arc in the plane (ia, ib) around (ca, cb) with the other axes linear.
+  // Straight move, or arc in the plane (ia, ib) around (ca, cb) with the other axes linear. In
+  // joint mode the coordinates are joints; in TCP mode X Y Z are the tool tip in the workpiece
+  // frame and A C the programmed rotary positions.
   bool arc = false;
   int ia = 0, ib = 1, in = 2;
   double ca = 0, cb = 0, th0 = 0, dth = 0, r0 = 0, r1 = 0;
@@ -103,6 +105,89 @@ struct Path {
 
 std::string where(const ResolvedBlock& b) {
   return "line " + std::to_string(b.line) + " (" + b.text + ")";
+}
+
+double dot3(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+double norm3(const Vec3& a) { return std::sqrt(dot3(a, a)); }
+double dist3(const Vec3& a, const Vec3& b) { return std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]); }
+Vec3 tip_of(const Axes& p) { return {p[kX], p[kY], p[kZ]}; }
+bool all_finite(const Axes& q) {
+  for (double v : q)
+    if (!std::isfinite(v)) return false;
+  return true;
+}
+
+// Maps a point of a TCP path (tool tip + A C, at path parameter s) to joints.
+struct TcpMap {
+  const MachineKinematics* kin = nullptr;
+  double tool_length = 0;
+  bool vector_mode = false;  // G43.5: the tool vector is slerped, the IK chooses A and C
+  Vec3 v0{}, v1{};           // unit tool vectors at s = 0 and s = 1
+  double omega = 0;          // angle between them [rad]
+
+  Vec3 vector_at(double s) const {
+    if (omega < 1e-12) {
+      Vec3 v{v0[0] + s * (v1[0] - v0[0]), v0[1] + s * (v1[1] - v0[1]), v0[2] + s * (v1[2] - v0[2])};
+      const double n = norm3(v);
+      return {v[0] / n, v[1] / n, v[2] / n};
+    }
+    const double so = std::sin(omega), w0 = std::sin((1 - s) * omega) / so, w1 = std::sin(s * omega) / so;
+    return {w0 * v0[0] + w1 * v1[0], w0 * v0[1] + w1 * v1[1], w0 * v0[2] + w1 * v1[2]};
+  }
+
+  IkResult joints(const Axes& p, double s, const Axes& previous) const {
+    if (!vector_mode) return inverse_kinematics_ac(*kin, tip_of(p), p[kA], p[kC], tool_length);
+    return inverse_kinematics(*kin, ToolPose{tip_of(p), vector_at(s)}, previous, tool_length);
+  }
+};
+
+// Largest |dq_i/ds| and |d2q_i/ds2| of a TCP block's joint path, from K + 1 sub-samples (chords
+// and second differences), and the joints at s = 1 reached by continuity along the path.
+struct JointSweep {
+  Axes rate{};       // max |dq/ds| [mm, deg]
+  Axes curvature{};  // max |d2q/ds2| [mm, deg]
+  Axes end{};
+  bool finite = true;
+};
+
+JointSweep sweep_joints(const Path& path, const TcpMap& map, const Axes& start, int K) {
+  JointSweep w;
+  Axes prev = start, prev2 = start;
+  const double inv_ds = K, inv_ds2 = static_cast<double>(K) * K;
+  for (int k = 1; k <= K; ++k) {
+    const double s = static_cast<double>(k) / K;
+    const IkResult r = map.joints(path.at(s), s, prev);
+    if (!all_finite(r.joints)) {
+      w.finite = false;
+      return w;
+    }
+    for (std::size_t i = 0; i < kNumAxes; ++i) {
+      w.rate[i] = std::max(w.rate[i], std::abs(r.joints[i] - prev[i]) * inv_ds);
+      if (k >= 2) w.curvature[i] = std::max(w.curvature[i], std::abs(r.joints[i] - 2 * prev[i] + prev2[i]) * inv_ds2);
+    }
+    prev2 = prev;
+    prev = r.joints;
+  }
+  w.end = prev;
+  return w;
+}
+
+// Length of the tool-tip path [mm] of a joint-space path (line or arc) through forward
+// kinematics: chord sums over 32 and 64 pieces, whose error is c/N^2 + O(N^-4) for a smooth
+// curve, combined by Richardson extrapolation (4 L64 - L32) / 3.
+double fk_tip_length(const MachineKinematics& kin, const Path& path, double tool_length) {
+  auto chords = [&](int n) {
+    double len = 0;
+    Vec3 prev = forward_kinematics(kin, path.from, tool_length).tip;
+    for (int k = 1; k <= n; ++k) {
+      const Vec3 p = forward_kinematics(kin, path.at(static_cast<double>(k) / n), tool_length).tip;
+      len += dist3(prev, p);
+      prev = p;
+    }
+    return len;
+  };
+  const double l32 = chords(32), l64 = chords(64);
+  return std::max(l64, (4 * l64 - l32) / 3);
 }
 
 }  // namespace
@@ -158,6 +243,75 @@ InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
   for (double v : b.target)
     if (!std::isfinite(v)) return invalid("non-finite target");
 
+  const bool moves = b.motion == Motion::kRapid || b.motion == Motion::kLinear ||
+                     b.motion == Motion::kArcCW || b.motion == Motion::kArcCCW;
+  const bool tcp = moves && b.tcp;
+  // Switching between joint and TCP mode: the parser's targets of the axes this block does not
+  // program still hold values of the other space (tips vs joints); those axes keep their
+  // current value in the block's own space instead (README, "Switching").
+  const bool switching = moves && tcp != tcp_space_;
+  auto kept = [&](int axis) { return switching && (b.axis_words & (1u << axis)) == 0; };
+  const MachineKinematics* kin = opt_.kinematics;
+  const double tool_length = kin ? (b.tool_length_active ? b.tool_length : kin->tool_length) : 0.0;
+
+  TcpMap map;
+  if (tcp) {
+    if (kin == nullptr) {
+      res.status = InterpolateStatus::kUnsupported;
+      res.message = where(b) + ": tool-centre-point block needs the machine kinematics (InterpolateOptions::kinematics)";
+      return res;
+    }
+    map.kin = kin;
+    map.tool_length = tool_length;
+    const ToolPose now = forward_kinematics(*kin, raw_end_, tool_length);
+    path.from = {now.tip[0], now.tip[1], now.tip[2], raw_end_[kA], raw_end_[kC]};
+    for (int i = 0; i < kNumAxes; ++i)
+      if (kept(i)) path.to[static_cast<std::size_t>(i)] = path.from[static_cast<std::size_t>(i)];
+    if (b.tool_vector_mode) {
+      map.vector_mode = true;
+      const double n = norm3(b.tool_vector);
+      if (!(n > 1e-12) || !std::isfinite(n)) return invalid("tool vector I J K has zero length");
+      map.v0 = now.axis;
+      map.v1 = {b.tool_vector[0] / n, b.tool_vector[1] / n, b.tool_vector[2] / n};
+      map.omega = std::acos(std::clamp(dot3(map.v0, map.v1), -1.0, 1.0));
+      if (map.omega > std::numbers::pi - 1e-9)
+        return invalid("tool vector turns by 180 deg: the orientation path is undefined (split the move)");
+      // Leaving the pole: at A = 0, C is free and was held; the first step off the pole needs the
+      // C of the direction the slerp leaves in (a meridian: the azimuth of v1), which is a jump
+      // in joints. As a control does, C turns first, at the pole, with the tip held and the
+      // tool axis unchanged: a TCP move with A C given, fed at F deg/min (G94) or at the joint
+      // limits (G93); then the block itself runs from there with C continuous.
+      if (!pole_turn_ && std::abs(raw_end_[kA]) <= kin->c_hold_tilt && map.omega > 0) {
+        const IkResult leave = inverse_kinematics(*kin, ToolPose{now.tip, map.v1}, raw_end_, tool_length);
+        if (all_finite(leave.joints) && std::abs(leave.joints[kC] - raw_end_[kC]) > 1e-9) {
+          ResolvedBlock turn = b;
+          turn.tool_vector_mode = false;
+          turn.motion = b.feed_mode == FeedMode::kInverseTime ? Motion::kRapid : Motion::kLinear;
+          turn.target = {now.tip[0], now.tip[1], now.tip[2], raw_end_[kA], leave.joints[kC]};
+          turn.axis_words = 0x1f;
+          pole_turn_ = true;
+          InterpolateResult first = add(turn, sink);
+          if (first.status == InterpolateStatus::kOk) {
+            --stats_.blocks;  // one programmed block
+            --stats_.tcp_blocks;
+            InterpolateResult rest = add(b, sink);
+            rest.duration += first.duration;
+            rest.velocity_limited = rest.velocity_limited || first.velocity_limited;
+            first = rest;
+          }
+          pole_turn_ = false;
+          return first;
+        }
+      }
+      // A and C follow from the IK; the path's own A C are placeholders at the current joints.
+      path.to[kA] = raw_end_[kA];
+      path.to[kC] = raw_end_[kC];
+    }
+  } else if (moves && tcp_space_) {
+    for (int i = 0; i < kNumAxes; ++i)
+      if (kept(i)) path.to[static_cast<std::size_t>(i)] = raw_end_[static_cast<std::size_t>(i)];
+  }
+
   // Per-axis velocity bound: the axis limit, and the speed whose step the smoother turns into
   // exactly the acceleration limit (linear: dv/Ts; exponential: initial slope dv/Ts).
   Axes vlim;
@@ -167,6 +321,7 @@ InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
       vlim[i] = std::min(vlim[i], opt_.max_acceleration[i] * opt_.smoothing_time[i]);
   }
   Axes travel{};  // largest speed-relevant excursion per axis (arc: radius x angle in plane)
+  Axes tcp_end = raw_end_;  // joints at the end of a TCP block
 
   switch (b.motion) {
     case Motion::kNone:
@@ -204,7 +359,8 @@ InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
         path.th0 = std::atan2(sb, sa);
         double d = std::atan2(eb, ea) - path.th0;
         const bool ccw = b.motion == Motion::kArcCCW;
-        const bool full = std::hypot(ea - sa, eb - sb) < 1e-9;
+        // TCP start points come through FK and match the programmed ones only to ~1e-13 mm.
+        const bool full = std::hypot(ea - sa, eb - sb) < (tcp ? 1e-7 : 1e-9);
         if (ccw) {
           while (d <= 0) d += kTwoPi;
           if (full) d = kTwoPi;
@@ -224,20 +380,60 @@ InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
         for (std::size_t i = 0; i < kNumAxes; ++i) travel[i] = std::abs(path.to[i] - path.from[i]);
         length_xyz = std::sqrt(travel[kX] * travel[kX] + travel[kY] * travel[kY] + travel[kZ] * travel[kZ]);
       }
-      if (b.motion == Motion::kRapid) {
+      const bool feed_move = b.motion != Motion::kRapid;
+      if (feed_move && b.feed_mode == FeedMode::kInverseTime) {
+        if (!(b.feed > 0)) return invalid("inverse-time feed F must be > 0 (G93: F = 1/minutes)");
+        duration = 60.0 / b.feed;
+      } else if (feed_move && !(b.feed > 0)) {
+        return invalid("feed F must be > 0 for G1/G2/G3");
+      }
+
+      if (tcp) {
+        // Joint path through IK, sub-sampled finer than the ticks and the rotation: its largest
+        // joint rates and curvatures set the shortest duration the joint limits allow.
+        const double angle_deg = std::abs(path.to[kA] - path.from[kA]) + std::abs(path.to[kC] - path.from[kC]) +
+                                 std::abs(path.dth) * 180 / std::numbers::pi + map.omega * 180 / std::numbers::pi;
+        const double feed_time = feed_move && b.feed > 0 ? std::max(length_xyz, 1.0) / (b.feed / 60.0) : 0.0;
+        const int K = static_cast<int>(std::clamp(std::max(4 * angle_deg, 2 * std::max(duration, feed_time) / T), 256.0, 16384.0));
+        const JointSweep w = sweep_joints(path, map, raw_end_, K);
+        if (!w.finite) return invalid("no finite joints for the tool-tip path (inverse kinematics failed)");
+        tcp_end = w.end;
+        if (feed_move && b.feed_mode == FeedMode::kUnitsPerMinute) {
+          double length = length_xyz;  // along the tool tip in the workpiece frame
+          if (!(length > 1e-9)) length = std::hypot(w.end[kA] - raw_end_[kA], w.end[kC] - raw_end_[kC]);
+          duration = length / (b.feed / 60.0);
+        }
+        double need = 0;
+        for (std::size_t i = 0; i < kNumAxes; ++i) {
+          if (w.rate[i] == 0) continue;
+          if (!(vlim[i] > 0)) return invalid(std::string("axis ") + kAxisLetters[i] + " has no velocity limit");
+          need = std::max(need, w.rate[i] / vlim[i]);
+          if (opt_.max_acceleration[i] > 0) need = std::max(need, std::sqrt(w.curvature[i] / opt_.max_acceleration[i]));
+        }
+        if (need > duration * (1 + 1e-12)) {
+          res.velocity_limited = feed_move && duration > 0;
+          duration = need;
+        }
+        break;
+      }
+
+      if (!feed_move) {
         for (std::size_t i = 0; i < kNumAxes; ++i) {
           if (travel[i] == 0) continue;
           if (!(vlim[i] > 0)) return invalid(std::string("axis ") + kAxisLetters[i] + " has no velocity limit for the rapid");
           duration = std::max(duration, travel[i] / vlim[i]);
         }
-      } else if (b.feed_mode == FeedMode::kInverseTime) {
-        if (!(b.feed > 0)) return invalid("inverse-time feed F must be > 0 (G93: F = 1/minutes)");
-        duration = 60.0 / b.feed;
-      } else {
-        if (!(b.feed > 0)) return invalid("feed F must be > 0 for G1/G2/G3");
+      } else if (b.feed_mode == FeedMode::kUnitsPerMinute) {
         double length = length_xyz;
-        if (opt_.tip_path_length && !path.arc) length = opt_.tip_path_length(path.from, path.to);
-        if (!(length > 1e-12)) length = std::hypot(travel[kA], travel[kC]);  // deg at deg/min
+        const bool rotary_moves = travel[kA] != 0 || travel[kC] != 0;
+        double min_length = 1e-12;
+        if (kin != nullptr && rotary_moves) {
+          length = fk_tip_length(*kin, path, tool_length);
+          min_length = 1e-9;  // FK rounding of a tip that stays put
+        } else if (kin == nullptr && opt_.tip_path_length && !path.arc) {
+          length = opt_.tip_path_length(path.from, path.to);
+        }
+        if (!(length > min_length)) length = std::hypot(travel[kA], travel[kC]);  // deg at deg/min
         duration = length / (b.feed / 60.0);
       }
       for (std::size_t i = 0; i < kNumAxes; ++i) {
@@ -255,6 +451,8 @@ InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
   res.duration = duration;
   line_ = b.line;
   ++stats_.blocks;
+  if (tcp) ++stats_.tcp_blocks;
+  if (moves) tcp_space_ = tcp;
   if (res.velocity_limited) ++stats_.velocity_limited_blocks;
   const double t_end = t_block_ + duration;
   // Samples at t = n T inside (t_block_, t_end]; the tolerance keeps a sample that rounding put
@@ -269,13 +467,29 @@ InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
     cd = std::cos(th_step);
     sd = std::sin(th_step);
   }
+  Axes previous_joints = raw_end_;
+  // TCP: the path point becomes joints before smoothing; a failed IK is counted with this
+  // block's line, and a non-finite answer holds the previous joints.
+  auto to_joints = [&](const Axes& p, double s) {
+    // The end sample is the sweep's end (the joints the next block starts from).
+    const IkResult r = s >= 1 ? map.joints(path.to, 1.0, tcp_end) : map.joints(p, s, previous_joints);
+    const bool finite = all_finite(r.joints);
+    if (!finite || r.status == IkStatus::kFailed) {
+      ++stats_.ik_failed_samples;
+      if (!finite) ++stats_.ik_unreachable_samples;
+      if (stats_.first_ik_failure_line == 0) stats_.first_ik_failure_line = b.line ? b.line : 1;
+    }
+    if (finite) previous_joints = r.joints;
+    return previous_joints;
+  };
   while (true) {
     const double t = static_cast<double>(n_ + 1) * T;
     if (t > t_end + 1e-9 * T) break;
     ++n_;
     const double s = duration > 0 ? std::clamp((t - t_block_) / duration, 0.0, 1.0) : 1.0;
     if (!path.arc || s >= 1) {
-      emit(path.at(s), sink);
+      if (tcp) emit(to_joints(path.at(s), s), sink);
+      else emit(path.at(s), sink);
       continue;
     }
     if (since_anchor >= 64) {
@@ -294,10 +508,11 @@ InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
     const double r = path.r0 + s * (path.r1 - path.r0);
     p[static_cast<std::size_t>(path.ia)] = path.ca + r * cth;
     p[static_cast<std::size_t>(path.ib)] = path.cb + r * sth;
-    emit(p, sink);
+    if (tcp) emit(to_joints(p, s), sink);
+    else emit(p, sink);
   }
   t_block_ = t_end;
-  raw_end_ = path.to;
+  raw_end_ = tcp ? tcp_end : path.to;
   return res;
 }
 

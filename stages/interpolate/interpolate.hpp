@@ -4,7 +4,11 @@
 //
 // Each block becomes a parametric path p(s), s in [0, 1], travelled at constant speed for a
 // duration fixed by the feed (G94 along the tool-tip path or the XYZ path, G93 inverse time), the
-// rapid rule, or the dwell, and lengthened when an axis would exceed its velocity limit. The
+// rapid rule, or the dwell, and lengthened when an axis would exceed its velocity limit.
+// Tool-centre-point blocks (G43.4 / M428, G43.5) are interpolated as the control does: the path
+// lies in the workpiece frame (tool tip, A and C or the tool vector) and every sample is turned
+// into joints by inverse kinematics before smoothing; joint limits are measured on that joint
+// path. The
 // path is sampled on one global clock (t = n * period), so block boundaries that fall between
 // samples cost no time and leave no velocity glitch. Each axis is then smoothed independently:
 // linear acc/dec (moving average over Ts) or exponential acc/dec (first-order lag, time constant
@@ -18,6 +22,7 @@
 #include <vector>
 
 #include "gcpipe/block.hpp"
+#include "gcpipe/kinematics.hpp"
 
 namespace gcpipe {
 class Config;
@@ -41,8 +46,14 @@ struct InterpolateOptions {
   Axes travel_max{{1e9, 1e9, 1e9, 1e9, 1e9}};       //!< joint travel [mm, deg] (machine limits)
   /// Optional length of the tool-tip path of a straight joint move [mm] (from forward
   /// kinematics); when empty, G94 feed is along XYZ, or along A/C in deg/min when no linear axis
-  /// moves (the LinuxCNC rule).
+  /// moves (the LinuxCNC rule). Ignored when `kinematics` is set (which measures lines and arcs).
   std::function<double(const Axes& from, const Axes& to)> tip_path_length;
+  /// Machine model (not owned; must outlive the Interpolator). With it: tool-centre-point blocks
+  /// are interpolated in the workpiece frame and converted to joints per sample, and G94 feed of
+  /// joint moves that turn a rotary axis is along the tool-tip path (lines and arcs). Without it
+  /// a block with `tcp` set is rejected kUnsupported. The tool length of a block is
+  /// block.tool_length when block.tool_length_active, else kinematics->tool_length.
+  const MachineKinematics* kinematics = nullptr;
 };
 
 /// Reads the `interpolate` section (period, smoothing); unknown keys rejected. The limits come
@@ -85,8 +96,10 @@ class SampleSink {
 
 enum class InterpolateStatus : std::uint8_t {
   kOk,
-  kUnsupported,  //!< a motion this stage does not execute (G275 must be expanded first)
-  kInvalid,      //!< zero or negative feed, non-finite target, axis with no velocity limit
+  kUnsupported,  //!< a motion this stage does not execute (G275 must be expanded first; a
+                 //!< tool-centre-point block without InterpolateOptions::kinematics)
+  kInvalid,      //!< zero or negative feed, non-finite target, axis with no velocity limit,
+                 //!< zero tool vector, tool vector reversed by 180 deg
 };
 
 struct InterpolateResult {
@@ -104,6 +117,13 @@ struct InterpolateStats {
   Axes peak_acceleration{};  //!< of the smoothed commands [mm/s^2, deg/s^2]
   std::array<std::uint64_t, kNumAxes> travel_violations{};  //!< samples outside travel per axis
   std::uint64_t first_violation_line = 0;  //!< source line of the first such sample (0: none)
+  std::uint64_t tcp_blocks = 0;            //!< blocks interpolated in tool-centre-point mode
+  /// Raw TCP samples whose inverse kinematics failed: joints outside travel (the joints are still
+  /// the continuous solution and are emitted) or no finite solution (the previous joints are
+  /// held, so no NaN reaches a command).
+  std::uint64_t ik_failed_samples = 0;
+  std::uint64_t ik_unreachable_samples = 0;  //!< of those, the ones without a finite solution
+  std::uint64_t first_ik_failure_line = 0;   //!< source line of the first such sample (0: none)
 };
 
 class Interpolator {
@@ -122,6 +142,8 @@ class Interpolator {
  private:
   void emit(const Axes& raw, SampleSink& sink);
   InterpolateOptions opt_;
+  bool tcp_space_ = false;    // the last moving block was a TCP block (targets were tool tips)
+  bool pole_turn_ = false;    // inside the C turn that precedes a G43.5 block leaving the pole
   std::array<AxisSmoother, kNumAxes> smooth_;
   std::uint64_t line_ = 0;    // source line of the block being sampled
   Axes raw_end_{};
