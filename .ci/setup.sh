@@ -3,7 +3,7 @@
 # test suite. Idempotent: packages already installed are not fetched again, the build is
 # incremental (ccache), outputs are overwritten.
 #
-#   bash .ci/setup.sh sample   # build, then gcpipe batch on the paper's slot sample (no DDS setup)
+#   bash .ci/setup.sh sample   # build, then gcpipe batch on the paper's slot at F3000 (no DDS setup)
 #   bash .ci/setup.sh test     # build, then the whole CTest suite
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -37,9 +37,10 @@ cmake --build build -j"$(nproc)"
 
 case "$what" in
   sample)
-    echo "== gcpipe batch samples/trochoid_slot_seed000.nc -o out/trochoid_slot_seed000"
-    build/stages/cli/gcpipe batch samples/trochoid_slot_seed000.nc -o out/trochoid_slot_seed000
-    echo "== the figure: out/trochoid_slot_seed000/plots/trochoid_engagement.png"
+    echo "== gcpipe batch samples/trochoid_slot_f3000.nc -o out/trochoid_slot_f3000"
+    build/stages/cli/gcpipe batch samples/trochoid_slot_f3000.nc -o out/trochoid_slot_f3000
+    echo "== compensated program: out/trochoid_slot_f3000/compensated.nc; report: out/trochoid_slot_f3000/report.txt"
+    echo "== the figure: out/trochoid_slot_f3000/plots/contour_error.png (and toolpath, following_error, ik_*, trochoid_engagement)"
     ;;
   test)
     echo "== ctest"

@@ -142,8 +142,9 @@ TEST(Cli, PeakMemoryDoesNotGrowWithProgramLength) {
   const fs::path dir = tmpdir("rss");
   ASSERT_EQ(gcpipe({"synth", "--megabytes", "20", "-o", (dir / "small.nc").string()}).status, 0);
   ASSERT_EQ(gcpipe({"synth", "--megabytes", "200", "-o", (dir / "large.nc").string()}).status, 0);
-  Outcome small = gcpipe({"batch", (dir / "small.nc").string(), "-o", (dir / "o1").string(), "--quiet"});
-  Outcome large = gcpipe({"batch", (dir / "large.nc").string(), "-o", (dir / "o2").string(), "--quiet"});
+  // The streaming stages (the simulation keeps the program in memory and is skipped here).
+  Outcome small = gcpipe({"batch", (dir / "small.nc").string(), "-o", (dir / "o1").string(), "--quiet", "--no-simulate"});
+  Outcome large = gcpipe({"batch", (dir / "large.nc").string(), "-o", (dir / "o2").string(), "--quiet", "--no-simulate"});
   ASSERT_EQ(small.status, 0) << small.err;
   ASSERT_EQ(large.status, 0) << large.err;
   EXPECT_GT(fs::file_size(dir / "o2" / "output.nc"), 9 * fs::file_size(dir / "o1" / "output.nc"));
@@ -160,7 +161,7 @@ TEST(Cli, BatchExpandsTrochoidCyclesAndDrawsTheirFigure) {
   const fs::path out = tmpdir("troch");
   Outcome r = gcpipe({"batch", std::string(GCPIPE_SOURCE_DIR) + "/samples/trochoid_slot_seed000.nc", "-o", out.string()});
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_NE(r.out.find("parse -> trochoid -> write"), std::string::npos);
+  EXPECT_NE(r.out.find("parse -> trochoid -> ik -> interpolate -> servo -> compensate -> write -> plots"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("1 G275 cycles expanded, 0 rejected"), std::string::npos) << r.out;
   ASSERT_TRUE(fs::exists(out / "plots" / "trochoid_engagement.png"));
   EXPECT_GT(fs::file_size(out / "plots" / "trochoid_engagement.png"), 20000u);  // a drawn figure, not an empty canvas
@@ -178,4 +179,49 @@ TEST(Cli, BatchExpandsTrochoidCyclesAndDrawsTheirFigure) {
   EXPECT_EQ(b.status, 3);
   EXPECT_NE(b.err.find("slots.nc:4: error: G275 rejected:"), std::string::npos) << b.err;
   EXPECT_NE(b.out.find("1 G275 cycles expanded, 1 rejected"), std::string::npos) << b.out;
+}
+
+// The main job end to end on seed 002's circle test: a compensated program that reads back with
+// this project's parser in both dialects, a report with the before/after figures, and the plots.
+TEST(Cli, BatchCompensatesTheCircleTestAndWritesReportAndPlots) {
+  const fs::path out = tmpdir("circle");
+  Outcome r = gcpipe({"batch", std::string(GCPIPE_SOURCE_DIR) + "/samples/circle_test_seed002.nc", "-o", out.string(),
+                      "--config", std::string(GCPIPE_SOURCE_DIR) + "/pipeline_configs/circle_test.yaml"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("-> compensate ->"), std::string::npos) << r.out;
+  for (const char* f : {"compensated.nc", "report.json", "report.txt", "output.nc", "summary.json"})
+    EXPECT_TRUE(fs::exists(out / f)) << f;
+  for (const char* f : {"toolpath.png", "ballbar.png", "contour_error.png", "following_error.png"}) {
+    ASSERT_TRUE(fs::exists(out / "plots" / f)) << f;
+    EXPECT_GT(fs::file_size(out / "plots" / f), 20000u) << f << " looks blank";
+  }
+  std::ifstream j(out / "report.json");
+  std::stringstream js;
+  js << j.rdbuf();
+  const std::string report = js.str();
+  EXPECT_NE(report.find("\"compensated\":true"), std::string::npos);
+  // The 2 pi condition (lines 41-44) comes down at least tenfold, measured on the written file.
+  const auto seg = report.find("\"first_line\":41");
+  ASSERT_NE(seg, std::string::npos) << report;
+  const auto red = report.find("\"max_contour_error_reduction\":", seg);
+  ASSERT_NE(red, std::string::npos);
+  const double reduction = std::stod(report.substr(red + 30));
+  EXPECT_GE(reduction, 10.0) << report.substr(seg, 600);
+  // The compensated program keeps the structure and reads back in both dialects.
+  std::ifstream c(out / "compensated.nc");
+  std::stringstream cs;
+  cs << c.rdbuf();
+  const std::string program = cs.str();
+  EXPECT_EQ(program.rfind("%", 0), 0u);
+  EXPECT_NE(program.find("O2 (SEED 002 SYNCHRONOUS CIRCLE TEST)"), std::string::npos);
+  EXPECT_NE(program.find("(source: G3 X13. Y0 I-8. J0 C360. F15)"), std::string::npos);
+  EXPECT_NE(program.find("M30"), std::string::npos);
+  Outcome p = gcpipe({"parse", (out / "compensated.nc").string(), "--strict"});
+  EXPECT_EQ(p.status, 0) << p.err;
+  {
+    std::ofstream cfg(out / "linuxcnc.yaml");
+    cfg << "machine: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/machines/nmv5000.yaml\nparse:\n  dialect: linuxcnc\n";
+  }
+  Outcome l = gcpipe({"parse", (out / "compensated.nc").string(), "--strict", "--config", (out / "linuxcnc.yaml").string()});
+  EXPECT_EQ(l.status, 0) << l.err;
 }

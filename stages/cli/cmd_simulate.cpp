@@ -9,6 +9,7 @@
 
 #include "circle.hpp"
 #include "command.hpp"
+#include "compensate.hpp"
 #include "commands.hpp"
 #include "contour.hpp"
 #include "gcpipe/config.hpp"
@@ -133,23 +134,12 @@ int run_simulate(const std::vector<std::string>& argv) {
   PipelineConfig pc = load_config_option(args.value_or("--config", ""));
   ParseOptions po = load_parse_options(pc.root.section("parse"));
   if (args.flag("--strict")) po.strict = true;
-  if (!pc.root.has("servo"))
-    throw pc.root.error("servo", "missing: name the drives file, e.g. 'servo: {drives: drives/seed002.yaml}'");
-  const Config servo_section = pc.root.section("servo");
-  servo_section.reject_unknown({"drives"});
-  if (!servo_section.has("drives"))
-    throw servo_section.error("drives", "missing: the drives file, e.g. drives/seed002.yaml");
-  const servo::DriveSet drives =
-      servo::load_drives(Config::load_file(servo_section.resolve(servo_section.string("drives", ""))));
-  interpolate::InterpolateOptions io = interpolate::load_interpolate_options(pc.root.section("interpolate"));
-  const MachineKinematics& kin = pc.machine.kinematics;
-  io.max_velocity = kin.max_velocity;
-  io.max_acceleration = kin.max_acceleration;
-  for (std::size_t i = 0; i < kNumAxes; ++i) {
-    io.travel_min[i] = kin.travel[i].min;
-    io.travel_max[i] = kin.travel[i].max;
-  }
-  for (std::size_t i = 0; i < kNumAxes; ++i) io.smoothing_time[i] = drives.axes[i].Ts;
+  // The same model the batch job compensates against (machine limits, interpolate section,
+  // drives file with Ts per axis).
+  const compensate::Model model = compensate::load_model(pc);
+  const servo::DriveSet& drives = model.drives;
+  interpolate::InterpolateOptions io = model.interp;
+  const MachineKinematics& kin = model.kin;
 
   std::optional<servo::CircleTest> circle;
   if (const auto c = args.value("--circle")) {
@@ -180,15 +170,7 @@ int run_simulate(const std::vector<std::string>& argv) {
     simulation.tool_length = b.tool_length_active ? b.tool_length : kin.tool_length;
     if (!interp) {
       if (b.motion == Motion::kNone) return true;
-      // The machine starts at rest where the program believes it is: in TCP mode the parser's
-      // position is a tool tip (and A C or the tool vector), so it is turned into joints.
-      Axes start = b.start;
-      if (b.tcp) {
-        const Vec3 tip{b.start[kX], b.start[kY], b.start[kZ]};
-        start = b.tool_vector_mode
-                    ? inverse_kinematics(kin, ToolPose{tip, b.tool_vector}, b.start, simulation.tool_length).joints
-                    : inverse_kinematics_ac(kin, tip, b.start[kA], b.start[kC], simulation.tool_length).joints;
-      }
+      const Axes start = compensate::machine_start(kin, b, simulation.tool_length);
       interp.emplace(io, start);
       if (circle) {
         circle->c_start = start[kC];

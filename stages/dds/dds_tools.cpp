@@ -132,6 +132,9 @@ int run_sink(Participant& participant, const SinkOptions& o, std::ostream& log) 
   // Opened before anything arrives, so an unwritable path fails at once, not mid-program.
   std::ofstream out(part, std::ios::binary | std::ios::trunc);
   if (!out) throw std::runtime_error("cannot write '" + part.string() + "'");
+  // Scripts (and the tests) wait for this line before starting a feed: a program published
+  // before the sink exists counts as a replay and is skipped without --replay.
+  log << "gcpipe sink: ready on " << o.topic << "\n" << std::flush;
   Clock::time_point t0;
   std::set<std::uint64_t> skipped;  // programs published before the sink started
   double source_time = 0;

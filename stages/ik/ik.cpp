@@ -157,6 +157,10 @@ void IkStage::run_neural(IkPoint& p, double tool_length) const {
       p.mode == IkInputMode::kTcpAngles || c_undefined
           ? neural_->predict_linear(p.pose, tool_length, p.joints[kA], p.joints[kC])
           : neural_->predict(p.pose, tool_length, p.joints);
+  // Whether the inputs really left the training envelope, before the C bit is added for the
+  // undefined-C case: that case is a fact about the pose, not a doubt about the nets, so it is
+  // flagged but does not degrade the point (a three-axis program would be all "degraded").
+  const bool really_outside = n.outside_envelope != 0;
   if (c_undefined) n.outside_envelope |= static_cast<neural::EnvelopeBits>(1u << kC);
   p.has_neural = true;
   p.neural_joints = n.joints;
@@ -172,7 +176,8 @@ void IkStage::run_neural(IkPoint& p, double tool_length) const {
   }
   if (n.outside_envelope != 0) flags |= kIkNeuralOutsideEnvelope;
   p.flags |= flags;
-  if (flags != 0 && p.status == IkStatus::kOk) p.status = IkStatus::kDegraded;
+  const std::uint32_t degrading = really_outside ? flags : flags & ~static_cast<std::uint32_t>(kIkNeuralOutsideEnvelope);
+  if (degrading != 0 && p.status == IkStatus::kOk) p.status = IkStatus::kDegraded;
 }
 
 void IkStage::account(const IkPoint& p) {

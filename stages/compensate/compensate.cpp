@@ -1,0 +1,949 @@
+#include "compensate.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <deque>
+#include <limits>
+
+#include "gcpipe/config.hpp"
+
+namespace gcpipe::compensate {
+
+namespace {
+
+double dist3(const Vec3& a, const Vec3& b) {
+  return std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+/// Distance from p to the segment a-b; `closest` receives the nearest point of the segment.
+double segment_distance(const Vec3& a, const Vec3& b, const Vec3& p, Vec3& closest) {
+  const double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+  const double w[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
+  const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  double s = dd > 0 ? (w[0] * d[0] + w[1] * d[1] + w[2] * d[2]) / dd : 0.0;
+  s = std::clamp(s, 0.0, 1.0);
+  closest = {a[0] + s * d[0], a[1] + s * d[1], a[2] + s * d[2]};
+  return dist3(closest, p);
+}
+
+Axes lerp(const Axes& a, const Axes& b, double s) {
+  Axes r;
+  for (std::size_t i = 0; i < kNumAxes; ++i) r[i] = a[i] + (b[i] - a[i]) * s;
+  return r;
+}
+
+bool is_motion(Motion m) {
+  return m == Motion::kRapid || m == Motion::kLinear || m == Motion::kArcCW || m == Motion::kArcCCW ||
+         m == Motion::kTrochoidSlot;
+}
+
+/// The nominal tool-tip path as a polyline without repeated points, and the polyline index of
+/// every tick, so that the contour error can be searched near the previous match (a dwell or a
+/// stop adds many identical points that would otherwise stall the search).
+struct NominalPath {
+  std::vector<Vec3> pts;
+  std::vector<std::uint32_t> index_of_tick;
+};
+
+NominalPath nominal_path(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program) {
+  NominalPath p;
+  p.index_of_tick.reserve(nom.raw.size());
+  for (std::size_t n = 0; n < nom.raw.size(); ++n) {
+    const Vec3 tip = forward_kinematics(model.kin, nom.raw[n], tool_length_of(model, program[nom.block[n]])).tip;
+    if (p.pts.empty() || dist3(p.pts.back(), tip) > 1e-9) p.pts.push_back(tip);
+    p.index_of_tick.push_back(static_cast<std::uint32_t>(p.pts.size() - 1));
+  }
+  return p;
+}
+
+/// Contour error: the distance from the actual tip to the nominal polyline among the points the
+/// nominal could have reached by now, looking back at most `kLookBack` points. The window stops
+/// a looping path (a trochoid) from matching a crossing of a much earlier loop; the actual trails
+/// the nominal by the acc/dec and servo lag (tens of ms), far less than the window. Segments are
+/// grouped with bounding boxes so that most of the window is skipped after the first good match.
+class LocalContour {
+ public:
+  static constexpr std::size_t kGroup = 32;
+  static constexpr std::size_t kLookBack = 3000;
+  explicit LocalContour(const NominalPath& p) : p_(p) {
+    for (std::size_t g = 0; g * kGroup + 1 < p.pts.size(); ++g) {
+      Box b;
+      const std::size_t end = std::min(p.pts.size() - 1, (g + 1) * kGroup);
+      for (std::size_t i = g * kGroup; i <= end; ++i)
+        for (int k = 0; k < 3; ++k) b.lo[k] = std::min(b.lo[k], p.pts[i][k]), b.hi[k] = std::max(b.hi[k], p.pts[i][k]);
+      boxes_.push_back(b);
+    }
+  }
+  /// `limit`: the newest polyline index the nominal has reached at this tick.
+  double distance(const Vec3& actual, std::size_t limit, Vec3& closest) {
+    const auto& pts = p_.pts;
+    closest = pts.empty() ? actual : pts[0];
+    if (pts.size() < 2) return pts.empty() ? 0.0 : dist3(pts[0], actual);
+    const std::size_t hi = std::min(std::max<std::size_t>(limit, 1), pts.size() - 1);  // last segment end
+    const std::size_t lo = hi > kLookBack ? hi - kLookBack : 0;
+    double best = std::numeric_limits<double>::infinity();
+    Vec3 c;
+    auto scan = [&](std::size_t a, std::size_t b) {  // segments [a, b)
+      for (std::size_t i = a; i < b; ++i) {
+        const double d = segment_distance(pts[i], pts[i + 1], actual, c);
+        if (d < best) best = d, closest = c, j_ = i;
+      }
+    };
+    // Start near the previous match: a tight bound makes the box test skip most groups.
+    if (j_ >= lo && j_ < hi) scan(j_ > lo + 8 ? j_ - 8 : lo, std::min(hi, j_ + 64));
+    for (std::size_t g = lo / kGroup; g * kGroup < hi && g < boxes_.size(); ++g) {
+      const Box& bx = boxes_[g];
+      double dd = 0;
+      for (int k = 0; k < 3; ++k) {
+        const double o = std::max({bx.lo[k] - actual[k], 0.0, actual[k] - bx.hi[k]});
+        dd += o * o;
+      }
+      if (dd >= best * best) continue;
+      scan(std::max(lo, g * kGroup), std::min(hi, (g + 1) * kGroup));
+    }
+    return best;
+  }
+
+ private:
+  struct Box {
+    Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  };
+  const NominalPath& p_;
+  std::vector<Box> boxes_;
+  std::size_t j_ = 0;
+};
+
+void add_error(ErrorStats& s, double& sum_sq, std::uint64_t& count, double e, double t, std::uint64_t line) {
+  if (e > s.max) {
+    s.max = e;
+    s.t_at_max = t;
+    s.line_at_max = line;
+  }
+  sum_sq += e * e;
+  ++count;
+}
+
+/// Circle through the segment's nominal tip points (Kasa's algebraic fit, in X Y), accepted when
+/// every point lies within 1e-4 R of it, Z is constant and the points cover most of a turn.
+void detect_circle(Segment& seg, const std::vector<Vec3>& tips) {
+  if (tips.size() < 50) return;
+  double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, sxz = 0, syz = 0, sz = 0, zmin = 1e300, zmax = -1e300;
+  for (const auto& p : tips) {
+    const double x = p[0], y = p[1], z = x * x + y * y;
+    sx += x; sy += y; sxx += x * x; syy += y * y; sxy += x * y; sxz += x * z; syz += y * z; sz += z;
+    zmin = std::min(zmin, p[2]);
+    zmax = std::max(zmax, p[2]);
+  }
+  const double n = static_cast<double>(tips.size());
+  // Solve [sxx sxy sx; sxy syy sy; sx sy n] [a b c] = [sxz syz sz]; centre (a/2, b/2).
+  const double m[3][4] = {{sxx, sxy, sx, sxz}, {sxy, syy, sy, syz}, {sx, sy, n, sz}};
+  double a[3][4];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 4; ++j) a[i][j] = m[i][j];
+  for (int c = 0; c < 3; ++c) {
+    int piv = c;
+    for (int r = c + 1; r < 3; ++r)
+      if (std::abs(a[r][c]) > std::abs(a[piv][c])) piv = r;
+    if (std::abs(a[piv][c]) < 1e-300) return;
+    for (int j = 0; j < 4; ++j) std::swap(a[c][j], a[piv][j]);
+    for (int r = 0; r < 3; ++r) {
+      if (r == c) continue;
+      const double f = a[r][c] / a[c][c];
+      for (int j = c; j < 4; ++j) a[r][j] -= f * a[c][j];
+    }
+  }
+  const double A = a[0][3] / a[0][0], B = a[1][3] / a[1][1], C = a[2][3] / a[2][2];
+  const double cx = A / 2, cy = B / 2, r2 = C + cx * cx + cy * cy;
+  if (!(r2 > 0)) return;
+  const double R = std::sqrt(r2);
+  double worst = 0, span = 0, prev = std::atan2(tips[0][1] - cy, tips[0][0] - cx);
+  for (const auto& p : tips) {
+    worst = std::max(worst, std::abs(std::hypot(p[0] - cx, p[1] - cy) - R));
+    const double ang = std::atan2(p[1] - cy, p[0] - cx);
+    double d = ang - prev;
+    if (d > M_PI) d -= 2 * M_PI;
+    if (d < -M_PI) d += 2 * M_PI;
+    span += d;
+    prev = ang;
+  }
+  if (worst <= 1e-4 * R && zmax - zmin <= 1e-6 && std::abs(span) >= 1.5 * M_PI) {
+    seg.circle = true;
+    seg.circle_radius = R;
+    seg.circle_centre = {cx, cy};
+  }
+}
+
+}  // namespace
+
+CompensateOptions load_compensate_options(const Config& s) {
+  s.reject_unknown({"enabled", "node_period", "reference_smoothing", "linearisation_tolerance", "max_iterations", "gain",
+                    "max_machine_time", "max_blocks"});
+  CompensateOptions o;
+  o.enabled = s.boolean("enabled", o.enabled);
+  o.node_period = s.number("node_period", o.node_period, "s", 1e-4, 0.1);
+  o.reference_smoothing = s.number("reference_smoothing", o.reference_smoothing, "x Ts", 1.0, 10.0);
+  o.linearisation_tolerance = s.number("linearisation_tolerance", o.linearisation_tolerance, "mm", 1e-6, 1.0);
+  o.max_iterations = static_cast<int>(s.integer("max_iterations", o.max_iterations, 0, 1000));
+  o.gain = s.number("gain", o.gain, "", 0.01, 1.0);
+  o.max_machine_time = s.number("max_machine_time", o.max_machine_time, "s", 1, 1e6);
+  o.max_blocks = static_cast<std::uint64_t>(s.integer("max_blocks", static_cast<std::int64_t>(o.max_blocks), 1, 100000000));
+  return o;
+}
+
+Model load_model(const PipelineConfig& pc) {
+  if (!pc.root.has("servo"))
+    throw pc.root.error("servo", "missing: name the drives file, e.g. 'servo: {drives: drives/seed002.yaml}'");
+  const Config servo_section = pc.root.section("servo");
+  servo_section.reject_unknown({"drives"});
+  if (!servo_section.has("drives"))
+    throw servo_section.error("drives", "missing: the drives file, e.g. drives/seed002.yaml");
+  Model m;
+  m.kin = pc.machine.kinematics;
+  m.drives = servo::load_drives(Config::load_file(servo_section.resolve(servo_section.string("drives", ""))));
+  m.interp = interpolate::load_interpolate_options(pc.root.section("interpolate"));
+  m.interp.max_velocity = m.kin.max_velocity;
+  m.interp.max_acceleration = m.kin.max_acceleration;
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    m.interp.travel_min[i] = m.kin.travel[i].min;
+    m.interp.travel_max[i] = m.kin.travel[i].max;
+    m.interp.smoothing_time[i] = m.drives.axes[i].Ts;
+  }
+  return m;
+}
+
+Axes machine_start(const MachineKinematics& kin, const ResolvedBlock& b, double tool_length) {
+  if (!b.tcp) return b.start;
+  const Vec3 tip{b.start[kX], b.start[kY], b.start[kZ]};
+  return b.tool_vector_mode ? inverse_kinematics(kin, ToolPose{tip, b.tool_vector}, b.start, tool_length).joints
+                            : inverse_kinematics_ac(kin, tip, b.start[kA], b.start[kC], tool_length).joints;
+}
+
+double tool_length_of(const Model& model, const ResolvedBlock& b) {
+  return b.tool_length_active ? b.tool_length : model.kin.tool_length;
+}
+
+RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, const Axes& start,
+                     const std::function<void(const Tick&)>& on_tick) {
+  struct Sink final : interpolate::SampleSink {
+    servo::ServoSimulator sim;
+    std::deque<std::pair<Axes, std::uint32_t>> raw;
+    std::uint32_t block = 0;
+    std::uint64_t n = 0;
+    RunStats& stats;
+    const std::function<void(const Tick&)>& on_tick;
+    Sink(const Model& m, RunStats& s, const std::function<void(const Tick&)>& f)
+        : sim(m.drives, m.interp.period), stats(s), on_tick(f) {}
+    void raw_sample(const Axes& r) override { raw.emplace_back(r, block); }
+    void sample(const Axes& c) override {
+      servo::ServoSample s;
+      if (sim.push(c, s)) emit(s);
+    }
+    void emit(const servo::ServoSample& s) {
+      Tick t;
+      t.n = n++;
+      t.raw = raw.front().first;
+      t.block = raw.front().second;
+      raw.pop_front();
+      t.command = s.command;
+      t.actual = s.actual;
+      t.torque = s.torque;
+      t.saturated = s.saturated;
+      for (std::size_t i = 0; i < kNumAxes; ++i) {
+        stats.peak_torque[i] = std::max(stats.peak_torque[i], std::abs(s.torque[i]));
+        if (s.saturated & (1u << i)) ++stats.saturated_ticks[i];
+      }
+      ++stats.ticks;
+      on_tick(t);
+    }
+  };
+  RunStats stats;
+  interpolate::InterpolateOptions io = model.interp;
+  io.kinematics = &model.kin;  // TCP blocks: inverse kinematics per tick, feed along the tool tip
+  Sink sink(model, stats, on_tick);
+  interpolate::Interpolator interp(io, start);
+  while (sink.block + 1 < blocks.size() && blocks[sink.block].motion == Motion::kNone) ++sink.block;
+  sink.raw.emplace_back(start, sink.block);
+  sink.emit(sink.sim.reset(start, 0.0));
+  for (std::size_t i = 0; i < blocks.size(); ++i) {
+    const ResolvedBlock& b = blocks[i];
+    // Samples belong to the block that moves (or dwells): a block without motion emits none,
+    // and the settling after the last move belongs to that move.
+    if (b.motion != Motion::kNone) sink.block = static_cast<std::uint32_t>(i);
+    const auto r = interp.add(b, sink);
+    if (r.status != interpolate::InterpolateStatus::kOk) {
+      stats.ok = false;
+      stats.message = r.message;
+      stats.failed_line = b.line;
+      break;
+    }
+  }
+  interp.finish(sink);
+  servo::ServoSample s;
+  while (sink.sim.flush(s)) sink.emit(s);
+  stats.interp = interp.stats();
+  return stats;
+}
+
+Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program, const Axes& start,
+                      double reference_smoothing) {
+  Nominal nom;
+  nom.period = model.interp.period;
+  nom.stats = run_program(model, program, start, [&](const Tick& t) {
+    nom.raw.push_back(t.raw);
+    nom.block.push_back(t.block);
+  });
+  if (nom.raw.empty()) return nom;
+
+  // Segments: a dwell or a program stop ends one (the machine is at rest or about to be).
+  nom.segment_of_block.assign(program.size(), 0);
+  std::uint32_t seg = 0;
+  bool seg_has_motion = false;
+  Motion last_motion = Motion::kNone;
+  for (std::size_t i = 0; i < program.size(); ++i) {
+    const ResolvedBlock& b = program[i];
+    // Positioning (rapids) and cutting are separate segments: a cut starts a new one.
+    if (is_motion(b.motion) && b.motion != Motion::kRapid && last_motion == Motion::kRapid && seg_has_motion) ++seg;
+    if (is_motion(b.motion)) seg_has_motion = true, last_motion = b.motion;
+    nom.segment_of_block[i] = seg;
+    if ((b.motion == Motion::kDwell || b.stop != ProgramStop::kNone) && seg_has_motion) {
+      ++seg;
+      seg_has_motion = false;
+    }
+  }
+  const std::size_t nseg = static_cast<std::size_t>(seg) + 1;
+  nom.segments.assign(nseg, Segment{});
+  std::vector<bool> seen(nseg, false);
+  std::vector<std::vector<Vec3>> tips(nseg);
+  std::uint32_t last_block = std::numeric_limits<std::uint32_t>::max();
+  for (std::size_t n = 0; n < nom.raw.size(); ++n) {
+    const std::uint32_t b = nom.block[n];
+    const std::uint32_t s = nom.segment_of_block[b];
+    Segment& g = nom.segments[s];
+    const double t = static_cast<double>(n) * nom.period;
+    if (!seen[s]) {
+      seen[s] = true;
+      g.t_begin = t;
+      g.first_line = program[b].line;
+    }
+    g.t_end = t;
+    if (b != last_block && is_motion(program[b].motion)) g.last_line = std::max(g.last_line, program[b].line);
+    last_block = b;
+    if (is_motion(program[b].motion) && program[b].motion != Motion::kRapid && (n == 0 || nom.raw[n] != nom.raw[n - 1]))
+      tips[s].push_back(forward_kinematics(model.kin, nom.raw[n], tool_length_of(model, program[b])).tip);
+  }
+  for (std::size_t s = 0; s < nseg; ++s) {
+    if (nom.segments[s].last_line == 0) nom.segments[s].last_line = nom.segments[s].first_line;
+    detect_circle(nom.segments[s], tips[s]);
+  }
+
+  // Reference: the nominal path re-timed by the control's own kind of acc/dec applied to the
+  // progress index, with `reference_smoothing` times the slowest axis's Ts: the starts and stops
+  // of the reference are gentler than the control's own, which leaves the learned commands
+  // headroom in acceleration and torque there. Re-timing keeps speed changes but cannot turn a corner at speed:
+  // at a sharp corner (and at the end of a rapid, where controls check in-position) the progress
+  // is held until the re-timed speed has decayed, so the reference turns the corner at rest.
+  double Ts = 0;
+  Axes vb;
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    Ts = std::max(Ts, reference_smoothing * model.interp.smoothing_time[i]);
+    vb[i] = model.interp.max_velocity[i] > 0 ? model.interp.max_velocity[i] : 1.0;
+  }
+  const std::size_t N = nom.raw.size();
+  const auto hold = static_cast<std::size_t>(std::ceil(
+      (model.interp.smoothing == interpolate::Smoothing::kExponential ? 12.0 : 1.0) * Ts / nom.period));
+  std::vector<std::uint8_t> corner(N, 0);
+  auto step = [&](std::size_t n) {  // per-axis step n-1 -> n, scaled by the axis speed limit
+    Axes d;
+    for (std::size_t i = 0; i < kNumAxes; ++i) d[i] = (nom.raw[n][i] - nom.raw[n - 1][i]) / vb[i];
+    return d;
+  };
+  if (hold > 0) {
+    std::size_t last_corner = 0;
+    for (std::size_t n = 1; n + 1 < N; ++n) {
+      const Axes a = step(n), b = step(n + 1);
+      double aa = 0, bb = 0, ab = 0;
+      for (std::size_t i = 0; i < kNumAxes; ++i) aa += a[i] * a[i], bb += b[i] * b[i], ab += a[i] * b[i];
+      // A start and a stop count as corners too: the raw path starts and stops dead there (a
+      // dwell, the end), and the re-timed progress must come to rest at that index, not sweep
+      // through it at speed.
+      const bool moving = aa > 1e-24, next_moving = bb > 1e-24;
+      const bool sharp = moving != next_moving ||
+                         (moving && next_moving && ab < std::cos(5.0 * M_PI / 180) * std::sqrt(aa * bb));
+      const bool rapid_end = moving && program[nom.block[n]].motion == Motion::kRapid &&
+                             program[nom.block[n + 1]].motion != Motion::kRapid;
+      if ((sharp || rapid_end) && (last_corner == 0 || n > last_corner + 2 || moving != next_moving)) {
+        corner[n] = 1;
+        last_corner = n;
+      }
+    }
+  }
+  interpolate::AxisSmoother progress(model.interp.smoothing, Ts, nom.period, 0.0);
+  const double last = static_cast<double>(N - 1);
+  double q = 0;          // held raw index fed to the smoother
+  std::size_t held = 0;  // ticks held at the current corner
+  for (std::size_t n = 0;; ++n) {
+    const double p = std::min(progress.filter(q), last);
+    const auto i0 = static_cast<std::size_t>(std::floor(p));
+    const std::size_t i1 = std::min(i0 + 1, N - 1);
+    nom.reference.push_back(lerp(nom.raw[i0], nom.raw[i1], p - static_cast<double>(i0)));
+    nom.progress.push_back(p);
+    if (q >= last && last - p < 1e-6) break;
+    const auto qi = static_cast<std::size_t>(q);
+    if (qi < N && corner[qi] && held < hold) {
+      ++held;
+    } else {
+      held = 0;
+      q = std::min(q + 1, last);
+    }
+  }
+  return nom;
+}
+
+Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
+                    std::span<const ResolvedBlock> blocks, const Axes& start,
+                    const std::function<std::uint32_t(std::uint32_t)>& source_block,
+                    const std::function<void(const Tick&)>& also, bool on_reference_clock) {
+  Evaluation ev;
+  const NominalPath path = nominal_path(model, nom, program);
+  LocalContour contour(path);
+  ev.per_segment.assign(nom.segments.size(), ErrorStats{});
+  std::vector<double> seg_sq(nom.segments.size(), 0.0);
+  std::vector<std::uint64_t> seg_n(nom.segments.size(), 0);
+  double sum_sq = 0;
+  std::uint64_t count = 0;
+  Axes fe_sq{};
+  for (std::size_t i = 0; i < kNumAxes; ++i)
+    ev.axes.travel_margin[i] = std::numeric_limits<double>::infinity();
+  const std::size_t expected = std::max(nom.reference.size(), nom.raw.size());
+  const std::size_t bucket = std::max<std::size_t>(1, expected / 20000);
+  double bucket_max = 0;
+  const Axes& ref_end = nom.reference.empty() ? start : nom.reference.back();
+  ev.stats = run_program(model, blocks, start, [&](const Tick& t) {
+    const std::uint32_t src = source_block(t.block);
+    const ResolvedBlock& b = program[std::min<std::size_t>(src, program.size() - 1)];
+    const Vec3 tip = forward_kinematics(model.kin, t.actual, tool_length_of(model, b)).tip;
+    const std::size_t n = static_cast<std::size_t>(t.n);
+    // The raw tick the nominal has reached: the tick itself for the program's own run; for a
+    // node program, which follows the re-timed reference, the reference's progress plus a
+    // margin for an actual that runs slightly ahead.
+    std::size_t raw_tick = n;
+    if (on_reference_clock && !nom.progress.empty())
+      raw_tick = static_cast<std::size_t>(nom.progress[std::min(n, nom.progress.size() - 1)]) + 300;
+    const std::uint32_t limit = path.index_of_tick.empty()
+                                    ? 0
+                                    : path.index_of_tick[std::min(raw_tick, path.index_of_tick.size() - 1)];
+    Vec3 nearest;
+    const double e = contour.distance(tip, limit, nearest);
+    const double time = static_cast<double>(t.n) * nom.period;
+    // Rapids position the tool and do not cut: the contour error counts on feed moves and dwells.
+    const bool cutting = b.motion != Motion::kRapid && b.motion != Motion::kNone;
+    if (cutting) add_error(ev.contour, sum_sq, count, e, time, b.line);
+    if (also) {
+      Tick marked = t;
+      marked.contour = cutting ? e : 0.0;
+      also(marked);
+    }
+    const std::uint32_t seg = nom.segment_of_block.empty() ? 0 : nom.segment_of_block[std::min<std::size_t>(src, nom.segment_of_block.size() - 1)];
+    if (cutting && seg < ev.per_segment.size()) add_error(ev.per_segment[seg], seg_sq[seg], seg_n[seg], e, time, b.line);
+    const Axes& ref = n < nom.reference.size() ? nom.reference[n] : ref_end;
+    for (std::size_t i = 0; i < kNumAxes; ++i) {
+      const double fe = t.command[i] - t.actual[i];
+      ev.axes.max_following[i] = std::max(ev.axes.max_following[i], std::abs(fe));
+      fe_sq[i] += fe * fe;
+      ev.axes.max_tracking[i] = std::max(ev.axes.max_tracking[i], std::abs(ref[i] - t.actual[i]));
+      const auto& tr = model.kin.travel[i];
+      ev.axes.travel_margin[i] = std::min(ev.axes.travel_margin[i], std::min(t.actual[i] - tr.min, tr.max - t.actual[i]));
+    }
+    if (cutting) bucket_max = std::max(bucket_max, e);
+    if ((t.n + 1) % bucket == 0) {
+      Series& s = ev.series;
+      s.t.push_back(time);
+      s.contour.push_back(bucket_max);
+      bucket_max = 0;
+      for (std::size_t i = 0; i < kNumAxes; ++i) s.following[i].push_back(t.command[i] - t.actual[i]);
+      for (std::size_t k = 0; k < 3; ++k) {
+        s.tip[k].push_back(tip[k]);
+        s.nominal[k].push_back(nearest[k]);
+      }
+      s.segment.push_back(seg);
+    }
+  });
+  ev.contour.rms = count ? std::sqrt(sum_sq / static_cast<double>(count)) : 0.0;
+  for (std::size_t s = 0; s < ev.per_segment.size(); ++s)
+    ev.per_segment[s].rms = seg_n[s] ? std::sqrt(seg_sq[s] / static_cast<double>(seg_n[s])) : 0.0;
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    ev.axes.rms_following[i] = count ? std::sqrt(fe_sq[i] / static_cast<double>(count)) : 0.0;
+    ev.axes.peak_velocity[i] = ev.stats.interp.peak_velocity[i];
+    ev.axes.peak_acceleration[i] = ev.stats.interp.peak_acceleration[i];
+    ev.axes.saturated_ticks[i] = ev.stats.saturated_ticks[i];
+  }
+  return ev;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+namespace {
+
+/// A node program as resolved blocks (no interleaved M words: what the ILC simulates).
+std::vector<ResolvedBlock> node_blocks(std::span<const ResolvedBlock> program, const std::vector<Node>& nodes,
+                                       const Axes& start, double period) {
+  std::vector<ResolvedBlock> out;
+  out.reserve(nodes.size());
+  Axes prev = start;
+  std::uint64_t prev_tick = 0;
+  for (const Node& nd : nodes) {
+    if (nd.tick == 0) continue;
+    ResolvedBlock b;
+    const ResolvedBlock& src = program[nd.block];
+    b.line = src.line;
+    b.motion = Motion::kLinear;
+    b.start = prev;
+    b.target = nd.joints;
+    b.axis_words = 0x1F;
+    b.feed_mode = FeedMode::kInverseTime;
+    b.feed = 60.0 / (static_cast<double>(nd.tick - prev_tick) * period);
+    b.spindle_speed = src.spindle_speed;
+    b.spindle = src.spindle;
+    b.tool = src.tool;
+    b.tool_in_spindle = src.tool_in_spindle;
+    b.coolant = src.coolant;
+    b.work_offset = src.work_offset;
+    b.work_origin = src.work_origin;
+    b.source_units = src.source_units;
+    b.plane = src.plane;
+    out.push_back(std::move(b));
+    prev = nd.joints;
+    prev_tick = nd.tick;
+  }
+  return out;
+}
+
+struct Learning {
+  Axes lead_ticks{};   // d per axis [ticks]
+  Axes derivative{};   // T_L per axis [s]
+};
+
+Learning learning_operator(const Model& model) {
+  Learning L;
+  const double T = model.interp.period;
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    const auto& p = model.drives.axes[i];
+    double d = p.model == servo::DriveModel::kDrive ? servo::ramp_lag_time(p) : 0.0;
+    const double Ts = model.interp.smoothing_time[i];
+    if (model.interp.smoothing == interpolate::Smoothing::kExponential) {
+      L.derivative[i] = Ts;
+    } else if (model.interp.smoothing == interpolate::Smoothing::kLinear) {
+      d += 0.5 * Ts;  // a moving average over Ts delays by Ts/2 and has no stable inverse
+    }
+    L.lead_ticks[i] = std::max(0.0, std::round(d / T));
+  }
+  return L;
+}
+
+/// Value of a per-tick series at tick `n` (clamped to the ends).
+const Axes& at(const std::vector<Axes>& v, std::int64_t n) {
+  return v[static_cast<std::size_t>(std::clamp<std::int64_t>(n, 0, static_cast<std::int64_t>(v.size()) - 1))];
+}
+
+/// L applied to a per-tick series at tick n for axis i: x(n + d) + T_L dx/dt(n + d).
+double apply_learning(const std::vector<Axes>& x, std::int64_t n, std::size_t i, const Learning& L, double period,
+                      std::int64_t h) {
+  const std::int64_t c = n + static_cast<std::int64_t>(L.lead_ticks[i]);
+  double v = at(x, c)[i];
+  if (L.derivative[i] > 0)
+    v += L.derivative[i] * (at(x, c + h)[i] - at(x, c - h)[i]) / (2.0 * static_cast<double>(h) * period);
+  return v;
+}
+
+/// The interpolator's per-axis speed bound for a block (interpolate.cpp applies the same rule):
+/// the axis limit, and the speed whose step the acc/dec turns into the acceleration limit.
+Axes speed_bound(const Model& model) {
+  Axes v;
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    v[i] = model.interp.max_velocity[i];
+    if (model.interp.smoothing != interpolate::Smoothing::kNone && model.interp.smoothing_time[i] > 0)
+      v[i] = std::min(v[i], model.interp.max_acceleration[i] * model.interp.smoothing_time[i]);
+  }
+  return v;
+}
+
+/// Forward projection onto the speed bound: a node that would need a faster axis than the bound
+/// is pulled back along that axis, so the interpolator never lengthens a point (which would
+/// shift every later point in time).
+void project_speed(std::vector<Node>& nodes, const Axes& vmax, double period) {
+  for (std::size_t k = 1; k < nodes.size(); ++k) {
+    const double dt = static_cast<double>(nodes[k].tick - nodes[k - 1].tick) * period;
+    for (std::size_t i = 0; i < kNumAxes; ++i) {
+      if (!(vmax[i] > 0)) continue;
+      const double step = vmax[i] * dt * (1 - 1e-6);
+      const double d = nodes[k].joints[i] - nodes[k - 1].joints[i];
+      if (std::abs(d) > step) nodes[k].joints[i] = nodes[k - 1].joints[i] + std::copysign(step, d);
+    }
+  }
+}
+
+}  // namespace
+
+Result compensate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
+                  const Axes& start, const CompensateOptions& opt, const Progress& progress) {
+  Result res;
+  if (nom.reference.empty() || program.empty()) {
+    res.note = "nothing moves: no compensation needed";
+    return res;
+  }
+  const double T = nom.period;
+  const double duration = static_cast<double>(nom.reference.size()) * T;
+  if (duration > opt.max_machine_time) {
+    char msg[200];
+    std::snprintf(msg, sizeof msg, "not compensated: the program runs %.0f s, compensate.max_machine_time is %.0f s", duration,
+                  opt.max_machine_time);
+    res.note = msg;
+    return res;
+  }
+  const auto m = static_cast<std::uint64_t>(std::max(1L, std::lround(opt.node_period / T)));
+  const std::uint64_t E = nom.reference.size();
+  auto block_at = [&](std::uint64_t tick) -> std::uint32_t {
+    const double p = nom.progress[std::min<std::size_t>(tick, nom.progress.size() - 1)];
+    return nom.block[std::min<std::size_t>(static_cast<std::size_t>(p), nom.block.size() - 1)];
+  };
+  auto tip_at = [&](const Axes& j, std::uint64_t tick) {
+    return forward_kinematics(model.kin, j, tool_length_of(model, program[block_at(tick)])).tip;
+  };
+
+  // Node grid, then kinematic linearisation: halve an interval while joint-linear motion between
+  // its ends leaves the reference tool-tip path by more than the tolerance at its midpoint.
+  std::vector<std::uint64_t> ticks;
+  for (std::uint64_t k = 0; k < E; k += m) ticks.push_back(k);
+  if (ticks.back() != E - 1) ticks.push_back(E - 1);
+  std::vector<std::uint64_t> grid;
+  grid.push_back(0);
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> stack;
+  for (std::size_t k = 1; k < ticks.size(); ++k) {
+    stack.clear();
+    stack.emplace_back(ticks[k - 1], ticks[k]);
+    std::vector<std::uint64_t> added;
+    while (!stack.empty()) {
+      auto [a, b] = stack.back();
+      stack.pop_back();
+      if (b - a >= 2) {
+        const std::uint64_t c = (a + b) / 2;
+        // Deviation of joint-linear motion from the path: the tip of the joint midpoint against
+        // the reference tool-tip polyline between the two nodes (not against the time-matched
+        // point: a speed change along a straight path is no deviation).
+        const Vec3 mid = tip_at(lerp(nom.reference[a], nom.reference[b], 0.5), c);
+        double dev = std::numeric_limits<double>::infinity();
+        Vec3 prev = tip_at(nom.reference[a], a), closest;
+        for (std::uint64_t n = a + 1; n <= b; ++n) {
+          const Vec3 cur = tip_at(nom.reference[n], n);
+          dev = std::min(dev, segment_distance(prev, cur, mid, closest));
+          prev = cur;
+        }
+        if (dev > opt.linearisation_tolerance) {
+          ++res.linearisation_splits;
+          stack.emplace_back(c, b);
+          stack.emplace_back(a, c);
+          continue;
+        }
+        res.linearisation_max_deviation = std::max(res.linearisation_max_deviation, dev);
+      }
+      added.push_back(b);
+    }
+    std::sort(added.begin(), added.end());
+    grid.insert(grid.end(), added.begin(), added.end());
+  }
+
+  // What the source's own TCP blocks would do if run joint-linearly between their IK end points
+  // (a control without TCP): reported, since it is the error the node program removes.
+  for (const ResolvedBlock& b : program) {
+    if (!b.tcp || b.motion != Motion::kLinear) continue;
+    const double L = tool_length_of(model, b);
+    const IkResult s = inverse_kinematics_ac(model.kin, {b.start[kX], b.start[kY], b.start[kZ]}, b.start[kA], b.start[kC], L);
+    const IkResult e = inverse_kinematics_ac(model.kin, {b.target[kX], b.target[kY], b.target[kZ]}, b.target[kA], b.target[kC], L);
+    if (s.status == IkStatus::kFailed || e.status == IkStatus::kFailed) continue;
+    double worst = 0;
+    for (int k = 1; k < 8; ++k) {
+      const double u = k / 8.0;
+      const Vec3 tip = forward_kinematics(model.kin, lerp(s.joints, e.joints, u), L).tip;
+      const Vec3 line{b.start[kX] + (b.target[kX] - b.start[kX]) * u, b.start[kY] + (b.target[kY] - b.start[kY]) * u,
+                      b.start[kZ] + (b.target[kZ] - b.start[kZ]) * u};
+      worst = std::max(worst, dist3(tip, line));
+    }
+    res.source_joint_linear_deviation = std::max(res.source_joint_linear_deviation, worst);
+    if (worst > opt.linearisation_tolerance) ++res.source_blocks_needing_split;
+  }
+
+  // Model-inverse start: u = L r, then learning iterations on the simulated error.
+  const Learning L = learning_operator(model);
+  // Derivatives by central differences over +-10 ms: wide enough that the corners of a finely
+  // chorded path (G275 loops: a chord every 4 ms) do not become steps in the commands.
+  const auto h = static_cast<std::int64_t>(std::max<long>(1, std::lround(0.010 / T)));
+  std::vector<Node> nodes(grid.size());
+  for (std::size_t k = 0; k < grid.size(); ++k) {
+    nodes[k].tick = grid[k];
+    nodes[k].block = block_at(grid[k]);
+    for (std::size_t i = 0; i < kNumAxes; ++i)
+      nodes[k].joints[i] = k == 0 ? start[i]
+                                  : apply_learning(nom.reference, static_cast<std::int64_t>(grid[k]), i, L, T, h);
+  }
+  // The last node is the program's end point: the learning may move it, the end stays.
+  nodes.back().joints = nom.reference.back();
+  const Axes vbound = speed_bound(model);
+  project_speed(nodes, vbound, T);
+
+
+  // The learning is local in time: the program is cut into windows of about a second, and an
+  // iterate that breaks a limit or does worse in one window is dropped there only (its nodes
+  // keep their best values, its gain is halved) while the other windows keep learning.
+  const auto Wt = static_cast<std::uint64_t>(std::max(1L, std::lround(1.0 / T)));
+  const std::size_t nwin = static_cast<std::size_t>((E + 4 * Wt) / Wt) + 1;
+  auto window_of = [&](std::uint64_t tick) { return std::min<std::size_t>(static_cast<std::size_t>(tick / Wt), nwin - 1); };
+  const std::size_t nseg = std::max<std::size_t>(1, nom.segments.size());
+  auto seg_of_block = [&](std::uint32_t b) -> std::size_t {
+    return nom.segment_of_block.empty() ? 0 : std::min<std::size_t>(nom.segment_of_block[b], nseg - 1);
+  };
+  struct Limits {
+    std::array<std::uint64_t, kNumAxes> saturated{};
+    Axes peak_acceleration{};
+    double max_contour = 0;
+    std::size_t segment = 0;
+    bool seen = false;
+  };
+  // Torque saturation, smoothed-command acceleration and contour error of one run, per window
+  // (or per segment for the uncompensated program, whose time line differs from the nodes').
+  auto measure = [&](std::span<const ResolvedBlock> blocks, const std::function<std::uint32_t(std::uint32_t)>& source,
+                     bool by_segment, std::vector<Limits>& lim, std::vector<Axes>* err) {
+    lim.assign(by_segment ? nseg : nwin, Limits{});
+    Axes c1{}, c2{};
+    std::uint64_t seen = 0;
+    return evaluate(model, nom, program, blocks, start, source, [&](const Tick& t) {
+      const std::size_t seg = seg_of_block(source(t.block));
+      Limits& L0 = lim[by_segment ? seg : window_of(t.n)];
+      if (!L0.seen) L0.segment = seg, L0.seen = true;
+      L0.max_contour = std::max(L0.max_contour, t.contour);
+      for (std::size_t i = 0; i < kNumAxes; ++i) {
+        if (t.saturated & (1u << i)) ++L0.saturated[i];
+        if (seen >= 2) {
+          const double acc = std::abs(t.command[i] - 2 * c1[i] + c2[i]) / (T * T);
+          L0.peak_acceleration[i] = std::max(L0.peak_acceleration[i], acc);
+        }
+      }
+      c2 = c1;
+      c1 = t.command;
+      ++seen;
+      if (err) {
+        const std::size_t n = static_cast<std::size_t>(t.n);
+        const Axes& r = n < nom.reference.size() ? nom.reference[n] : nom.reference.back();
+        Axes e;
+        for (std::size_t i = 0; i < kNumAxes; ++i) e[i] = r[i] - t.actual[i];
+        err->push_back(e);
+      }
+    }, !by_segment);
+  };
+  std::vector<Limits> base;
+  measure(program, [](std::uint32_t i) { return i; }, true, base, nullptr);
+
+  std::vector<Axes> best_error;             // r - y per tick, each window from its best run
+  std::vector<Node> best = nodes;
+  const std::vector<Node> inverse = nodes;  // the model-inverse start
+  std::vector<double> win_best(nwin, std::numeric_limits<double>::infinity());
+  std::vector<double> win_gain(nwin, opt.gain);
+  std::vector<int> win_stalls(nwin, 0);
+  std::vector<bool> win_learned(nwin, false);
+  std::string last_rejection;
+  // A per-window value at every node, moving-averaged over +-0.1 s of nodes.
+  auto smooth_over_nodes = [&](const std::vector<Node>& nd, const std::function<double(std::size_t)>& value) {
+    std::vector<double> v(nd.size()), out(nd.size());
+    for (std::size_t k = 0; k < nd.size(); ++k) v[k] = value(window_of(nd[k].tick));
+    const auto R = static_cast<std::uint64_t>(std::lround(0.1 / T));
+    std::size_t lo = 0, hi = 0;
+    double sum = 0;
+    for (std::size_t k = 0; k < nd.size(); ++k) {
+      while (hi < nd.size() && nd[hi].tick <= nd[k].tick + R) sum += v[hi++];
+      while (nd[lo].tick + R < nd[k].tick) sum -= v[lo++];
+      out[k] = sum / static_cast<double>(hi - lo);
+    }
+    return out;
+  };
+  auto node_source = [&nodes](std::uint32_t i) { return nodes[std::min<std::size_t>(i + 1, nodes.size() - 1)].block; };
+  for (int it = 0; it <= opt.max_iterations; ++it) {
+    if (progress) progress("compensating (learning iterations)", static_cast<std::uint64_t>(it), static_cast<std::uint64_t>(opt.max_iterations));
+    const std::vector<ResolvedBlock> blocks = node_blocks(program, nodes, start, T);
+    std::vector<Axes> err;
+    err.reserve(E + 64);
+    std::vector<Limits> lim;
+    const Evaluation ev = measure(blocks, node_source, false, lim, &err);
+    Iteration rec;
+    rec.index = it;
+    rec.max_contour = ev.contour.max;
+    rec.rms_contour = ev.contour.rms;
+    rec.gain = *std::max_element(win_gain.begin(), win_gain.end());
+    if (!ev.stats.ok || ev.stats.interp.velocity_limited_blocks > 0) {
+      rec.accepted = false;
+      rec.rejected_because = ev.stats.ok ? "points slowed by the interpolator's speed bound" : ev.stats.message;
+      res.iterations.push_back(rec);
+      last_rejection = rec.rejected_because;
+      break;
+    }
+    if (best_error.size() < err.size()) best_error.resize(err.size(), Axes{});
+    std::vector<bool> improved(nwin, false);
+    std::string why_iteration;
+    for (std::size_t w = 0; w < nwin; ++w) {
+      if (!lim[w].seen) continue;
+      const Limits& allowed = base[std::min(lim[w].segment, base.size() - 1)];
+      std::string why;
+      for (std::size_t i = 0; i < kNumAxes && why.empty(); ++i) {
+        char msg[160];
+        // The acceleration bound: the machine's limit, or the uncompensated program's own peak
+        // in that segment where the control's acc/dec already reaches beyond it, plus 1 % of the
+        // limit for the second difference of 1 ms samples (a sampling figure, not a motion).
+        const double alim = std::max(model.kin.max_acceleration[i], allowed.peak_acceleration[i]) +
+                            0.01 * model.kin.max_acceleration[i];
+        if (lim[w].saturated[i] > allowed.saturated[i]) {
+          std::snprintf(msg, sizeof msg, "axis %c torque-limited in %llu ticks (uncompensated segment: %llu)", kAxisLetters[i],
+                        static_cast<unsigned long long>(lim[w].saturated[i]), static_cast<unsigned long long>(allowed.saturated[i]));
+          why = msg;
+        } else if (model.kin.max_acceleration[i] > 0 && lim[w].peak_acceleration[i] > alim) {
+          std::snprintf(msg, sizeof msg, "axis %c acceleration %.0f > limit %.0f", kAxisLetters[i], lim[w].peak_acceleration[i], alim);
+          why = msg;
+        }
+      }
+      const double emax = lim[w].max_contour;
+      const double previous = win_best[w];
+      if (why.empty() && emax < previous) {
+        win_best[w] = emax;
+        improved[w] = true;
+        win_learned[w] = true;
+        const std::size_t n1 = std::min<std::size_t>(err.size(), (w + 1) * Wt);
+        for (std::size_t n = w * Wt; n < n1; ++n) best_error[n] = err[n];
+      } else {
+        win_gain[w] *= 0.5;
+      }
+      if (!why.empty()) {
+        char when[80];
+        std::snprintf(when, sizeof when, " at t %.0f-%.0f s", static_cast<double>(w * Wt) * T, static_cast<double>((w + 1) * Wt) * T);
+        last_rejection = why + when;
+        if (why_iteration.empty()) why_iteration = last_rejection;
+      }
+      win_stalls[w] = why.empty() && emax < 0.99 * previous ? 0 : win_stalls[w] + 1;
+    }
+    rec.accepted = why_iteration.empty();
+    rec.rejected_because = why_iteration;
+    res.iterations.push_back(rec);
+    // Accepting some windows and not others must not leave a step in the commands at a window
+    // boundary (the step itself would break the acceleration limit there): the per-window
+    // decisions are blended over about 0.1 s of nodes on either side of each boundary.
+    const std::vector<double> take = smooth_over_nodes(nodes, [&](std::size_t w) { return improved[w] ? 1.0 : 0.0; });
+    const std::vector<double> learned = smooth_over_nodes(nodes, [&](std::size_t w) { return win_learned[w] ? 1.0 : 0.0; });
+    const std::vector<double> blend = smooth_over_nodes(nodes, [&](std::size_t w) { return win_gain[w]; });
+    for (std::size_t k = 1; k < nodes.size(); ++k) {
+      // Where nothing was accepted yet: the model-inverse start blended back towards the
+      // reference (the uncompensated motion, gentler than the program's own) by the gain.
+      const Axes& r = nom.reference[nodes[k].tick];
+      for (std::size_t i = 0; i < kNumAxes; ++i) {
+        const double fallback = r[i] + std::min(1.0, blend[k]) * (inverse[k].joints[i] - r[i]);
+        const double kept = learned[k] * best[k].joints[i] + (1 - learned[k]) * fallback;
+        best[k].joints[i] = take[k] * nodes[k].joints[i] + (1 - take[k]) * kept;
+      }
+    }
+    bool all_stalled = true;
+    for (std::size_t w = 0; w < nwin; ++w) all_stalled = all_stalled && (!lim[w].seen || win_stalls[w] >= 3);
+    if (all_stalled || it == opt.max_iterations) break;
+    nodes = best;
+    project_speed(nodes, vbound, T);
+    // Learning update on each window's best error, zero-phase smoothed over nodes ([1 2 1]/4
+    // twice) so that the derivative term does not feed tick-scale roughness back.
+    std::vector<Axes> du(nodes.size(), Axes{});
+    const std::vector<double> gain_at = smooth_over_nodes(nodes, [&](std::size_t w) { return win_learned[w] ? win_gain[w] : 0.0; });
+    for (std::size_t k = 1; k < nodes.size(); ++k) {
+      if (gain_at[k] <= 0) continue;
+      for (std::size_t i = 0; i < kNumAxes; ++i)
+        du[k][i] = gain_at[k] * apply_learning(best_error, static_cast<std::int64_t>(nodes[k].tick), i, L, T, h);
+    }
+    for (int pass = 0; pass < 2; ++pass) {
+      std::vector<Axes> sm = du;
+      for (std::size_t k = 1; k + 1 < du.size(); ++k)
+        for (std::size_t i = 0; i < kNumAxes; ++i) sm[k][i] = 0.25 * du[k - 1][i] + 0.5 * du[k][i] + 0.25 * du[k + 1][i];
+      du = std::move(sm);
+    }
+    for (std::size_t k = 1; k + 1 < nodes.size(); ++k)
+      for (std::size_t i = 0; i < kNumAxes; ++i) {
+        const auto& tr = model.kin.travel[i];
+        nodes[k].joints[i] = std::clamp(nodes[k].joints[i] + du[k][i], tr.min, tr.max);
+      }
+    project_speed(nodes, vbound, T);
+  }
+  double best_max = 0;
+  bool any = false;
+  for (std::size_t w = 0; w < nwin; ++w)
+    if (win_learned[w]) any = true, best_max = std::max(best_max, win_best[w]);
+  res.nodes = std::move(best);
+  res.compensated = any;
+  if (!res.compensated) res.note = "no iterate stayed within the axis limits: " + last_rejection;
+  else if (!last_rejection.empty()) res.note = "learning held back where it would exceed a limit: " + last_rejection;
+  return res;
+}
+
+std::vector<ResolvedBlock> compensated_blocks(const Model& model, std::span<const ResolvedBlock> program,
+                                              const Result& result, double period,
+                                              std::vector<std::uint32_t>& source_block) {
+  (void)model;
+  std::vector<ResolvedBlock> out;
+  source_block.clear();
+  if (result.nodes.empty()) return out;
+  const Axes start = result.nodes.front().joints;
+  const std::vector<ResolvedBlock> nodes = node_blocks(program, result.nodes, start, period);
+  std::size_t next = 0;  // next program block not yet passed
+  std::uint64_t noted_line = 0;  // source line of the last motion note
+  bool have_node = false;
+  double last_feed = 0;
+  auto pass_block = [&](std::size_t i) {
+    const ResolvedBlock& b = program[i];
+    ResolvedBlock c = b;
+    c.tcp = false;
+    c.tool_length_active = false;
+    c.tool_length = 0;
+    c.tool_length_offset = 0;
+    if (b.motion != Motion::kNone && b.line == noted_line && b.motion != Motion::kDwell) return;
+    if (b.motion != Motion::kNone) {
+      noted_line = b.line;
+      // A motion of the source is carried by the timed points that follow; the block stays as a
+      // note with its text so that the operator can find every source line.
+      std::string text = b.text;
+      std::replace(text.begin(), text.end(), '(', '[');
+      std::replace(text.begin(), text.end(), ')', ']');
+      c.motion = Motion::kNone;
+      c.dwell = 0;
+      c.axis_words = 0;
+      c.comment = (b.motion == Motion::kDwell ? "dwell, held by the timed points below: " : "source: ") + text;
+      c.percent = false;
+      c.program_number = -1;
+    }
+    // Between timed points the inverse-time mode stays (no G94/G93 flip-flop in the output);
+    // before the first point the block keeps its own feed mode.
+    c.start = c.target = have_node ? out.back().target : start;
+    if (have_node) {
+      c.feed_mode = FeedMode::kInverseTime;
+      c.feed = last_feed;
+    }
+    out.push_back(std::move(c));
+    source_block.push_back(static_cast<std::uint32_t>(i));
+  };
+  for (std::size_t k = 0; k < nodes.size(); ++k) {
+    const std::uint32_t src = result.nodes[k + 1].block;
+    // Program blocks up to this node's source block are passed in order (their M/S/T words and
+    // comments), each source line's motion once as a note.
+    while (next <= src && next < program.size()) {
+      pass_block(next++);
+    }
+    out.push_back(nodes[k]);
+    source_block.push_back(src);
+    have_node = true;
+    last_feed = nodes[k].feed;
+  }
+  while (next < program.size()) pass_block(next++);
+  return out;
+}
+
+}  // namespace gcpipe::compensate

@@ -1,0 +1,224 @@
+// Stage `compensate`: a program is run through the machine model (interpolator + feed drives of
+// the config), and a new program in machine axes is computed whose *simulated* actual motion
+// follows the original's nominal tool path. Maths, convergence and limits: README.md beside this
+// file.
+//
+//   1. Nominal run. The original program is interpolated (TCP blocks through the kinematics per
+//      tick) and simulated. Its raw, unsmoothed joint samples R_n define the nominal path; the
+//      contour error "before" is the distance from FK(actual) to that path.
+//   2. Reference. The path is re-timed, not re-shaped: the progress index n is smoothed with the
+//      control's own acc/dec (Ts), r(t_n) = R(p_n). The reference lies on the nominal path and
+//      has the original's speed profile, so it is a motion the drives can follow.
+//   3. Nodes. The compensated program is a chain of G93 G1 blocks in machine axes, one per node
+//      (node_period, a multiple of the interpolation period). Kinematic linearisation: a node
+//      interval is halved while joint-linear motion between its ends leaves the reference tool-tip
+//      path by more than linearisation_tolerance.
+//   4. Iterative learning control. u_{k+1} = u_k + gain * Q[L e_k], e_k = r - y_k per axis, with
+//      L the inverse of the model's dominant dynamics (first-order acc/dec and the drive's lag):
+//      L e(t) = e(t + d) + T_L de/dt(t + d). Each iterate is simulated with the same interpolator
+//      and drives as the original; an iterate that would exceed an axis's velocity, acceleration,
+//      torque or travel is rejected and the gain halved.
+// The model comes from the config (machine file, interpolate section, drives file), so a drives
+// file calibrated from measured traces is compensated against with no code change.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "gcpipe/block.hpp"
+#include "gcpipe/kinematics.hpp"
+#include "gcpipe/pipeline_config.hpp"
+#include "interpolate.hpp"
+#include "servo.hpp"
+
+namespace gcpipe {
+class Config;
+}
+
+namespace gcpipe::compensate {
+
+/// `compensate` section of a pipeline config (README.md beside this file lists the keys).
+struct CompensateOptions {
+  bool enabled = true;                  //!< false: batch simulates and reports, writes no nodes
+  double node_period = 0.004;           //!< [s] time between points of the compensated program
+  double linearisation_tolerance = 0.001;  //!< [mm] tool-tip deviation of joint-linear motion
+  double reference_smoothing = 2.0;     //!< acc/dec time of the re-timed reference, in units of
+                                        //!< the slowest axis's Ts (>= 1)
+  int max_iterations = 25;              //!< ILC iterations after the model-inverse start
+  double gain = 1.0;                    //!< ILC learning gain (0, 1]
+  double max_machine_time = 3600;       //!< [s] longer programs are simulated but not compensated
+  std::uint64_t max_blocks = 2000000;   //!< more blocks: not simulated (memory is per block)
+};
+
+/// Reads the `compensate` section; unknown keys rejected; throws ConfigError.
+CompensateOptions load_compensate_options(const Config& section);
+
+/// The machine as the compensation sees it. Every part comes from the config.
+struct Model {
+  MachineKinematics kin;
+  interpolate::InterpolateOptions interp;  //!< period, smoothing, limits, Ts per axis
+  servo::DriveSet drives;
+};
+
+/// The model of a pipeline config: machine kinematics and limits, the `interpolate` section, the
+/// drives file named by `servo.drives` (Ts per axis from it). Throws ConfigError naming the key.
+Model load_model(const PipelineConfig& pc);
+
+/// One simulated tick.
+struct Tick {
+  std::uint64_t n = 0;      //!< tick index, t = n * period
+  Axes raw{};               //!< raw interpolated joints (before acc/dec) [mm, deg]
+  Axes command{};           //!< smoothed command [mm, deg]
+  Axes actual{};            //!< actual joints [mm, deg]
+  Axes torque{};            //!< [N*m]
+  std::uint8_t saturated = 0;  //!< bit per axis: torque-limited in this tick
+  std::uint32_t block = 0;  //!< index of the block whose raw sample this is
+  double contour = 0;       //!< contour error [mm] (set by evaluate(); 0 on rapids)
+};
+
+/// How a run ended.
+struct RunStats {
+  bool ok = true;
+  std::string message;            //!< when !ok: the block and why the machine would stop
+  std::uint64_t failed_line = 0;  //!< source line of that block
+  std::uint64_t ticks = 0;
+  interpolate::InterpolateStats interp;
+  std::array<std::uint64_t, kNumAxes> saturated_ticks{};
+  Axes peak_torque{};             //!< [N*m]
+};
+
+/// Interpolates `blocks` (from rest at `start`) at the model's period, runs the five drives and
+/// calls `on_tick` for every tick, in order. Blocks without motion are skipped by the
+/// interpolator; a block it cannot run stops the run (RunStats::ok false).
+RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, const Axes& start,
+                     const std::function<void(const Tick&)>& on_tick);
+
+/// Joints at which the machine starts, at rest, for the program's first moving block: where the
+/// program believes it is. In TCP mode the parser's position is a tool tip (with A C or a tool
+/// vector), so it is turned into joints.
+Axes machine_start(const MachineKinematics& kin, const ResolvedBlock& first_motion, double tool_length);
+
+/// Tool length in force for a block [mm].
+double tool_length_of(const Model& model, const ResolvedBlock& b);
+
+/// Contour and axis error figures of one simulated run against the nominal path.
+struct ErrorStats {
+  double max = 0;            //!< [mm]
+  double rms = 0;            //!< [mm]
+  double t_at_max = 0;       //!< [s]
+  std::uint64_t line_at_max = 0;  //!< source line
+};
+
+struct AxisStats {
+  Axes max_following{};      //!< max |command - actual| [mm, deg]
+  Axes rms_following{};      //!< [mm, deg]
+  Axes max_tracking{};       //!< max |reference - actual| [mm, deg]
+  Axes travel_margin{};      //!< smallest distance of the actual joint to its travel limit
+                             //!< [mm, deg] (negative: outside)
+  Axes peak_velocity{};      //!< of the smoothed commands [mm/s, deg/s]
+  Axes peak_acceleration{};  //!< [mm/s^2, deg/s^2]
+  std::array<std::uint64_t, kNumAxes> saturated_ticks{};
+};
+
+/// A part of the program between dwells or stops (one circle-test condition, one cycle).
+struct Segment {
+  std::uint64_t first_line = 0, last_line = 0;
+  double t_begin = 0, t_end = 0;  //!< [s] in the original's time
+  ErrorStats before, after;
+  bool circle = false;            //!< the nominal tool-tip path of the segment is a circle
+  double circle_radius = 0;       //!< [mm]
+  std::array<double, 2> circle_centre{};  //!< [mm] (workpiece X Y)
+};
+
+/// Decimated per-tick series for the figures (<= about 20,000 points per series).
+struct Series {
+  std::vector<double> t;                    //!< [s]
+  std::vector<double> contour;              //!< max contour error in the bucket [mm]
+  std::array<std::vector<double>, kNumAxes> following;  //!< command - actual at the bucket end
+  std::array<std::vector<double>, 3> tip;   //!< actual tool tip, workpiece frame [mm]
+  std::array<std::vector<double>, 3> nominal;  //!< nearest point of the nominal path [mm]
+  std::vector<std::uint32_t> segment;       //!< segment index of the bucket end
+};
+
+/// One ILC iteration as recorded in the report.
+struct Iteration {
+  int index = 0;             //!< 0: model-inverse start
+  double max_contour = 0;    //!< [mm]
+  double rms_contour = 0;    //!< [mm]
+  double gain = 0;
+  bool accepted = true;
+  std::string rejected_because;  //!< which limit an iterate broke
+};
+
+/// One point of the compensated program.
+struct Node {
+  std::uint64_t tick = 0;    //!< time = tick * period
+  Axes joints{};             //!< [mm, deg]
+  std::uint32_t block = 0;   //!< source block index it belongs to (for N numbers and M words)
+};
+
+/// The nominal run of the original program.
+struct Nominal {
+  double period = 0.001;
+  std::vector<Axes> raw;               //!< R_n, n = 0..N-1
+  std::vector<std::uint32_t> block;    //!< block index of each raw sample
+  std::vector<Axes> reference;         //!< r_n (re-timed path), n = 0..E-1 (E >= N)
+  std::vector<double> progress;        //!< p_n, fractional raw index of r_n
+  std::vector<std::uint32_t> segment_of_block;  //!< per program block
+  std::vector<Segment> segments;
+  RunStats stats;
+};
+
+/// Evaluation of one run against the nominal: contour error per tick and the axis figures.
+struct Evaluation {
+  RunStats stats;
+  ErrorStats contour;
+  AxisStats axes;
+  std::vector<ErrorStats> per_segment;
+  Series series;
+};
+
+/// Progress callback: (what, done, total).
+using Progress = std::function<void(const char* what, std::uint64_t done, std::uint64_t total)>;
+
+/// Runs the original program and builds the nominal path and reference.
+Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program, const Axes& start,
+                      double reference_smoothing = 2.0);
+
+/// Runs `blocks` and measures them against the nominal path. `source_block(i)` is the program
+/// block that block i of `blocks` stands for (its tool length and segment); `also` sees every tick.
+/// `on_reference_clock`: `blocks` is a node program, timed like the re-timed reference.
+Evaluation evaluate(const Model& model, const Nominal& nominal, std::span<const ResolvedBlock> program,
+                    std::span<const ResolvedBlock> blocks, const Axes& start,
+                    const std::function<std::uint32_t(std::uint32_t)>& source_block,
+                    const std::function<void(const Tick&)>& also = {}, bool on_reference_clock = false);
+
+/// Result of the compensation.
+struct Result {
+  bool compensated = false;
+  std::string note;                     //!< why not, or what limits the result
+  std::vector<Node> nodes;
+  std::vector<Iteration> iterations;
+  std::uint64_t linearisation_splits = 0;   //!< node intervals halved
+  double linearisation_max_deviation = 0;   //!< [mm] after splitting
+  double source_joint_linear_deviation = 0; //!< [mm] worst tool-tip deviation if the source's
+                                            //!< TCP blocks were run joint-linearly between IK ends
+  std::uint64_t source_blocks_needing_split = 0;
+};
+
+/// Computes the compensated nodes. `program` is the original, `nominal` its nominal run.
+Result compensate(const Model& model, const Nominal& nominal, std::span<const ResolvedBlock> program,
+                  const Axes& start, const CompensateOptions& options, const Progress& progress);
+
+/// The node blocks of a result as resolved blocks (G93 G1 in machine axes, TCP and tool length
+/// off, N = source line) interleaved with the program's non-motion blocks, in program order.
+/// `source_block[i]` is the program block index each returned block stands for.
+std::vector<ResolvedBlock> compensated_blocks(const Model& model, std::span<const ResolvedBlock> program,
+                                              const Result& result, double period,
+                                              std::vector<std::uint32_t>& source_block);
+
+}  // namespace gcpipe::compensate

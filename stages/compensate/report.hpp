@@ -1,0 +1,36 @@
+// The compensation report: report.json's "compensation" object and the readable summary printed
+// by `gcpipe batch` and written to report.txt.
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "compensate.hpp"
+#include "circle.hpp"
+#include "servo.hpp"
+
+namespace gcpipe::compensate {
+
+struct ReportInput {
+  const Model* model = nullptr;
+  const Nominal* nominal = nullptr;
+  const Evaluation* before = nullptr;    //!< the original program, simulated
+  const Evaluation* after = nullptr;     //!< the written compensated program, re-parsed and
+                                         //!< simulated (null when not compensated)
+  const Result* result = nullptr;
+  servo::BestKffp best_kffp;             //!< seed 002 eq. (20)
+  double best_kffp_omega = 0;            //!< [rad/s] angular velocity it was computed for
+  std::string best_kffp_note;            //!< why there is no recommendation
+  /// Per segment in which C turns: its C speed [rad/s] and the Best K_FFP there.
+  std::vector<std::pair<std::size_t, std::pair<double, servo::BestKffp>>> segment_kffp;
+};
+
+/// The "compensation" JSON object (no trailing newline): contour error before/after per program
+/// and per segment, per-axis following errors, travel margins, iterations, linearisation, K_FFP.
+std::string report_json(const ReportInput& in);
+
+/// Readable summary, a few lines, each starting with two spaces.
+std::string report_text(const ReportInput& in);
+
+}  // namespace gcpipe::compensate

@@ -1,0 +1,155 @@
+// Compensation stage: the re-timed reference lies on the nominal path, the learning reduces the
+// contour error of the seed 002 circle test at w = 2 pi by at least 10x within the axis limits,
+// and the compensated program written as G-code reads back and runs as simulated.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "compensate.hpp"
+#include "compensate_plots.hpp"
+#include "gcpipe/config.hpp"
+#include "gcpipe/pipeline_config.hpp"
+#include "parse.hpp"
+#include "write.hpp"
+
+namespace gcpipe::compensate {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<ResolvedBlock> parse_text(const std::string& text, const PipelineConfig& pc) {
+  Parser parser(ParseOptions{}, pc.machine, "test.nc");
+  std::vector<ResolvedBlock> out;
+  std::istringstream in(text);
+  std::string line;
+  while (std::getline(in, line)) {
+    ResolvedBlock b;
+    Diagnostic d;
+    if (parser.parse_line(line, b, d) == LineStatus::kBlock) out.push_back(b);
+    else if (d.severity == Severity::kError) ADD_FAILURE() << format(d);
+  }
+  return out;
+}
+
+PipelineConfig circle_config() {
+  return load_pipeline_config(fs::path(GCPIPE_SOURCE_DIR) / "pipeline_configs" / "circle_test.yaml");
+}
+
+// One condition of seed 002's synchronous circle test: w = 2 pi rad/s, two turns.
+const char* kCircle2Pi =
+    "G21 G17 G90 G94\n"
+    "G0 X13. Y0 Z0 A0 C0\n"
+    "G93\n"
+    "G3 X13. Y0 I-8. J0 C360. F60\n"
+    "G3 X13. Y0 I-8. J0 C720. F60\n"
+    "G94 G4 X1.\n"
+    "M30\n";
+
+TEST(Compensate, ReferenceLiesOnTheNominalPathAndStartsAndEndsAtRest) {
+  const PipelineConfig pc = circle_config();
+  const Model model = load_model(pc);
+  const auto program = parse_text(kCircle2Pi, pc);
+  const Nominal nom = build_nominal(model, program, program[1].start);
+  ASSERT_TRUE(nom.stats.ok) << nom.stats.message;
+  ASSERT_GT(nom.reference.size(), nom.raw.size());
+  // Every reference point is a convex combination of two neighbouring raw samples: on the path.
+  for (std::size_t n = 0; n < nom.reference.size(); ++n) {
+    const double p = nom.progress[n];
+    ASSERT_GE(p, 0.0);
+    ASSERT_LE(p, static_cast<double>(nom.raw.size() - 1));
+    if (n > 0) ASSERT_GE(p, nom.progress[n - 1] - 1e-12) << "progress must not run backwards";
+  }
+  EXPECT_EQ(nom.reference.front(), nom.raw.front());
+  for (int i = 0; i < kNumAxes; ++i)
+    EXPECT_NEAR(nom.reference.back()[static_cast<std::size_t>(i)], nom.raw.back()[static_cast<std::size_t>(i)], 1e-6);
+  // The circle segment is recognised as a circle of the workpiece radius R_C = 5 mm.
+  bool circle = false;
+  for (const auto& s : nom.segments)
+    if (s.circle) {
+      circle = true;
+      EXPECT_NEAR(s.circle_radius, 5.0, 1e-3);
+    }
+  EXPECT_TRUE(circle);
+}
+
+TEST(Compensate, CircleTestAt2PiComesDownTenfoldWithinLimitsAndReadsBack) {
+  const PipelineConfig pc = circle_config();
+  const Model model = load_model(pc);
+  const auto program = parse_text(kCircle2Pi, pc);
+  const Axes start = program[1].start;
+  const Nominal nom = build_nominal(model, program, start);
+  const Evaluation before = evaluate(model, nom, program, program, start, [](std::uint32_t i) { return i; });
+  CompensateOptions opt;
+  const Result r = compensate(model, nom, program, start, opt, {});
+  ASSERT_TRUE(r.compensated) << r.note;
+  ASSERT_FALSE(r.iterations.empty());
+
+  // Write the nodes as G-code, read them back and simulate what was written.
+  std::vector<std::uint32_t> source;
+  const auto blocks = compensated_blocks(model, program, r, model.interp.period, source);
+  WriteOptions wo;
+  wo.decimals = 4;
+  Writer w(wo);
+  std::string text;
+  for (const auto& b : blocks) w.write(b, text);
+  EXPECT_NE(text.find("G93"), std::string::npos);
+  EXPECT_NE(text.find("(source: G3 X13. Y0 I-8. J0 C360. F60)"), std::string::npos) << "each source motion line is noted";
+  std::vector<ResolvedBlock> back;
+  for (const auto& b : parse_text(text, pc))
+    if (b.motion != Motion::kNone) back.push_back(b);
+  ASSERT_EQ(back.size() + 1, r.nodes.size());
+  for (const auto& b : back) {
+    EXPECT_FALSE(b.tcp);
+    EXPECT_EQ(b.feed_mode, FeedMode::kInverseTime);
+  }
+  const auto& nodes = r.nodes;
+  const Evaluation after = evaluate(model, nom, program, back, start,
+                                    [&nodes](std::uint32_t i) { return nodes[std::min<std::size_t>(i + 1, nodes.size() - 1)].block; },
+                                    {}, true);
+  ASSERT_TRUE(after.stats.ok) << after.stats.message;
+  std::printf("circle w = 2 pi: max contour error %.2f um -> %.2f um (%.1fx), %zu iterations\n", before.contour.max * 1e3,
+              after.contour.max * 1e3, before.contour.max / after.contour.max, r.iterations.size());
+  EXPECT_GT(before.contour.max, 10 * after.contour.max);
+  // Never beyond the limits: no torque saturation the original did not have, accelerations
+  // within the machine's limits (or the original's own peak), velocities within the limits.
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    EXPECT_LE(after.axes.saturated_ticks[i], before.axes.saturated_ticks[i]) << kAxisLetters[i];
+    EXPECT_LE(after.axes.peak_velocity[i], std::max(model.kin.max_velocity[i], before.axes.peak_velocity[i]) * (1 + 1e-6));
+    EXPECT_LE(after.axes.peak_acceleration[i],
+              std::max(model.kin.max_acceleration[i], before.axes.peak_acceleration[i]) * (1 + 1e-6))
+        << kAxisLetters[i];
+  }
+  EXPECT_EQ(after.stats.interp.velocity_limited_blocks, 0u) << "every written point keeps its time";
+
+  // The figures are written and are not blank.
+  const fs::path dir = fs::temp_directory_path() / "gcpipe_compensate_test";
+  fs::create_directories(dir);
+  plot_toolpath(dir / "toolpath.png", before, &after, "test");
+  plot_contour_error(dir / "contour.png", before, &after, "test");
+  plot_following_error(dir / "following.png", before, &after, "test");
+  EXPECT_TRUE(plot_ballbar(dir / "ballbar.png", nom, before, &after, "test"));
+  for (const char* f : {"toolpath.png", "contour.png", "following.png", "ballbar.png"})
+    EXPECT_GT(fs::file_size(dir / f), 20000u) << f;
+  fs::remove_all(dir);
+}
+
+TEST(Compensate, ConfigRejectsUnknownKeysAndBadValues) {
+  const fs::path dir = fs::temp_directory_path() / "gcpipe_compensate_cfg";
+  fs::create_directories(dir);
+  std::ofstream(dir / "a.yaml") << "node_period: 0.004\ngian: 0.5\n";
+  std::ofstream(dir / "b.yaml") << "gain: 2\n";
+  EXPECT_THROW(load_compensate_options(Config::load_file(dir / "a.yaml")), ConfigError);
+  try {
+    load_compensate_options(Config::load_file(dir / "b.yaml"));
+    ADD_FAILURE() << "gain 2 accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("gain"), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace gcpipe::compensate
