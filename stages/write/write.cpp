@@ -52,6 +52,11 @@ void Writer::write_diagnostic(const Diagnostic& d, std::string& out) {
   out += ")\n";
 }
 
+namespace {
+// Everything the output relies on, said once after the tape start and program number.
+constexpr const char* kHeader = "G17 G21 G40 G49 G54 G80 G90 G94\n";
+}  // namespace
+
 bool Writer::write(const ResolvedBlock& b, std::string& out) {
   if (b.tool_vector_mode && opt_.dialect == Dialect::kLinuxCnc) {
     // LinuxCNC has no tool-vector TCP, and the writer knows no kinematics to turn I J K into A C:
@@ -93,13 +98,31 @@ bool Writer::write(const ResolvedBlock& b, std::string& out) {
     out += '\n';
     return true;
   }
+  if (b.program_number >= 0 && !header_done_) {
+    // The header (with its G80 and G94) must come before anything modal or moving on the
+    // program-number line, or it would cancel it: the O number and its comment go alone, the
+    // header follows, and the rest of the block, if it says anything, gets its own N line.
+    integer('O', b.program_number);
+    append_comment(line, b.comment);
+    out += line;
+    out += '\n';
+    out += kHeader;
+    header_done_ = true;
+    ResolvedBlock rest = b;
+    rest.program_number = -1;
+    rest.comment.clear();
+    std::string tail;
+    const bool ok = write(rest, tail);
+    if (tail != "\n") out += tail;  // nothing else on the line: no empty line for it
+    return ok;
+  }
   if (b.program_number >= 0) {
     integer('O', b.program_number);  // a program number line carries no N
   } else {
     if (!header_done_) {
       // Everything the output relies on, said once after the tape start and program number. The
       // writer's own state starts at these defaults, which are also the parser's.
-      out += "G17 G21 G40 G49 G54 G80 G90 G94\n";
+      out += kHeader;
       header_done_ = true;
     }
     if (opt_.source_line_numbers && b.line > 0) integer('N', static_cast<long>(b.line));
