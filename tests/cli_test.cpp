@@ -225,3 +225,22 @@ TEST(Cli, BatchCompensatesTheCircleTestAndWritesReportAndPlots) {
   Outcome l = gcpipe({"parse", (out / "compensated.nc").string(), "--strict", "--config", (out / "linuxcnc.yaml").string()});
   EXPECT_EQ(l.status, 0) << l.err;
 }
+
+// The default config ships a neural IK model: batch draws the neural-against-analytic figures and
+// puts the divergence statistics into summary.json and report.json.
+TEST(Cli, BatchDrawsTheIkFiguresAndReportsDivergence) {
+  const fs::path out = tmpdir("ikplots");
+  Outcome r = gcpipe({"batch", std::string(GCPIPE_SOURCE_DIR) + "/samples/five_axis_demo.nc", "-o", out.string()});
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* f : {"ik_divergence.png", "ik_tip_error.png", "toolpath.png", "contour_error.png", "following_error.png"}) {
+    ASSERT_TRUE(fs::exists(out / "plots" / f)) << f;
+    EXPECT_GT(fs::file_size(out / "plots" / f), 20000u) << f << " looks blank";
+  }
+  for (const char* f : {"summary.json", "report.json"}) {
+    std::ifstream j(out / f);
+    std::stringstream js;
+    js << j.rdbuf();
+    EXPECT_NE(js.str().find("\"ik\":{\"points\":14,"), std::string::npos) << f << ": " << js.str().substr(0, 400);
+    EXPECT_NE(js.str().find("\"max_abs_diff\":["), std::string::npos) << f;
+  }
+}

@@ -234,27 +234,33 @@ void plot_following_error(const std::filesystem::path& png, const Evaluation& be
 }
 
 void plot_ik_divergence(const std::filesystem::path& png, const IkSeries& s, const std::string& title) {
+  // Axes differ in unit and tolerance (mm against 0.0002 deg), so each difference is drawn in
+  // units of its own axis's tolerance: the flag threshold is +-1 for all of them.
   plot::Figure fig;
   fig.title(title);
   fig.xlabel("IK point (program order)");
-  fig.ylabel("neural - analytic [mm | deg]");
-  double tol = 0;
+  fig.ylabel("(neural - analytic) / tolerance of the axis");
   for (int i = 0; i < kNumAxes; ++i) {
     const auto k = static_cast<std::size_t>(i);
-    tol = std::max(tol, s.tolerance[k]);
+    const double tol = s.tolerance[k] > 0 ? s.tolerance[k] : 1.0;
     double mx = 0;
-    for (double v : s.diff[k]) mx = std::max(mx, std::abs(v));
-    char label[80];
-    std::snprintf(label, sizeof label, i < kA ? "%c [mm], max |d| %.4g" : "%c [deg], max |d| %.4g", kAxisLetters[i], mx);
-    fig.line(s.index, s.diff[k], plot::palette(i), 1, label);
+    std::vector<double> y(s.diff[k].size());
+    for (std::size_t j = 0; j < y.size(); ++j) {
+      mx = std::max(mx, std::abs(s.diff[k][j]));
+      y[j] = s.diff[k][j] / tol;
+    }
+    char label[96];
+    std::snprintf(label, sizeof label, i < kA ? "%c: max |d| %.4g mm (tol %g)" : "%c: max |d| %.4g deg (tol %g)",
+                  kAxisLetters[i], mx, s.tolerance[k]);
+    fig.line(s.index, std::move(y), plot::palette(i), 1, label);
   }
   if (!s.index.empty()) {
     const double a = s.index.front(), b = s.index.back();
-    fig.line({a, b}, {tol, tol}, cv::Scalar(0, 0, 0), 1, fmt("tolerance +-%g", tol));
-    fig.line({a, b}, {-tol, -tol}, cv::Scalar(0, 0, 0), 1);
+    fig.line({a, b}, {1.0, 1.0}, cv::Scalar(0, 0, 0), 1, "flag threshold");
+    fig.line({a, b}, {-1.0, -1.0}, cv::Scalar(0, 0, 0), 1);
   }
   if (!s.flagged.empty()) fig.scatter(s.flagged, std::vector<double>(s.flagged.size(), 0.0), cv::Scalar(0, 0, 200), 3, "neural_diverged");
-  fig.note(fmt("%.0f points, %.0f flagged", static_cast<double>(s.index.size()), static_cast<double>(s.flagged.size())));
+  fig.note(fmt("%.0f points, %.0f flagged neural_diverged", static_cast<double>(s.index.size()), static_cast<double>(s.flagged.size())));
   fig.save_png(png);
 }
 
