@@ -250,7 +250,7 @@ int run_batch(const std::vector<std::string>& argv) {
     } else {
       const Axes start = compensate::machine_start(model->kin, whole[first], compensate::tool_length_of(*model, whole[first]));
       say("simulating the program (interpolator + feed drives)");
-      nominal = compensate::build_nominal(*model, whole, start, co.reference_smoothing);
+      nominal = compensate::build_nominal(*model, whole, start, co.reference_smoothing, co.max_machine_time);
       if (!nominal->stats.ok) {
         simulate_note = "line " + std::to_string(nominal->stats.failed_line) + ": " + nominal->stats.message;
       } else {

@@ -225,12 +225,14 @@ double tool_length_of(const Model& model, const ResolvedBlock& b) {
 }
 
 RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, const Axes& start,
-                     const std::function<void(const Tick&)>& on_tick) {
+                     const std::function<void(const Tick&)>& on_tick, std::uint64_t max_ticks) {
   struct Sink final : interpolate::SampleSink {
     servo::ServoSimulator sim;
     std::deque<std::pair<Axes, std::uint32_t>> raw;
     std::uint32_t block = 0;
     std::uint64_t n = 0;
+    std::uint64_t max_ticks = 0;
+    bool over = false;  // max_ticks reached: later ticks are simulated but not handed on
     RunStats& stats;
     const std::function<void(const Tick&)>& on_tick;
     Sink(const Model& m, RunStats& s, const std::function<void(const Tick&)>& f)
@@ -255,6 +257,10 @@ RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, 
         if (s.saturated & (1u << i)) ++stats.saturated_ticks[i];
       }
       ++stats.ticks;
+      if (t.n >= max_ticks) {
+        over = true;
+        return;
+      }
       on_tick(t);
     }
   };
@@ -262,6 +268,7 @@ RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, 
   interpolate::InterpolateOptions io = model.interp;
   io.kinematics = &model.kin;  // TCP blocks: inverse kinematics per tick, feed along the tool tip
   Sink sink(model, stats, on_tick);
+  sink.max_ticks = max_ticks;
   interpolate::Interpolator interp(io, start);
   while (sink.block + 1 < blocks.size() && blocks[sink.block].motion == Motion::kNone) ++sink.block;
   sink.raw.emplace_back(start, sink.block);
@@ -278,6 +285,16 @@ RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, 
       stats.failed_line = b.line;
       break;
     }
+    if (sink.over) {
+      char msg[160];
+      std::snprintf(msg, sizeof msg, "the program runs longer than %.0f s of machine time (compensate.max_machine_time)",
+                    static_cast<double>(max_ticks) * model.interp.period);
+      stats.ok = false;
+      stats.message = msg;
+      stats.failed_line = b.line;
+      stats.interp = interp.stats();
+      return stats;
+    }
   }
   interp.finish(sink);
   servo::ServoSample s;
@@ -287,14 +304,18 @@ RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, 
 }
 
 Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program, const Axes& start,
-                      double reference_smoothing) {
+                      double reference_smoothing, double max_machine_time) {
   Nominal nom;
   nom.period = model.interp.period;
-  nom.stats = run_program(model, program, start, [&](const Tick& t) {
-    nom.raw.push_back(t.raw);
-    nom.block.push_back(t.block);
-  });
-  if (nom.raw.empty()) return nom;
+  const double max_ticks = std::floor(max_machine_time / model.interp.period);
+  nom.stats = run_program(
+      model, program, start,
+      [&](const Tick& t) {
+        nom.raw.push_back(t.raw);
+        nom.block.push_back(t.block);
+      },
+      max_ticks < 1.8e19 ? static_cast<std::uint64_t>(max_ticks) : UINT64_MAX);
+  if (nom.raw.empty() || !nom.stats.ok) return nom;
 
   // Segments: a dwell or a program stop ends one (the machine is at rest or about to be).
   nom.segment_of_block.assign(program.size(), 0);
@@ -390,6 +411,14 @@ Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program
     nom.reference.push_back(lerp(nom.raw[i0], nom.raw[i1], p - static_cast<double>(i0)));
     nom.progress.push_back(p);
     if (q >= last && last - p < 1e-6) break;
+    if (static_cast<double>(n) >= max_ticks) {
+      // Every corner adds a hold: a program of many short corners re-times far longer than it
+      // runs. Bounded like the run itself; the compensation then says why it did not run.
+      nom.reference.clear();
+      nom.progress.clear();
+      nom.reference_too_long = true;
+      break;
+    }
     const auto qi = static_cast<std::size_t>(q);
     if (qi < N && corner[qi] && held < hold) {
       ++held;
@@ -589,6 +618,10 @@ void project_speed(std::vector<Node>& nodes, const Axes& vmax, double period) {
 Result compensate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
                   const Axes& start, const CompensateOptions& opt, const Progress& progress) {
   Result res;
+  if (nom.reference_too_long) {
+    res.note = "not compensated: the re-timed reference (which stops at every corner) would run longer than compensate.max_machine_time";
+    return res;
+  }
   if (nom.reference.empty() || program.empty()) {
     res.note = "nothing moves: no compensation needed";
     return res;

@@ -51,7 +51,7 @@ struct CompensateOptions {
   int max_iterations = 25;              //!< ILC iterations after the model-inverse start
   double gain = 1.0;                    //!< ILC learning gain (0, 1]
   double max_machine_time = 3600;       //!< [s] longer programs are simulated but not compensated
-  std::uint64_t max_blocks = 2000000;   //!< more blocks: not simulated (memory is per block)
+  std::uint64_t max_blocks = 500000;    //!< more blocks: not simulated (memory is per block)
 };
 
 /// Reads the `compensate` section; unknown keys rejected; throws ConfigError.
@@ -94,8 +94,9 @@ struct RunStats {
 /// Interpolates `blocks` (from rest at `start`) at the model's period, runs the five drives and
 /// calls `on_tick` for every tick, in order. Blocks without motion are skipped by the
 /// interpolator; a block it cannot run stops the run (RunStats::ok false).
+/// After `max_ticks` ticks the run stops with RunStats::ok false (a bound on memory and time).
 RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, const Axes& start,
-                     const std::function<void(const Tick&)>& on_tick);
+                     const std::function<void(const Tick&)>& on_tick, std::uint64_t max_ticks = UINT64_MAX);
 
 /// Joints at which the machine starts, at rest, for the program's first moving block: where the
 /// program believes it is. In TCP mode the parser's position is a tool tip (with A C or a tool
@@ -168,6 +169,7 @@ struct Nominal {
   std::vector<std::uint32_t> block;    //!< block index of each raw sample
   std::vector<Axes> reference;         //!< r_n (re-timed path), n = 0..E-1 (E >= N)
   std::vector<double> progress;        //!< p_n, fractional raw index of r_n
+  bool reference_too_long = false;     //!< the reference would exceed max_machine_time (empty)
   std::vector<std::uint32_t> segment_of_block;  //!< per program block
   std::vector<Segment> segments;
   RunStats stats;
@@ -186,8 +188,9 @@ struct Evaluation {
 using Progress = std::function<void(const char* what, std::uint64_t done, std::uint64_t total)>;
 
 /// Runs the original program and builds the nominal path and reference.
+/// Programs longer than `max_machine_time` [s] stop the run (Nominal::stats.ok false).
 Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program, const Axes& start,
-                      double reference_smoothing = 2.0);
+                      double reference_smoothing = 2.0, double max_machine_time = 3600);
 
 /// Runs `blocks` and measures them against the nominal path. `source_block(i)` is the program
 /// block that block i of `blocks` stands for (its tool length and segment); `also` sees every tick.
