@@ -244,3 +244,22 @@ TEST(Cli, BatchDrawsTheIkFiguresAndReportsDivergence) {
     EXPECT_NE(js.str().find("\"max_abs_diff\":["), std::string::npos) << f;
   }
 }
+
+// Issue 6's second goal: the paper's slot at F3000 (the README's first command) comes down at
+// least tenfold in maximum contour error, measured on the written compensated.nc.
+TEST(Cli, BatchCompensatesTheSlotAtF3000TenfoldOrBetter) {
+  const fs::path out = tmpdir("slot3000");
+  Outcome r = gcpipe({"batch", std::string(GCPIPE_SOURCE_DIR) + "/samples/trochoid_slot_f3000.nc", "-o", out.string()});
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::ifstream j(out / "report.json");
+  std::stringstream js;
+  js << j.rdbuf();
+  const std::string report = js.str();
+  const auto at = report.find("\"max_contour_error_reduction\":");
+  ASSERT_NE(at, std::string::npos) << report.substr(0, 2000);
+  const double reduction = std::stod(report.substr(at + 30));
+  std::printf("slot at F3000: max contour error down %.2fx\n", reduction);
+  EXPECT_GE(reduction, 10.0);
+  EXPECT_TRUE(fs::exists(out / "compensated.nc"));
+  EXPECT_TRUE(fs::exists(out / "plots" / "trochoid_engagement.png"));
+}
