@@ -553,3 +553,34 @@ TEST_F(DdsPipeline, LateMonitorStillSeesTheEndMarker) {
 }
 
 }  // namespace
+
+// The compensate node beside the write node: both read the trochoid node's output, and the
+// compensated program arriving on gcpipe_compensated is batch mode's compensated.nc, byte for
+// byte (the same compensate_program call on the same blocks).
+TEST_F(DdsPipeline, CompensateNodeWritesBatchModesCompensatedProgram) {
+  const fs::path input = fs::path(GCPIPE_SOURCE_DIR) / "samples" / "five_axis_demo.nc";
+  Process batch("batch", {"batch", input.string(), "-o", (dir_ / "batch").string(), "--config", kConfig, "--quiet"}, dir_);
+  ASSERT_EQ(batch.wait(), 0);
+  const std::string expected = slurp(dir_ / "batch" / "compensated.nc");
+  ASSERT_FALSE(expected.empty());
+  const fs::path comp = dir_ / "compensated.nc", out = dir_ / "sink.nc";
+  Process sink_comp("sink_comp", dds_args({"sink", "--in", "gcpipe_compensated", "-o", comp.string()}), dir_);
+  Process sink("sink", dds_args({"sink", "-o", out.string()}), dir_);
+  wait_until_ready(sink_comp);
+  wait_until_ready(sink);
+  Process compensate("compensate", dds_args({"node", "compensate", "--config", kConfig}), dir_);
+  Process write("write", dds_args({"node", "write", "--config", kConfig}), dir_);
+  Process trochoid("trochoid", dds_args({"node", "trochoid", "--config", kConfig, "--subscribers", "2"}), dir_);
+  Process parse("parse", dds_args({"node", "parse", "--config", kConfig}), dir_);
+  Process feed("feed", dds_args({"feed", input.string(), "--config", kConfig}), dir_);
+  EXPECT_EQ(feed.wait(), 0);
+  EXPECT_EQ(sink_comp.wait(), 0) << slurp(sink_comp.log);
+  EXPECT_EQ(sink.wait(), 0) << slurp(sink.log);
+  EXPECT_EQ(compensate.wait(), 0) << slurp(compensate.log);
+  EXPECT_EQ(write.wait(), 0);
+  EXPECT_EQ(trochoid.wait(), 0);
+  EXPECT_EQ(parse.wait(), 0);
+  any_killed_ |= feed.killed || sink.killed || sink_comp.killed || compensate.killed;
+  EXPECT_TRUE(slurp(comp) == expected) << "compensated program differs from batch";
+  EXPECT_TRUE(slurp(out) == slurp(dir_ / "batch" / "output.nc"));
+}

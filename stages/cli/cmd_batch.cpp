@@ -14,6 +14,7 @@
 #include "compensate.hpp"
 #include "circle.hpp"
 #include "compensate_plots.hpp"
+#include "compensate_program.hpp"
 #include "gcpipe/config.hpp"
 #include "gcpipe/number_format.hpp"
 #include "ik.hpp"
@@ -243,75 +244,57 @@ int run_batch(const std::vector<std::string>& argv) {
   bool compensated_written = false;
   std::uint64_t written_nodes = 0;
   if (simulate && simulate_note.empty() && complete) {
-    std::size_t first = 0;
-    while (first < whole.size() && whole[first].motion == Motion::kNone) ++first;
-    if (first == whole.size()) {
-      simulate_note = "the program moves nothing";
-    } else {
-      const Axes start = compensate::machine_start(model->kin, whole[first], compensate::tool_length_of(*model, whole[first]));
-      say("simulating the program (interpolator + feed drives)");
-      nominal = compensate::build_nominal(*model, whole, start, co.reference_smoothing, co.max_machine_time);
-      if (!nominal->stats.ok) {
-        simulate_note = "line " + std::to_string(nominal->stats.failed_line) + ": " + nominal->stats.message;
-      } else {
-        before = compensate::evaluate(*model, *nominal, whole, whole, start, [](std::uint32_t i) { return i; });
-        if (co.enabled) {
-          compensate::Progress prog;
-          if (progress)
-            prog = [](const char* what, std::uint64_t done, std::uint64_t total) {
-              std::fprintf(stderr, "\r%s: %llu/%llu", what, static_cast<unsigned long long>(done), static_cast<unsigned long long>(total));
-            };
-          result = compensate::compensate(*model, *nominal, whole, start, co, prog);
-          if (progress) std::fprintf(stderr, "\n");
-          if (result->compensated) {
-            // Write the compensated program, then read it back with the parser and simulate
-            // what was written: the "after" figures are those of the file, rounding included.
-            std::vector<std::uint32_t> source;
-            const std::vector<ResolvedBlock> cblocks =
-                compensate::compensated_blocks(*model, whole, *result, model->interp.period, source);
-            Writer cw(wo);
-            std::string ctext;
-            ctext.reserve(cblocks.size() * 64);
-            for (const auto& b : cblocks) cw.write(b, ctext);
-            {
-              OutputFile cf((outdir / "compensated.nc").string());
-              cf.write(ctext, true);
-              cf.close();
-            }
-            say("re-reading and simulating compensated.nc");
-            ParseOptions rpo = po;
-            rpo.strict = true;
-            rpo.dialect = wo.dialect;
-            rpo.decimal_point_increments = false;
-            Parser reparse(rpo, pc.machine, (outdir / "compensated.nc").string());
-            std::vector<ResolvedBlock> back;
-            InputFile cin((outdir / "compensated.nc").string());
-            LineSink rs;
-            std::string rerr;
-            std::uint64_t rejected = 0;
-            rs.block = [&](const ResolvedBlock& b) {
-              if (b.motion != Motion::kNone) back.push_back(b);
-              return true;
-            };
-            rs.diagnostic = [&](const Diagnostic& d) {
-              ++rejected;
-              std::cerr << format(d) << "\n";
-              return false;
-            };
-            const bool reread = stream_program(cin, reparse, rs, false, rerr);
-            written_nodes = back.size();
-            if (!reread || rejected > 0 || back.size() + 1 != result->nodes.size()) {
-              throw std::runtime_error("compensated.nc does not read back as written (" + std::to_string(back.size()) +
-                                       " motion blocks for " + std::to_string(result->nodes.size() - 1) + " points): " + rerr);
-            }
-            const auto& nodes = result->nodes;
-            after = compensate::evaluate(*model, *nominal, whole, back, start,
-                                         [&nodes](std::uint32_t i) { return nodes[std::min<std::size_t>(i + 1, nodes.size() - 1)].block; },
-                                         {}, true);
-            compensated_written = true;
-          }
-        }
+    compensate::Progress prog;
+    if (progress)
+      prog = [](const char* what, std::uint64_t done, std::uint64_t total) {
+        std::fprintf(stderr, "\r%s: %llu/%llu", what, static_cast<unsigned long long>(done), static_cast<unsigned long long>(total));
+        if (done == total) std::fprintf(stderr, "\n");
+      };
+    compensate::ProgramCompensation run = compensate::compensate_program(*model, co, wo, whole, prog);
+    if (progress) std::fprintf(stderr, "\n");
+    nominal = std::move(run.nominal);
+    before = std::move(run.before);
+    result = std::move(run.result);
+    if (!before || !result || !result->compensated) simulate_note = run.note;
+    if (!run.text.empty()) {
+      {
+        OutputFile cf((outdir / "compensated.nc").string());
+        cf.write(run.text, true);
+        cf.close();
       }
+      // Read the written program back with the parser and simulate what was written: the
+      // "after" figures are those of the file, rounding included.
+      say("re-reading and simulating compensated.nc");
+      ParseOptions rpo = po;
+      rpo.strict = true;
+      rpo.dialect = wo.dialect;
+      rpo.decimal_point_increments = false;
+      Parser reparse(rpo, pc.machine, (outdir / "compensated.nc").string());
+      std::vector<ResolvedBlock> back;
+      InputFile cin((outdir / "compensated.nc").string());
+      LineSink rs;
+      std::string rerr;
+      std::uint64_t rejected = 0;
+      rs.block = [&](const ResolvedBlock& b) {
+        if (b.motion != Motion::kNone) back.push_back(b);
+        return true;
+      };
+      rs.diagnostic = [&](const Diagnostic& d) {
+        ++rejected;
+        std::cerr << format(d) << "\n";
+        return false;
+      };
+      const bool reread = stream_program(cin, reparse, rs, false, rerr);
+      written_nodes = back.size();
+      if (!reread || rejected > 0 || back.size() + 1 != result->nodes.size()) {
+        throw std::runtime_error("compensated.nc does not read back as written (" + std::to_string(back.size()) +
+                                 " motion blocks for " + std::to_string(result->nodes.size() - 1) + " points): " + rerr);
+      }
+      const auto& nodes = result->nodes;
+      after = compensate::evaluate(*model, *nominal, whole, back, run.start,
+                                   [&nodes](std::uint32_t i) { return nodes[std::min<std::size_t>(i + 1, nodes.size() - 1)].block; },
+                                   {}, true);
+      compensated_written = true;
     }
   }
   if (before) {

@@ -13,6 +13,7 @@
 #include "trochoid.hpp"
 #include "trochoid_node.hpp"
 #include "write_node.hpp"
+#include "compensate_node.hpp"
 
 namespace gcpipe::cli {
 namespace {
@@ -101,7 +102,7 @@ int run_node(const std::vector<std::string>& argv) {
   if (!args.ok() || !dds_options(args, o, error))
     return usage_error(kNodeCommand, args.ok() ? error : args.error());
   if (args.positional().size() != 1)
-    return usage_error(kNodeCommand, "name the stage: gcpipe node parse|trochoid|write");
+    return usage_error(kNodeCommand, "name the stage: gcpipe node parse|trochoid|write|compensate");
   const std::string& stage = args.positional()[0];
   const std::size_t batch_bytes = size_option(args, "--batch-bytes", 32 * 1024);
   if (!args.ok() || batch_bytes == 0)
@@ -164,7 +165,22 @@ int run_node(const std::vector<std::string>& argv) {
     WriteNode node(participant, wo, no);
     return node.run();
   }
-  return usage_error(kNodeCommand, "unknown stage '" + stage + "' (known: parse, trochoid, write)");
+  if (stage == "compensate") {
+    if (args.flag("--strict"))
+      return usage_error(kNodeCommand, "--strict belongs to the parse and trochoid nodes");
+    // The same model and options `gcpipe batch` compensates with (servo section required).
+    const compensate::Model model = compensate::load_model(pc);
+    const compensate::CompensateOptions co = compensate::load_compensate_options(pc.root.section("compensate"));
+    const WriteOptions wo = load_write_options(pc.root.section("write"));
+    CompensateNodeOptions no{batch_bytes, forever};
+    if (!topics(dds::kToolpathTopicName, dds::kCompensatedTopicName, no.input_topic, no.output_topic, error))
+      return usage_error(kNodeCommand, error);
+    dds::install_stop_handlers();
+    dds::Participant participant(o);
+    CompensateNode node(participant, model, co, wo, no);
+    return node.run();
+  }
+  return usage_error(kNodeCommand, "unknown stage '" + stage + "' (known: parse, trochoid, write, compensate)");
 }
 
 int run_sink(const std::vector<std::string>& argv) {
@@ -228,8 +244,8 @@ constinit const Command kFeedCommand{
     run_feed};
 
 constinit const Command kNodeCommand{
-    "node", "run a pipeline stage as a DDS node: node parse | node trochoid | node write",
-    "Usage: gcpipe node parse|trochoid|write [--config CFG] [--strict] [--forever]\n"
+    "node", "run a pipeline stage as a DDS node: node parse | trochoid | write | compensate",
+    "Usage: gcpipe node parse|trochoid|write|compensate [--config CFG] [--strict] [--forever]\n"
     "                 [--batch-bytes N] [--in TOPIC] [--out TOPIC] [--replay] [DDS options]\n"
     "\n"
     "  parse     reads gcpipe_program, runs the parser, publishes resolved blocks and line\n"
@@ -238,6 +254,12 @@ constinit const Command kNodeCommand{
     "            gcpipe_toolpath in batches of about N bytes\n"
     "  write     reads gcpipe_toolpath, runs the G-code writer, publishes the text on\n"
     "            gcpipe_gcode in chunks of about N bytes\n"
+    "  compensate  reads gcpipe_toolpath, collects each whole program, runs the batch job's\n"
+    "            simulation and compensation (needs the config's servo section) and publishes\n"
+    "            compensated.nc on gcpipe_compensated; beside the write node:\n"
+    "              gcpipe sink --in gcpipe_compensated -o compensated.nc & gcpipe node compensate\n"
+    "            (start the trochoid node with --subscribers 2 when write and compensate both read)\n"
+    "            gives the bytes of `gcpipe batch`'s compensated.nc\n"
     "--in/--out rename the topics read/written; without the trochoid node:\n"
     "  gcpipe node write --in gcpipe_blocks\n"
     "Leaves after the first program's end marker (exit 0, or 1 when input went missing), or\n"

@@ -33,6 +33,7 @@ inline constexpr const char* kProgramTopicName = "gcpipe_program";    //!< Progr
 inline constexpr const char* kBlocksTopicName = "gcpipe_blocks";      //!< BlockBatch: parse -> trochoid
 inline constexpr const char* kToolpathTopicName = "gcpipe_toolpath";  //!< BlockBatch: trochoid -> write
 inline constexpr const char* kGcodeTopicName = "gcpipe_gcode";        //!< GcodeChunk: write -> sink
+inline constexpr const char* kCompensatedTopicName = "gcpipe_compensated";  //!< GcodeChunk: compensate -> sink
 /// The type of a default topic name, false for any other name (then the type must be given).
 bool default_topic_type(const std::string& topic, MessageType& type);
 /// Throws std::runtime_error unless `topic` is a usable topic name: 1..200 characters of
