@@ -138,14 +138,9 @@ CompensateNode::CompensateNode(dds::Participant& participant, compensate::Model 
 CompensateNode::~CompensateNode() = default;
 
 int CompensateNode::run() {
-  msg::BlockBatch batch;
-  double source_time = 0;
-  return dds::run_stage_node(
-      "compensate", impl_->participant, impl_->writer, impl_->node_options.forever,
-      [&](double timeout) {
-        if (!impl_->reader.take(batch, timeout, &source_time)) return dds::Taken::kNothing;
-        return impl_->handle(batch, source_time) ? dds::Taken::kProgramEnd : dds::Taken::kHandled;
-      },
+  return dds::run_reader_node(
+      "compensate", impl_->participant, impl_->reader, impl_->writer, impl_->node_options.forever,
+      [this](const msg::BlockBatch& sample, double source_time) { return impl_->handle(sample, source_time); },
       impl_->status);
 }
 

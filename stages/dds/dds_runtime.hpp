@@ -164,7 +164,7 @@ enum class Taken : std::uint8_t {
   kProgramEnd,  //!< a sample was handled and it completed a program
 };
 
-/// The loop every stage node (parse, trochoid, write) runs: wait until the output has readers
+/// The loop every stage node (parse, trochoid, write, compensate) runs: wait until the output has readers
 /// (downstream first, so that no history fills with nobody to drain it), call `take` (which takes
 /// at most one input sample within the timeout [s] and handles it) until a program ended (or
 /// forever), give up after the participant's idle timeout, then wait until downstream has
@@ -172,5 +172,21 @@ enum class Taken : std::uint8_t {
 /// returns its final value.
 int run_stage_node(const std::string& node, Participant& participant, RawWriter& output, bool forever,
                    const std::function<Taken(double timeout)>& take, int& status);
+
+/// run_stage_node for the usual node: one sample at a time from `input`, handed to
+/// `handle(sample, source_time)`, which returns true when the sample completed a program.
+template <class T, class Handle>
+int run_reader_node(const std::string& node, Participant& participant, Reader<T>& input, RawWriter& output,
+                    bool forever, Handle handle, int& status) {
+  T sample;
+  double source_time = 0;
+  return run_stage_node(
+      node, participant, output, forever,
+      [&](double timeout) {
+        if (!input.take(sample, timeout, &source_time)) return Taken::kNothing;
+        return handle(sample, source_time) ? Taken::kProgramEnd : Taken::kHandled;
+      },
+      status);
+}
 
 }  // namespace gcpipe::dds

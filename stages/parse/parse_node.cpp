@@ -166,14 +166,9 @@ ParseNode::ParseNode(dds::Participant& participant, ParseOptions parse_options,
 ParseNode::~ParseNode() = default;
 
 int ParseNode::run() {
-  msg::ProgramChunk chunk;
-  double source_time = 0;
-  return dds::run_stage_node(
-      "parse", impl_->participant, impl_->writer, impl_->options.forever,
-      [&](double timeout) {
-        if (!impl_->reader.take(chunk, timeout, &source_time)) return dds::Taken::kNothing;
-        return impl_->handle(chunk, source_time) ? dds::Taken::kProgramEnd : dds::Taken::kHandled;
-      },
+  return dds::run_reader_node(
+      "parse", impl_->participant, impl_->reader, impl_->writer, impl_->options.forever,
+      [this](const msg::ProgramChunk& sample, double source_time) { return impl_->handle(sample, source_time); },
       impl_->status);
 }
 

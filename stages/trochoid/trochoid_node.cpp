@@ -165,14 +165,9 @@ TrochoidNode::TrochoidNode(dds::Participant& participant, TrochoidOptions trocho
 TrochoidNode::~TrochoidNode() = default;
 
 int TrochoidNode::run() {
-  msg::BlockBatch batch;
-  double source_time = 0;
-  return dds::run_stage_node(
-      "trochoid", impl_->participant, impl_->writer, impl_->options.forever,
-      [&](double timeout) {
-        if (!impl_->reader.take(batch, timeout, &source_time)) return dds::Taken::kNothing;
-        return impl_->handle(batch, source_time) ? dds::Taken::kProgramEnd : dds::Taken::kHandled;
-      },
+  return dds::run_reader_node(
+      "trochoid", impl_->participant, impl_->reader, impl_->writer, impl_->options.forever,
+      [this](const msg::BlockBatch& sample, double source_time) { return impl_->handle(sample, source_time); },
       impl_->status);
 }
 

@@ -122,14 +122,9 @@ WriteNode::WriteNode(dds::Participant& participant, WriteOptions write_options,
 WriteNode::~WriteNode() = default;
 
 int WriteNode::run() {
-  msg::BlockBatch batch;
-  double source_time = 0;
-  return dds::run_stage_node(
-      "write", impl_->participant, impl_->writer, impl_->options.forever,
-      [&](double timeout) {
-        if (!impl_->reader.take(batch, timeout, &source_time)) return dds::Taken::kNothing;
-        return impl_->handle(batch, source_time) ? dds::Taken::kProgramEnd : dds::Taken::kHandled;
-      },
+  return dds::run_reader_node(
+      "write", impl_->participant, impl_->reader, impl_->writer, impl_->options.forever,
+      [this](const msg::BlockBatch& sample, double source_time) { return impl_->handle(sample, source_time); },
       impl_->status);
 }
 
