@@ -83,13 +83,12 @@ TEST(Compensate, CircleTestAt2PiComesDownTenfoldWithinLimitsAndReadsBack) {
   const Nominal nom = build_nominal(model, program, start);
   const Evaluation before = evaluate(model, nom, program, program, start, [](std::uint32_t i) { return i; });
   CompensateOptions opt;
-  const Result r = compensate(model, nom, program, start, opt, {});
+  const Result r = compensate(model, nom, program, start, before, opt, {});
   ASSERT_TRUE(r.compensated) << r.note;
   ASSERT_FALSE(r.iterations.empty());
 
   // Write the nodes as G-code, read them back and simulate what was written.
-  std::vector<std::uint32_t> source;
-  const auto blocks = compensated_blocks(model, program, r, model.interp.period, source);
+  const auto blocks = compensated_blocks(program, r, model.interp.period);
   WriteOptions wo;
   wo.decimals = 4;
   Writer w(wo);

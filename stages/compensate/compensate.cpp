@@ -7,6 +7,7 @@
 #include <deque>
 #include <limits>
 
+#include "contour.hpp"
 #include "gcpipe/config.hpp"
 
 namespace gcpipe::compensate {
@@ -15,17 +16,6 @@ namespace {
 
 double dist3(const Vec3& a, const Vec3& b) {
   return std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
-}
-
-/// Distance from p to the segment a-b; `closest` receives the nearest point of the segment.
-double segment_distance(const Vec3& a, const Vec3& b, const Vec3& p, Vec3& closest) {
-  const double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-  const double w[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
-  const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-  double s = dd > 0 ? (w[0] * d[0] + w[1] * d[1] + w[2] * d[2]) / dd : 0.0;
-  s = std::clamp(s, 0.0, 1.0);
-  closest = {a[0] + s * d[0], a[1] + s * d[1], a[2] + s * d[2]};
-  return dist3(closest, p);
 }
 
 Axes lerp(const Axes& a, const Axes& b, double s) {
@@ -87,7 +77,7 @@ class LocalContour {
     Vec3 c;
     auto scan = [&](std::size_t a, std::size_t b) {  // segments [a, b)
       for (std::size_t i = a; i < b; ++i) {
-        const double d = segment_distance(pts[i], pts[i + 1], actual, c);
+        const double d = servo::segment_distance(pts[i], pts[i + 1], actual, &c);
         if (d < best) best = d, closest = c, j_ = i;
       }
     };
@@ -253,7 +243,6 @@ RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, 
       t.torque = s.torque;
       t.saturated = s.saturated;
       for (std::size_t i = 0; i < kNumAxes; ++i) {
-        stats.peak_torque[i] = std::max(stats.peak_torque[i], std::abs(s.torque[i]));
         if (s.saturated & (1u << i)) ++stats.saturated_ticks[i];
       }
       ++stats.ticks;
@@ -438,6 +427,8 @@ Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const Reso
   const NominalPath path = nominal_path(model, nom, program);
   LocalContour contour(path);
   ev.per_segment.assign(nom.segments.size(), ErrorStats{});
+  ev.demand.assign(std::max<std::size_t>(1, nom.segments.size()), SegmentDemand{});
+  Axes c1{}, c2{};  // the two previous smoothed commands
   std::vector<double> seg_sq(nom.segments.size(), 0.0);
   std::vector<std::uint64_t> seg_n(nom.segments.size(), 0);
   double sum_sq = 0;
@@ -476,6 +467,15 @@ Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const Reso
     }
     const std::uint32_t seg = nom.segment_of_block.empty() ? 0 : nom.segment_of_block[std::min<std::size_t>(src, nom.segment_of_block.size() - 1)];
     if (cutting && seg < ev.per_segment.size()) add_error(ev.per_segment[seg], seg_sq[seg], seg_n[seg], e, time, b.line);
+    SegmentDemand& dm = ev.demand[std::min<std::size_t>(seg, ev.demand.size() - 1)];
+    for (std::size_t i = 0; i < kNumAxes; ++i) {
+      if (t.saturated & (1u << i)) ++dm.saturated_ticks[i];
+      if (t.n >= 2)
+        dm.peak_acceleration[i] = std::max(dm.peak_acceleration[i], std::abs(t.command[i] - 2 * c1[i] + c2[i]) /
+                                                                        (nom.period * nom.period));
+    }
+    c2 = c1;
+    c1 = t.command;
     const Axes& ref = n < nom.reference.size() ? nom.reference[n] : ref_end;
     for (std::size_t i = 0; i < kNumAxes; ++i) {
       const double fe = t.command[i] - t.actual[i];
@@ -586,18 +586,6 @@ double apply_learning(const std::vector<Axes>& x, std::int64_t n, std::size_t i,
   return v;
 }
 
-/// The interpolator's per-axis speed bound for a block (interpolate.cpp applies the same rule):
-/// the axis limit, and the speed whose step the acc/dec turns into the acceleration limit.
-Axes speed_bound(const Model& model) {
-  Axes v;
-  for (std::size_t i = 0; i < kNumAxes; ++i) {
-    v[i] = model.interp.max_velocity[i];
-    if (model.interp.smoothing != interpolate::Smoothing::kNone && model.interp.smoothing_time[i] > 0)
-      v[i] = std::min(v[i], model.interp.max_acceleration[i] * model.interp.smoothing_time[i]);
-  }
-  return v;
-}
-
 /// Forward projection onto the speed bound: a node that would need a faster axis than the bound
 /// is pulled back along that axis, so the interpolator never lengthens a point (which would
 /// shift every later point in time).
@@ -616,7 +604,8 @@ void project_speed(std::vector<Node>& nodes, const Axes& vmax, double period) {
 }  // namespace
 
 Result compensate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
-                  const Axes& start, const CompensateOptions& opt, const Progress& progress) {
+                  const Axes& start, const Evaluation& before, const CompensateOptions& opt,
+                  const Progress& progress) {
   Result res;
   if (nom.reference_too_long) {
     res.note = "not compensated: the re-timed reference (which stops at every corner) would run longer than compensate.max_machine_time";
@@ -667,10 +656,10 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
         // point: a speed change along a straight path is no deviation).
         const Vec3 mid = tip_at(lerp(nom.reference[a], nom.reference[b], 0.5), c);
         double dev = std::numeric_limits<double>::infinity();
-        Vec3 prev = tip_at(nom.reference[a], a), closest;
+        Vec3 prev = tip_at(nom.reference[a], a);
         for (std::uint64_t n = a + 1; n <= b; ++n) {
           const Vec3 cur = tip_at(nom.reference[n], n);
-          dev = std::min(dev, segment_distance(prev, cur, mid, closest));
+          dev = std::min(dev, servo::segment_distance(prev, cur, mid));
           prev = cur;
         }
         if (dev > opt.linearisation_tolerance) {
@@ -722,7 +711,7 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
   }
   // The last node is the program's end point: the learning may move it, the end stays.
   nodes.back().joints = nom.reference.back();
-  const Axes vbound = speed_bound(model);
+  const Axes vbound = interpolate::speed_bound(model.interp);
   project_speed(nodes, vbound, T);
 
 
@@ -740,42 +729,41 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
     std::array<std::uint64_t, kNumAxes> saturated{};
     Axes peak_acceleration{};
     double max_contour = 0;
-    std::size_t segment = 0;
+    std::size_t segment = 0;  // of the window's first tick, for the original's demand there
     bool seen = false;
   };
-  // Torque saturation, smoothed-command acceleration and contour error of one run, per window
-  // (or per segment for the uncompensated program, whose time line differs from the nodes').
+  // Torque saturation, smoothed-command acceleration and contour error of one node-program run
+  // per window, and the error r - y per tick for the learning.
   auto measure = [&](std::span<const ResolvedBlock> blocks, const std::function<std::uint32_t(std::uint32_t)>& source,
-                     bool by_segment, std::vector<Limits>& lim, std::vector<Axes>* err) {
-    lim.assign(by_segment ? nseg : nwin, Limits{});
+                     std::vector<Limits>& lim, std::vector<Axes>& err) {
+    lim.assign(nwin, Limits{});
     Axes c1{}, c2{};
     std::uint64_t seen = 0;
-    return evaluate(model, nom, program, blocks, start, source, [&](const Tick& t) {
-      const std::size_t seg = seg_of_block(source(t.block));
-      Limits& L0 = lim[by_segment ? seg : window_of(t.n)];
-      if (!L0.seen) L0.segment = seg, L0.seen = true;
-      L0.max_contour = std::max(L0.max_contour, t.contour);
-      for (std::size_t i = 0; i < kNumAxes; ++i) {
-        if (t.saturated & (1u << i)) ++L0.saturated[i];
-        if (seen >= 2) {
-          const double acc = std::abs(t.command[i] - 2 * c1[i] + c2[i]) / (T * T);
-          L0.peak_acceleration[i] = std::max(L0.peak_acceleration[i], acc);
-        }
-      }
-      c2 = c1;
-      c1 = t.command;
-      ++seen;
-      if (err) {
-        const std::size_t n = static_cast<std::size_t>(t.n);
-        const Axes& r = n < nom.reference.size() ? nom.reference[n] : nom.reference.back();
-        Axes e;
-        for (std::size_t i = 0; i < kNumAxes; ++i) e[i] = r[i] - t.actual[i];
-        err->push_back(e);
-      }
-    }, !by_segment);
+    return evaluate(
+        model, nom, program, blocks, start, source,
+        [&](const Tick& t) {
+          Limits& L0 = lim[window_of(t.n)];
+          if (!L0.seen) L0.segment = seg_of_block(source(t.block)), L0.seen = true;
+          L0.max_contour = std::max(L0.max_contour, t.contour);
+          for (std::size_t i = 0; i < kNumAxes; ++i) {
+            if (t.saturated & (1u << i)) ++L0.saturated[i];
+            if (seen >= 2) {
+              const double acc = std::abs(t.command[i] - 2 * c1[i] + c2[i]) / (T * T);
+              L0.peak_acceleration[i] = std::max(L0.peak_acceleration[i], acc);
+            }
+          }
+          c2 = c1;
+          c1 = t.command;
+          ++seen;
+          const std::size_t n = static_cast<std::size_t>(t.n);
+          const Axes& r = n < nom.reference.size() ? nom.reference[n] : nom.reference.back();
+          Axes e;
+          for (std::size_t i = 0; i < kNumAxes; ++i) e[i] = r[i] - t.actual[i];
+          err.push_back(e);
+        },
+        true);
   };
-  std::vector<Limits> base;
-  measure(program, [](std::uint32_t i) { return i; }, true, base, nullptr);
+  const std::vector<SegmentDemand>& base = before.demand;
 
   std::vector<Axes> best_error;             // r - y per tick, each window from its best run
   std::vector<Node> best = nodes;
@@ -806,7 +794,7 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
     std::vector<Axes> err;
     err.reserve(E + 64);
     std::vector<Limits> lim;
-    const Evaluation ev = measure(blocks, node_source, false, lim, &err);
+    const Evaluation ev = measure(blocks, node_source, lim, err);
     Iteration rec;
     rec.index = it;
     rec.max_contour = ev.contour.max;
@@ -824,7 +812,7 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
     std::string why_iteration;
     for (std::size_t w = 0; w < nwin; ++w) {
       if (!lim[w].seen) continue;
-      const Limits& allowed = base[std::min(lim[w].segment, base.size() - 1)];
+      const SegmentDemand& allowed = base[std::min(lim[w].segment, base.size() - 1)];
       std::string why;
       for (std::size_t i = 0; i < kNumAxes && why.empty(); ++i) {
         char msg[160];
@@ -833,9 +821,9 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
         // limit for the second difference of 1 ms samples (a sampling figure, not a motion).
         const double alim = std::max(model.kin.max_acceleration[i], allowed.peak_acceleration[i]) +
                             0.01 * model.kin.max_acceleration[i];
-        if (lim[w].saturated[i] > allowed.saturated[i]) {
+        if (lim[w].saturated[i] > allowed.saturated_ticks[i]) {
           std::snprintf(msg, sizeof msg, "axis %c torque-limited in %llu ticks (uncompensated segment: %llu)", kAxisLetters[i],
-                        static_cast<unsigned long long>(lim[w].saturated[i]), static_cast<unsigned long long>(allowed.saturated[i]));
+                        static_cast<unsigned long long>(lim[w].saturated[i]), static_cast<unsigned long long>(allowed.saturated_ticks[i]));
           why = msg;
         } else if (model.kin.max_acceleration[i] > 0 && lim[w].peak_acceleration[i] > alim) {
           std::snprintf(msg, sizeof msg, "axis %c acceleration %.0f > limit %.0f", kAxisLetters[i], lim[w].peak_acceleration[i], alim);
@@ -918,12 +906,9 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
   return res;
 }
 
-std::vector<ResolvedBlock> compensated_blocks(const Model& model, std::span<const ResolvedBlock> program,
-                                              const Result& result, double period,
-                                              std::vector<std::uint32_t>& source_block) {
-  (void)model;
+std::vector<ResolvedBlock> compensated_blocks(std::span<const ResolvedBlock> program, const Result& result,
+                                              double period) {
   std::vector<ResolvedBlock> out;
-  source_block.clear();
   if (result.nodes.empty()) return out;
   const Axes start = result.nodes.front().joints;
   const std::vector<ResolvedBlock> nodes = node_blocks(program, result.nodes, start, period);
@@ -961,7 +946,6 @@ std::vector<ResolvedBlock> compensated_blocks(const Model& model, std::span<cons
       c.feed = last_feed;
     }
     out.push_back(std::move(c));
-    source_block.push_back(static_cast<std::uint32_t>(i));
   };
   for (std::size_t k = 0; k < nodes.size(); ++k) {
     const std::uint32_t src = result.nodes[k + 1].block;
@@ -971,7 +955,6 @@ std::vector<ResolvedBlock> compensated_blocks(const Model& model, std::span<cons
       pass_block(next++);
     }
     out.push_back(nodes[k]);
-    source_block.push_back(src);
     have_node = true;
     last_feed = nodes[k].feed;
   }

@@ -88,7 +88,6 @@ struct RunStats {
   std::uint64_t ticks = 0;
   interpolate::InterpolateStats interp;
   std::array<std::uint64_t, kNumAxes> saturated_ticks{};
-  Axes peak_torque{};             //!< [N*m]
 };
 
 /// Interpolates `blocks` (from rest at `start`) at the model's period, runs the five drives and
@@ -129,7 +128,6 @@ struct AxisStats {
 struct Segment {
   std::uint64_t first_line = 0, last_line = 0;
   double t_begin = 0, t_end = 0;  //!< [s] in the original's time
-  ErrorStats before, after;
   bool circle = false;            //!< the nominal tool-tip path of the segment is a circle
   double circle_radius = 0;       //!< [mm]
   std::array<double, 2> circle_centre{};  //!< [mm] (workpiece X Y)
@@ -176,11 +174,19 @@ struct Nominal {
 };
 
 /// Evaluation of one run against the nominal: contour error per tick and the axis figures.
+/// What a run demanded of the axes within one segment (the compensation's limits are judged
+/// against the original's own figures segment by segment).
+struct SegmentDemand {
+  std::array<std::uint64_t, kNumAxes> saturated_ticks{};  //!< torque-limited ticks
+  Axes peak_acceleration{};  //!< of the smoothed commands, second difference [mm/s^2, deg/s^2]
+};
+
 struct Evaluation {
   RunStats stats;
   ErrorStats contour;
   AxisStats axes;
   std::vector<ErrorStats> per_segment;
+  std::vector<SegmentDemand> demand;  //!< per segment
   Series series;
 };
 
@@ -214,14 +220,15 @@ struct Result {
 };
 
 /// Computes the compensated nodes. `program` is the original, `nominal` its nominal run.
+/// `before` is evaluate()'s figures for the program itself (its per-segment demand bounds the
+/// learning).
 Result compensate(const Model& model, const Nominal& nominal, std::span<const ResolvedBlock> program,
-                  const Axes& start, const CompensateOptions& options, const Progress& progress);
+                  const Axes& start, const Evaluation& before, const CompensateOptions& options,
+                  const Progress& progress);
 
 /// The node blocks of a result as resolved blocks (G93 G1 in machine axes, TCP and tool length
 /// off, N = source line) interleaved with the program's non-motion blocks, in program order.
-/// `source_block[i]` is the program block index each returned block stands for.
-std::vector<ResolvedBlock> compensated_blocks(const Model& model, std::span<const ResolvedBlock> program,
-                                              const Result& result, double period,
-                                              std::vector<std::uint32_t>& source_block);
+std::vector<ResolvedBlock> compensated_blocks(std::span<const ResolvedBlock> program, const Result& result,
+                                              double period);
 
 }  // namespace gcpipe::compensate

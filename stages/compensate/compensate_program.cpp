@@ -24,13 +24,12 @@ ProgramCompensation compensate_program(const Model& model, const CompensateOptio
     pc.note = "compensate.enabled is false";
     return pc;
   }
-  pc.result = compensate(model, *pc.nominal, program, pc.start, options, progress);
+  pc.result = compensate(model, *pc.nominal, program, pc.start, *pc.before, options, progress);
   if (!pc.result->compensated) {
     pc.note = pc.result->note;
     return pc;
   }
-  std::vector<std::uint32_t> source;
-  const std::vector<ResolvedBlock> blocks = compensated_blocks(model, program, *pc.result, model.interp.period, source);
+  const std::vector<ResolvedBlock> blocks = compensated_blocks(program, *pc.result, model.interp.period);
   Writer writer(write_options);
   pc.text.reserve(blocks.size() * 64);
   for (const auto& b : blocks) writer.write(b, pc.text);

@@ -21,6 +21,16 @@ InterpolateOptions load_interpolate_options(const Config& s) {
   return o;
 }
 
+Axes speed_bound(const InterpolateOptions& o) {
+  Axes v;
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    v[i] = o.max_velocity[i];
+    if (o.smoothing != Smoothing::kNone && o.smoothing_time[i] > 0)
+      v[i] = std::min(v[i], o.max_acceleration[i] * o.smoothing_time[i]);
+  }
+  return v;
+}
+
 // ---------------------------------------------------------------------------------------------
 
 AxisSmoother::AxisSmoother(Smoothing kind, double Ts, double period, double start)
@@ -312,14 +322,7 @@ InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
       if (kept(i)) path.to[static_cast<std::size_t>(i)] = raw_end_[static_cast<std::size_t>(i)];
   }
 
-  // Per-axis velocity bound: the axis limit, and the speed whose step the smoother turns into
-  // exactly the acceleration limit (linear: dv/Ts; exponential: initial slope dv/Ts).
-  Axes vlim;
-  for (std::size_t i = 0; i < kNumAxes; ++i) {
-    vlim[i] = opt_.max_velocity[i];
-    if (opt_.smoothing != Smoothing::kNone && opt_.smoothing_time[i] > 0)
-      vlim[i] = std::min(vlim[i], opt_.max_acceleration[i] * opt_.smoothing_time[i]);
-  }
+  const Axes vlim = speed_bound(opt_);
   Axes travel{};  // largest speed-relevant excursion per axis (arc: radius x angle in plane)
   Axes tcp_end = raw_end_;  // joints at the end of a TCP block
 

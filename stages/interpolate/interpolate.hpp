@@ -61,6 +61,11 @@ struct InterpolateOptions {
 /// from the drives file (Table 1 Ts): the caller fills them in.
 InterpolateOptions load_interpolate_options(const Config& section);
 
+/// Per-axis speed bound of a block [mm/s, deg/s]: the axis's velocity limit, and the speed whose
+/// step the acc/dec turns into exactly the acceleration limit (linear: dv/Ts; exponential: initial
+/// slope dv/Ts). A block that would need more is lengthened.
+Axes speed_bound(const InterpolateOptions& options);
+
 /// One axis of acceleration/deceleration after interpolation.
 class AxisSmoother {
  public:

@@ -10,6 +10,10 @@
 
 namespace gcpipe::servo {
 
+/// Distance from `p` to the segment a-b [mm]; `closest` (if given) receives the segment's
+/// nearest point.
+double segment_distance(const Vec3& a, const Vec3& b, const Vec3& p, Vec3* closest = nullptr);
+
 class ContourTracker {
  public:
   /// `window`: how many of the newest nominal segments are searched. The actual trails the
