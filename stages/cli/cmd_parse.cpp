@@ -2,76 +2,69 @@
 #include <cstdio>
 #include <iostream>
 
-#include "command.hpp"
+#include <nlohmann/json.hpp>
+
 #include "commands.hpp"
-#include "gcpipe/config.hpp"
-#include "program_stream.hpp"
+#include "output_dir.hpp"
+#include "program_run.hpp"
 
 namespace gcpipe::cli {
+
 namespace {
 
-int run_parse(const std::vector<std::string>& argv) {
-  Args args(argv, {"--config", "-o"}, {"--json", "--strict", "--progress"});
-  if (!args.ok()) return usage_error(kParseCommand, args.error());
-  if (args.positional().size() != 1) return usage_error(kParseCommand, "give exactly one input program (or - for stdin)");
-  PipelineConfig pc = load_config_option(args.value_or("--config", ""));
-  ParseOptions po = load_parse_options(pc.root.section("parse"));
-  if (args.flag("--strict")) po.strict = true;
-  InputFile in(args.positional()[0]);
-  Parser parser(po, pc.machine, in.name());
-  OutputFile out(args.value_or("-o", "-"));
-  const bool json = args.flag("--json");
-  std::string buf;
-  std::uint64_t errors = 0;
-  LineSink sink;
-  sink.block = [&](const ResolvedBlock& b) {
-    if (json) {
-      append_json(buf, b);
+// Formats every block the parse stage emits: a fixed-width line, or JSON Lines.
+class BlockPrinter final : public pipeline::Emitter {
+ public:
+  BlockPrinter(const std::string& path, bool json) : out_(path), json_(json) {}
+  bool block(const ResolvedBlock& b) override {
+    if (json_) {
+      append_json(buf_, b);
     } else {
       char tmp[256];
       std::snprintf(tmp, sizeof tmp, "%6llu %-8s X%.4f Y%.4f Z%.4f A%.4f C%.4f F%.4g",
                     static_cast<unsigned long long>(b.line), to_string(b.motion), b.target[kX], b.target[kY],
                     b.target[kZ], b.target[kA], b.target[kC], b.feed);
-      buf += tmp;
+      buf_ += tmp;
     }
-    buf += '\n';
-    out.write(buf);
+    buf_ += '\n';
+    out_.write(buf_);
     return true;
-  };
-  sink.diagnostic = print_diagnostics(errors);
-  std::string error;
-  const bool complete = stream_program(in, parser, sink, args.flag("--progress"), error);
-  out.write(buf, true);
-  out.close();
-  const ParseSummary& s = parser.summary();
-  std::fprintf(stderr, "%s: %llu lines read, %llu blocks emitted, %llu rejected, %llu skipped by block delete\n",
-               in.name().c_str(), static_cast<unsigned long long>(s.lines_read),
-               static_cast<unsigned long long>(s.blocks_emitted), static_cast<unsigned long long>(s.lines_rejected),
-               static_cast<unsigned long long>(s.lines_deleted));
-  if (!complete) {
-    std::cerr << "gcpipe parse: " << error << "\n";
-    return 1;
   }
-  return errors > 0 ? 3 : 0;
-}
+  bool diagnostic(const Diagnostic&, DiagnosticKind) override { return true; }
+  bool text(std::string&) override { return true; }
+  void product(const std::shared_ptr<const pipeline::Product>&) override {}
+  void commit() {
+    out_.write(buf_, true);
+    out_.commit();
+  }
+
+ private:
+  pipeline::AtomicFile out_;
+  bool json_;
+  std::string buf_;
+};
 
 }  // namespace
 
-constinit const Command kParseCommand{
-    "parse", "parse a program and print its resolved blocks",
-    "Usage: gcpipe parse IN.nc [--json] [--config CFG] [--strict] [-o OUT]\n"
-    "\n"
-    "Parses an ISO 6983 program (Fanuc dialect, LinuxCNC spellings; see README) and prints one\n"
-    "line per resolved block: source line, motion, absolute target X Y Z [mm] A C [deg], feed.\n"
-    "Errors go to stderr as file:line:col: error: reason.\n"
-    "\n"
-    "  --json       one JSON object per block (JSON Lines), every resolved field\n"
-    "  --config CFG pipeline config (default pipeline_configs/default.yaml)\n"
-    "  --strict     stop at the first error (default: reject the line and go on)\n"
-    "  --progress   print progress to stderr on long inputs\n"
-    "  -o OUT       write to OUT instead of stdout\n"
-    "IN may be - for standard input.\n"
-    "Exit status: 0 all lines accepted, 3 some lines rejected, 1 stopped (strict or I/O), 2 usage.\n",
-    run_parse};
+int run_parse(const ParseArgs& a) {
+  pipeline::install_stop_handlers();
+  PrintedLog log;
+  ProgramRun run(a, {"parse"}, log);
+  BlockPrinter printer(a.output, a.json);
+  run.pipeline().attach("parse", printer);
+  const bool complete = run.run();
+  if (pipeline::stop_requested()) return exit_status(complete, "", 0);
+  printer.commit();
+  nlohmann::ordered_json counts;
+  std::string text;
+  std::vector<std::string> files;
+  run.pipeline().report(counts, text, {}, {}, files, {});
+  std::fprintf(stderr, "%s: %llu lines read, %llu blocks emitted, %llu rejected, %llu skipped by block delete\n",
+               run.input_name().c_str(), counts["lines_read"].get<unsigned long long>(),
+               counts["blocks_emitted"].get<unsigned long long>(), counts["lines_rejected"].get<unsigned long long>(),
+               counts["lines_deleted"].get<unsigned long long>());
+  if (!complete) std::cerr << "gcpipe parse: " << run.error() << "\n";
+  return exit_status(complete, "", log.errors());
+}
 
 }  // namespace gcpipe::cli

@@ -1,27 +1,108 @@
-// The list of subcommands. To add one: define `constinit const Command kFooCommand` in
-// cmd_foo.cpp, declare it here and list it in commands.cpp.
+// The subcommands of `gcpipe`. Each command's options are a plain struct, declared on the command
+// line in main.cpp (CLI11: the help text is generated from those declarations, so usage cannot
+// drift from what is accepted), and run by run_<name>() in cmd_<name>.cpp, which returns the exit
+// status: 0 ok, 3 finished with rejected lines, 1 stopped or failed, 2 usage, 130/143 interrupted.
 #pragma once
 
+#include <cstdint>
+#include <optional>
+#include <string>
 #include <vector>
-
-#include "command.hpp"
 
 namespace gcpipe::cli {
 
-extern const Command kBatchCommand;
-extern const Command kParseCommand;
-extern const Command kSynthCommand;
-extern const Command kTrainIkCommand;  // cmd_train_ik.cpp
-extern const Command kIkCommand;       // cmd_ik.cpp
-#ifdef GCPIPE_WITH_DDS
-extern const Command kFeedCommand;     // cmd_dds.cpp
-extern const Command kNodeCommand;     // cmd_dds.cpp
-extern const Command kSinkCommand;     // cmd_dds.cpp
-extern const Command kMonitorCommand;  // cmd_dds.cpp
-#endif
+/// What every command that runs the pipeline on a program takes.
+struct ProgramArgs {
+  std::string input;      //!< program file, "-" = standard input
+  std::string config;     //!< pipeline config; empty = pipeline_configs/default.yaml
+  bool strict = false;    //!< stop at the first rejected line
+  bool progress = false;  //!< progress on stderr even when it is not a terminal
+  bool no_progress = false;
+};
 
-extern const Command kSimulateCommand;  // cmd_simulate.cpp
-extern const Command kTrochoidCommand;  // cmd_trochoid.cpp
-extern const std::vector<Command> kCommands;
+struct BatchArgs : ProgramArgs {
+  std::string outdir;
+  bool quiet = false;
+  bool no_simulate = false;
+};
+int run_batch(const BatchArgs& args);
+
+struct ParseArgs : ProgramArgs {
+  std::string output = "-";
+  bool json = false;
+};
+int run_parse(const ParseArgs& args);
+
+struct TrochoidArgs : ProgramArgs {
+  std::string output = "-";
+  std::string png;
+};
+int run_trochoid(const TrochoidArgs& args);
+
+struct IkArgs : ProgramArgs {
+  std::string output = "-";
+  std::string model;
+  bool csv = false;
+  bool tool_vector = false;
+};
+int run_ik(const IkArgs& args);
+
+struct SimulateArgs : ProgramArgs {
+  std::string output;
+  std::string report;
+  std::string circle;  //!< "R_C,R_W"
+};
+int run_simulate(const SimulateArgs& args);
+
+struct SynthArgs {
+  double blocks = 0, megabytes = 0;
+  std::uint64_t seed = 1;
+  std::string output = "-";
+};
+int run_synth(const SynthArgs& args);
+
+struct TrainIkArgs {
+  std::string config, output, preset = "improved", trainer, c_output;
+  std::uint64_t seed = 1;
+  int samples = 0, max_iterations = 0;
+  bool quiet = false;
+};
+int run_train_ik(const TrainIkArgs& args);
+
+/// `gcpipe stages`: the registered stages, their edges and ports.
+int run_stages();
+
+#ifdef GCPIPE_WITH_DDS
+/// What every DDS command takes (stages/dds/README.md).
+struct DdsArgs {
+  std::optional<int> domain;
+  std::string profiles;
+  int subscribers = 1;
+  double timeout = 30;
+  double idle_timeout = 0;
+  bool replay = false;
+};
+struct FeedArgs : DdsArgs {
+  std::string input, config, topic;
+  std::size_t chunk_bytes = 32 * 1024;
+  std::uint64_t program_id = 0;
+};
+int run_feed(const FeedArgs& args);
+struct NodeArgs : DdsArgs {
+  std::string stage, config, in, out;
+  std::size_t batch_bytes = 32 * 1024;
+  bool forever = false, strict = false;
+};
+int run_node(const NodeArgs& args);
+struct SinkArgs : DdsArgs {
+  std::string output, in;
+};
+int run_sink(const SinkArgs& args);
+struct MonitorArgs : DdsArgs {
+  std::string topic, type;
+  double period = 1.0;
+};
+int run_monitor(const MonitorArgs& args);
+#endif
 
 }  // namespace gcpipe::cli

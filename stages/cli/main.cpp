@@ -1,60 +1,228 @@
-// gcpipe: G-code stream processing for five-axis machining. main() only dispatches subcommands.
-#include <cstring>
+// gcpipe: G-code stream processing for five-axis machining. main() declares every subcommand's
+// options with CLI11 (the help text comes from these declarations) and dispatches to run_<name>.
+// This is the only file that includes CLI11: it is a heavy header.
 #include <iostream>
 
-#include "command.hpp"
+#include <CLI/CLI.hpp>
+
 #include "commands.hpp"
 
-using gcpipe::cli::Command;
+using namespace gcpipe::cli;
 
 namespace {
 
-const Command* find(std::string_view name) {
-  for (const Command& c : gcpipe::cli::kCommands)
-    if (name == c.name) return &c;
-  return nullptr;
+constexpr const char* kExitStatus =
+    "Exit status: 0 every line accepted, 3 finished with rejected lines, 1 stopped or failed (the\n"
+    "reason is printed), 2 usage error, 130/143 interrupted by SIGINT/SIGTERM.";
+
+const CLI::Validator kNonEmpty(
+    [](std::string& s) { return s.empty() ? std::string("must not be empty") : std::string(); }, "NONEMPTY");
+
+// --config, --strict, --progress, --no-progress and the input program.
+void add_program_options(CLI::App& sub, ProgramArgs& a) {
+  sub.add_option("input", a.input, "the program (ISO 6983 G-code); - reads standard input")->required();
+  // No file check here: the config loader names the file and says what is wrong with it.
+  sub.add_option("--config", a.config, "pipeline config (default: pipeline_configs/default.yaml)");
+  sub.add_flag("--strict", a.strict, "stop at the first rejected line (default: reject it and go on)");
+  sub.add_flag("--progress", a.progress, "progress on stderr even when it is not a terminal");
+  sub.add_flag("--no-progress", a.no_progress, "no progress on stderr, even on a terminal");
 }
 
-void print_help() {
-  std::cout << "gcpipe: G-code stream-processing pipeline for table-table five-axis machines\n\n"
-               "Usage: gcpipe <command> [options]   (gcpipe <command> --help for details)\n\n"
-               "Commands:\n";
-  for (const Command& c : gcpipe::cli::kCommands) {
-    std::cout << "  " << c.name;
-    for (std::size_t i = std::strlen(c.name); i < 14; ++i) std::cout << ' ';
-    std::cout << c.summary << "\n";
-  }
+void add_batch(CLI::App& app, BatchArgs& a) {
+  auto* s = app.add_subcommand("batch", "run the whole pipeline on a program: file in, files out");
+  add_program_options(*s, a);
+  s->add_option("-o,--output-dir", a.outdir, "output folder (created when missing)")->required()->check(kNonEmpty);
+  s->add_flag("--no-simulate", a.no_simulate,
+              "streaming stages only (parse, trochoid, ik, write): memory independent of the program's length");
+  s->add_flag("--quiet", a.quiet, "print nothing but errors that stop the run");
+  s->footer(std::string("Runs every stage in-process, in pipeline order (gcpipe stages): parse -> trochoid -> write\n"
+      "(output.nc) and -> ik -> simulate -> compensate (compensated.nc), then the report and the\n"
+      "figures. Writes in OUTDIR: compensated.nc, report.json, report.txt, plots/*.png, output.nc,\n"
+      "summary.json, diagnostics.txt. Files of an earlier run there are removed first; every file is\n"
+      "written as NAME.part and renamed when complete.") + "\n\n" + kExitStatus);
 }
+
+void add_parse(CLI::App& app, ParseArgs& a) {
+  auto* s = app.add_subcommand("parse", "parse a program and print its resolved blocks");
+  add_program_options(*s, a);
+  s->add_flag("--json", a.json, "one JSON object per block (JSON Lines), every resolved field");
+  s->add_option("-o,--output", a.output, "write to this file instead of standard output")->check(kNonEmpty);
+  s->footer(std::string("The parse stage alone: one line per resolved block (source line, motion, absolute target X Y Z\n"
+      "[mm] A C [deg], feed). Errors go to stderr as file:line:col: error: reason.") + "\n\n" + kExitStatus);
+}
+
+void add_trochoid(CLI::App& app, TrochoidArgs& a) {
+  auto* s = app.add_subcommand("trochoid", "expand G275 trochoidal slot cycles into G1/G2/G3 blocks");
+  add_program_options(*s, a);
+  s->add_option("-o,--output", a.output, "write to this file instead of standard output")->check(kNonEmpty);
+  s->add_option("--png", a.png, "tool path coloured by radial engagement (PNG)")->check(kNonEmpty);
+  s->footer(std::string("parse -> trochoid -> write: every G275 cycle replaced by its tool path (seed 000 eq. 6,\n"
+      "stages/trochoid/README.md). A cycle that cannot be machined is reported as file:line: error and\n"
+      "left out as a comment; rapids at the clearance plane then take the tool to the cycle's end.") + "\n\n" + kExitStatus);
+}
+
+void add_ik(CLI::App& app, IkArgs& a) {
+  auto* s = app.add_subcommand("ik", "inverse kinematics of a program: analytic and neural joints with flags");
+  add_program_options(*s, a);
+  s->add_flag("--csv", a.csv, "CSV output (the only format)")->required();
+  s->add_option("--model", a.model, "neural IK model written by gcpipe train-ik (default: the config's ik.model)")
+      ->check(CLI::ExistingFile);
+  s->add_flag("--tool-vector", a.tool_vector, "TCP blocks give only their tool vector; the IK chooses A and C");
+  s->add_option("-o,--output", a.output, "write to this file instead of standard output")->check(kNonEmpty);
+  s->footer(std::string("parse -> trochoid -> ik: every block's end point solved. Tool-centre-point blocks (G43.4, M428,\n"
+      "G43.5) give the tip; other blocks are machine axes. CSV: line,X,Y,Z,A,C,Xn,Yn,Zn,An,Cn,flags\n"
+      "(analytic joints, then the neural model's, mm and deg, 6 decimals; flags joined by '|').\n"
+      "Without a model the neural columns are empty. A summary goes to stderr.") + "\n\n" "Exit status: 0 all points solved, 4 some points failed (travel/unreachable), 3 some lines rejected,\n"
+            "1 stopped, 2 usage.");
+}
+
+void add_simulate(CLI::App& app, SimulateArgs& a) {
+  auto* s = app.add_subcommand("simulate", "predict the axis motion of a program (interpolator + feed drives)");
+  add_program_options(*s, a);
+  s->add_option("-o,--output", a.output, "the axis trace CSV (- for standard output)")->required()->check(kNonEmpty);
+  s->add_option("--report", a.report, "per tick: t, actual tool tip [mm], contour error [mm]")->check(kNonEmpty);
+  s->add_option("--circle", a.circle,
+                "R_C,R_W [mm]: add seed 002's circle-test columns to the report (alpha, beta, "
+                "alpha_minus_beta [rad], radius_decrease, shape_error [mm])");
+  s->footer(std::string("parse -> trochoid -> ik -> simulate: the program interpolated at the config's period, smoothed\n"
+      "per axis (acc/dec, Ts from the drives file), each axis through seed 002's feed-drive model, the\n"
+      "actual tool tip through the kinematics and its contour error against the nominal path: the same\n"
+      "harness and metric as gcpipe batch's report. Trace: t,X_cmd..C_cmd,X..C (s, mm, deg).") + "\n\n" + kExitStatus);
+}
+
+void add_synth(CLI::App& app, SynthArgs& a) {
+  auto* s = app.add_subcommand("synth", "write a seeded synthetic five-axis program for load tests");
+  auto* blocks = s->add_option("--blocks", a.blocks, "this many blocks")->check(CLI::PositiveNumber);
+  auto* mb = s->add_option("--megabytes", a.megabytes, "about this many MB")->check(CLI::PositiveNumber);
+  blocks->excludes(mb);
+  s->add_option("--seed", a.seed, "random seed");
+  s->add_option("-o,--output", a.output, "write to this file instead of standard output")->check(kNonEmpty);
+}
+
+void add_train_ik(CLI::App& app, TrainIkArgs& a) {
+  auto* s = app.add_subcommand("train-ik", "train the neural IK of a machine (deterministic for a seed)");
+  s->add_option("--config", a.config, "pipeline config naming the machine");
+  s->add_option("-o,--output", a.output, "the model file to write")->required()->check(kNonEmpty);
+  s->add_option("--seed", a.seed, "random seed")->check(CLI::Range(0.0, 9007199254740992.0));
+  s->add_option("--preset", a.preset, "paper (seed 000 as printed) or improved")->check(CLI::IsMember({"paper", "improved"}));
+  s->add_option("--samples", a.samples, "random samples per position net (12..1e7)")->check(CLI::Range(12, 10000000));
+  s->add_option("--max-iterations", a.max_iterations, "training iterations (1..1e6)")->check(CLI::Range(1, 1000000));
+  s->add_option("--trainer", a.trainer, "lm (Levenberg-Marquardt) or gd (gradient descent)")->check(CLI::IsMember({"lm", "gd"}));
+  s->add_option("--c-output", a.c_output, "angle or sincos")->check(CLI::IsMember({"angle", "sincos"}));
+  s->add_flag("--quiet", a.quiet, "no progress");
+}
+
+#ifdef GCPIPE_WITH_DDS
+void add_dds_options(CLI::App& s, DdsArgs& a) {
+  s.add_option("--domain", a.domain, "DDS domain id (default $GCPIPE_DDS_DOMAIN, else 0)")->check(CLI::Range(0, 232));
+  s.add_option("--profiles", a.profiles, "QoS/transport profiles (default pipeline_configs/dds_profiles.xml)")
+      ->check(CLI::ExistingFile);
+  s.add_option("--subscribers", a.subscribers, "readers a publisher waits for before its first sample")
+      ->check(CLI::Range(1, 100));
+  s.add_option("--timeout", a.timeout, "longest wait for readers, a blocked write, acknowledgements [s]")
+      ->check(CLI::PositiveNumber);
+  s.add_option("--idle-timeout", a.idle_timeout, "a consumer gives up after this long without a sample; 0 = never [s]")
+      ->check(CLI::NonNegativeNumber);
+  s.add_flag("--replay", a.replay, "also take programs published before this process started");
+}
+
+void add_feed(CLI::App& app, FeedArgs& a) {
+  auto* s = app.add_subcommand("feed", "publish a program on the pipeline's program topic");
+  s->add_option("input", a.input, "the program; - reads standard input")->required();
+  s->add_option("--config", a.config, "pipeline config (its parse.max_line_length cuts lines as batch does)")
+      ->check(CLI::ExistingFile);
+  s->add_option("--chunk-bytes", a.chunk_bytes, "publish a chunk once it holds this much text")->check(CLI::Range(1024, 1048576));
+  s->add_option("--program-id", a.program_id, "program id (default: time-based)");
+  s->add_option("--out", a.topic, "topic (default gcpipe_program)");
+  add_dds_options(*s, a);
+}
+
+void add_node(CLI::App& app, NodeArgs& a) {
+  auto* s = app.add_subcommand("node", "run one stage of the pipeline as a DDS node");
+  s->add_option("stage", a.stage, "parse, trochoid, write or compensate")->required();
+  s->add_option("--config", a.config, "pipeline config");
+  s->add_option("--batch-bytes", a.batch_bytes, "publish a batch once it holds this much")->check(CLI::Range(1024, 1048576));
+  s->add_option("--in", a.in, "input topic (default: the stage's edge)");
+  s->add_option("--out", a.out, "output topic (default: the stage's edge)");
+  s->add_flag("--forever", a.forever, "serve programs until SIGINT/SIGTERM");
+  s->add_flag("--strict", a.strict, "stop each program at its first rejected line (parse, trochoid)");
+  add_dds_options(*s, a);
+}
+
+void add_sink(CLI::App& app, SinkArgs& a) {
+  auto* s = app.add_subcommand("sink", "write the program arriving on a G-code topic to a file");
+  s->add_option("-o,--output", a.output, "the file (written as .part, renamed when complete)")->required()->check(kNonEmpty);
+  s->add_option("--in", a.in, "topic (default gcpipe_gcode)");
+  add_dds_options(*s, a);
+}
+
+void add_monitor(CLI::App& app, MonitorArgs& a) {
+  auto* s = app.add_subcommand("monitor", "print a live summary of a pipeline topic");
+  s->add_option("topic", a.topic, "the topic to watch")->required();
+  s->add_option("--type", a.type, "program, blocks or gcode (default: from the topic name)");
+  s->add_option("--period", a.period, "seconds between summaries")->check(CLI::Range(0.05, 3600.0));
+  add_dds_options(*s, a);
+}
+#endif
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2 || std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0 ||
-      std::strcmp(argv[1], "help") == 0) {
-    print_help();
-    return argc < 2 ? 2 : 0;
-  }
-  if (std::strcmp(argv[1], "--version") == 0) {
-    std::cout << "gcpipe " << GCPIPE_VERSION << "\n";
-    return 0;
-  }
-  const Command* cmd = find(argv[1]);
-  if (cmd == nullptr) {
-    std::cerr << "gcpipe: unknown command '" << argv[1] << "'. Run 'gcpipe --help' for the list.\n";
-    return 2;
-  }
-  std::vector<std::string> args(argv + 2, argv + argc);
-  for (const auto& a : args) {
-    if (a == "--help" || a == "-h") {
-      std::cout << cmd->usage;
-      return 0;
-    }
-  }
+  CLI::App app{"gcpipe: G-code stream-processing pipeline for table-table five-axis machines", "gcpipe"};
+  app.set_version_flag("--version", std::string("gcpipe ") + GCPIPE_VERSION);
+  app.require_subcommand(1, 1);
+  BatchArgs batch;
+  ParseArgs parse;
+  TrochoidArgs trochoid;
+  IkArgs ik;
+  SimulateArgs simulate;
+  SynthArgs synth;
+  TrainIkArgs train_ik;
+  add_batch(app, batch);
+  add_parse(app, parse);
+  add_trochoid(app, trochoid);
+  add_ik(app, ik);
+  add_simulate(app, simulate);
+  auto* stages = app.add_subcommand("stages", "list the registered stages, their edges and ports");
+  add_train_ik(app, train_ik);
+  add_synth(app, synth);
+#ifdef GCPIPE_WITH_DDS
+  FeedArgs feed;
+  NodeArgs node;
+  SinkArgs sink;
+  MonitorArgs monitor;
+  add_feed(app, feed);
+  add_node(app, node);
+  add_sink(app, sink);
+  add_monitor(app, monitor);
+#endif
   try {
-    return cmd->run(args);
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? 0 : 2;
+  }
+  const std::string name = app.get_subcommands().front()->get_name();
+  try {
+    if (name == "batch") return run_batch(batch);
+    if (name == "parse") return run_parse(parse);
+    if (name == "trochoid") return run_trochoid(trochoid);
+    if (name == "ik") return run_ik(ik);
+    if (name == "simulate") return run_simulate(simulate);
+    if (name == "stages") return (void)stages, run_stages();
+    if (name == "train-ik") return run_train_ik(train_ik);
+    if (name == "synth") return run_synth(synth);
+#ifdef GCPIPE_WITH_DDS
+    if (name == "feed") return run_feed(feed);
+    if (name == "node") return run_node(node);
+    if (name == "sink") return run_sink(sink);
+    if (name == "monitor") return run_monitor(monitor);
+#endif
   } catch (const std::exception& e) {
     // Configuration and construction errors arrive here; per-line errors never throw.
-    std::cerr << "gcpipe " << cmd->name << ": " << e.what() << "\n";
+    std::cerr << "gcpipe " << name << ": " << e.what() << "\n";
     return 1;
   }
+  std::cerr << "gcpipe: no command '" << name << "'\n";
+  return 2;
 }

@@ -116,7 +116,9 @@ struct CompensateNode::Impl {
     if (error.empty() && prog.too_many)
       error = "the program has more than compensate.max_blocks = " + std::to_string(options.max_blocks) + " blocks";
     if (error.empty()) {
-      compensate::ProgramCompensation run = compensate::compensate_program(model, options, write_options, prog.blocks, {});
+      const simulate::SimulationRun sim = simulate::simulate_program(
+          model, std::move(prog.blocks), {options.reference_smoothing, options.max_machine_time});
+      compensate::ProgramCompensation run = compensate::compensate_program(model, options, write_options, sim, {});
       if (run.text.empty()) error = "not compensated: " + run.note;
       text = std::move(run.text);
     }

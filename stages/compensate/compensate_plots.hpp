@@ -1,6 +1,6 @@
 // Error figures of the batch job (PNG through OpenCV, via gcpipe_plot): tool path with the error
 // magnified, ballbar-style polar plots of circles, contour error over time, per-axis following
-// error, and the neural-against-analytic IK figures. Each function writes one file and throws
+// error,. Each function writes one file and throws
 // std::runtime_error naming it when it cannot.
 #pragma once
 
@@ -32,20 +32,5 @@ void plot_contour_error(const std::filesystem::path& png, const Evaluation& befo
 /// [um for X Y Z, mdeg for A C].
 void plot_following_error(const std::filesystem::path& png, const Evaluation& before, const Evaluation* after,
                           const std::string& title);
-
-/// Neural and analytic IK along the program, one entry per IK point.
-struct IkSeries {
-  std::vector<double> index;                         //!< point number (x axis)
-  std::array<std::vector<double>, kNumAxes> diff;    //!< neural - analytic [mm, deg]
-  Axes tolerance{};                                  //!< divergence tolerance [mm, deg]
-  std::vector<double> flagged;                       //!< point numbers flagged neural_diverged
-  std::vector<double> tip_error_analytic;            //!< |FK(analytic) - programmed tip| [mm]
-  std::vector<double> tip_error_neural;              //!< |FK(neural) - programmed tip| [mm]
-};
-
-/// Neural minus analytic joints per axis along the path, with the tolerance band and flags.
-void plot_ik_divergence(const std::filesystem::path& png, const IkSeries& s, const std::string& title);
-/// Tool-tip error of each solver (log10 mm) along the path.
-void plot_ik_tip_error(const std::filesystem::path& png, const IkSeries& s, const std::string& title);
 
 }  // namespace gcpipe::compensate

@@ -25,12 +25,7 @@ void to_msg(const ResolvedBlock& block, msg::Block& out);
 bool from_msg(const msg::Block& in, ResolvedBlock& out, std::string* why = nullptr);
 
 /// What a LineDiagnostic says about its line (wire octet `line_status`, idl/gcpipe.idl).
-enum class DiagnosticKind : std::uint8_t {
-  kLineRejected = 1,   //!< the parser rejected the line (LineStatus::kRejected): no block
-  kLineDeleted = 2,    //!< block delete '/' (LineStatus::kDeleted): no block
-  kBlockRejected = 3,  //!< a later stage rejected the line's block (G275 cycle); the blocks
-                       //!< replacing it (skip moves) carry the same line and come after it
-};
+using gcpipe::DiagnosticKind;
 /// kRejected -> kLineRejected, kDeleted -> kLineDeleted (kBlock has no diagnostic).
 DiagnosticKind kind_of(LineStatus status);
 

@@ -1,5 +1,7 @@
 #include "dds_runtime.hpp"
 
+#include "output_dir.hpp"
+
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/publisher/DataWriter.hpp>
@@ -37,9 +39,7 @@ constexpr const char* kReaderProfile = "gcpipe_reader";
 // How often blocking waits look at the stop flag [s]: short enough that Ctrl-C feels immediate.
 constexpr double kPollPeriod = 0.1;
 
-std::atomic<bool> g_stop{false};
 
-extern "C" void on_stop_signal(int) { g_stop.store(true); }
 
 eprosima::fastrtps::Duration_t duration(double seconds) {
   return eprosima::fastrtps::Duration_t(static_cast<long double>(seconds));
@@ -77,12 +77,37 @@ MessageType message_type_from_name(const std::string& name) {
                            "' (known: program, blocks, gcode, or ProgramChunk, BlockBatch, GcodeChunk)");
 }
 
+const std::vector<Edge>& edges() {
+  static const std::vector<Edge> e = {
+      {kProgramTopicName, MessageType::kProgramChunk, "feed", "parse"},
+      {"gcpipe_blocks", MessageType::kBlockBatch, "parse", "trochoid"},
+      {"gcpipe_toolpath", MessageType::kBlockBatch, "trochoid", "write"},
+      {"gcpipe_toolpath", MessageType::kBlockBatch, "trochoid", "compensate"},
+      {kGcodeTopicName, MessageType::kGcodeChunk, "write", "sink"},
+      {kCompensatedTopicName, MessageType::kGcodeChunk, "compensate", "sink"},
+  };
+  return e;
+}
+
+const Edge& input_edge(const std::string& stage) {
+  for (const Edge& e : edges())
+    if (stage == e.reader) return e;
+  throw std::runtime_error("stage '" + stage + "' has no DDS node (nodes: parse, trochoid, write, compensate)");
+}
+
+const Edge& output_edge(const std::string& stage) {
+  for (const Edge& e : edges())
+    if (stage == e.writer) return e;
+  throw std::runtime_error("stage '" + stage + "' has no DDS node (nodes: parse, trochoid, write, compensate)");
+}
+
 bool default_topic_type(const std::string& topic, MessageType& type) {
-  if (topic == kProgramTopicName) type = MessageType::kProgramChunk;
-  else if (topic == kBlocksTopicName || topic == kToolpathTopicName) type = MessageType::kBlockBatch;
-  else if (topic == kGcodeTopicName) type = MessageType::kGcodeChunk;
-  else return false;
-  return true;
+  for (const Edge& e : edges())
+    if (topic == e.topic) {
+      type = e.type;
+      return true;
+    }
+  return false;
 }
 
 void check_topic_name(const std::string& topic) {
@@ -113,12 +138,10 @@ int default_domain(int fallback) {
   return value;
 }
 
-void install_stop_handlers() {
-  std::signal(SIGINT, on_stop_signal);
-  std::signal(SIGTERM, on_stop_signal);
-}
+// One stop flag for the whole process: the pipeline runner and the DDS loops poll the same.
+void install_stop_handlers() { pipeline::install_stop_handlers(); }
 
-bool stop_requested() { return g_stop.load(); }
+bool stop_requested() { return pipeline::stop_requested(); }
 
 // ---------------------------------------------------------------------------------------------
 

@@ -28,6 +28,11 @@ constexpr const char* kColumns[11] = {"t", "X_cmd", "Y_cmd", "Z_cmd", "A_cmd", "
 
 std::string format_trace_row(const TraceRow& r) {
   std::string s;
+  append_trace_row(s, r);
+  return s;
+}
+
+void append_trace_row(std::string& s, const TraceRow& r) {
   append_time(s, r.t);
   for (double v : r.command) {
     s += ',';
@@ -37,7 +42,6 @@ std::string format_trace_row(const TraceRow& r) {
     s += ',';
     append_number(s, v);
   }
-  return s;
 }
 
 TraceWriter::TraceWriter(std::ostream& out) : out_(out) { out_ << kTraceHeader << '\n'; }

@@ -42,6 +42,8 @@ class TraceWriter {
 
 /// Formats one row without the line terminator (used by the writer and the tests).
 std::string format_trace_row(const TraceRow& r);
+/// Appends the same text to `out` (no line end): no allocation per row on a long trace.
+void append_trace_row(std::string& out, const TraceRow& r);
 
 enum class TraceStatus : std::uint8_t {
   kRow,    //!< `row` holds the next tick

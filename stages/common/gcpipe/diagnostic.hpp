@@ -17,6 +17,14 @@ struct Diagnostic {
   std::string message;       //!< names the word and its value and says what to do
 };
 
+/// What a diagnostic stands for when it travels between stages (and on the DDS edges).
+enum class DiagnosticKind : std::uint8_t {
+  kLineRejected = 1,   //!< the parser rejected the line: no block
+  kLineDeleted = 2,    //!< block delete '/': no block
+  kBlockRejected = 3,  //!< a later stage rejected the line's block (a G275 cycle); the blocks
+                       //!< replacing it (skip moves) carry the same line and come after it
+};
+
 /// "file:line:col: error: message", the format compilers use, so editors can jump to it.
 std::string format(const Diagnostic& d);
 

@@ -1,0 +1,135 @@
+// The compensate stage in the pipeline: the program's simulation in (from the simulate stage in
+// the same process, or computed here from the blocks when this stage runs alone, as a DDS node),
+// the compensated program out as G-code text, and the simulation of that text as written, read
+// back by the parser, for the "after" figures.
+#include <algorithm>
+#include <cstdio>
+
+#include <nlohmann/json.hpp>
+
+#include "compensate_program.hpp"
+#include "parse.hpp"
+#include "simulate_stage.hpp"
+#include "simulation_report.hpp"
+
+namespace gcpipe {
+namespace {
+
+using pipeline::Emitter;
+
+class CompensateStage final : public pipeline::Stage {
+ public:
+  explicit CompensateStage(const pipeline::StageContext& c)
+      : model_(compensate::load_model(*c.config)),
+        options_(compensate::load_compensate_options(c.config->root.section("compensate"))),
+        write_options_(load_write_options(c.config->root.section("write"))),
+        parse_options_(load_parse_options(c.config->root.section("parse"))),
+        machine_(c.config->machine),
+        progress_(c.progress),
+        collect_(std::find(c.stages.begin(), c.stages.end(), "simulate") == c.stages.end()) {}
+
+  bool block(const ResolvedBlock& b, Emitter&) override {
+    if (collect_ && blocks_.size() < options_.max_blocks) blocks_.push_back(b);
+    else if (collect_) too_many_ = true;
+    return true;
+  }
+  bool diagnostic(const Diagnostic&, DiagnosticKind, Emitter&) override { return true; }
+  void product(const std::shared_ptr<const pipeline::Product>& p, Emitter&) override {
+    if (auto s = std::dynamic_pointer_cast<const SimulatedProgram>(p)) simulated_ = s;
+  }
+
+  bool finish(bool complete, Emitter& out) override {
+    if (!complete) return fail("the program did not arrive whole");
+    if (too_many_) return fail("the program has more than compensate.max_blocks = " + std::to_string(options_.max_blocks) + " blocks");
+    if (!simulated_) simulate_here();
+    if (!simulated_->run.before) return fail("not simulated: " + simulated_->run.note);
+    compensation_ = compensate::compensate_program(model_, options_, write_options_, simulated_->run, progress_);
+    if (compensation_.text.empty()) return fail("no compensated program: " + compensation_.note);
+    read_back(compensation_.text);
+    return out.text(compensation_.text);
+  }
+
+  void report(pipeline::ReportContext& r) const override {
+    compensate::SimulationOutcome o;
+    o.model = &model_;
+    o.run = simulated_ ? &simulated_->run : nullptr;
+    o.after = after_ ? &*after_ : nullptr;
+    o.result = compensation_.result ? &*compensation_.result : nullptr;
+    o.written_nodes = written_nodes_;
+    o.skipped = failure_;
+    compensate::report_simulation(r, o);
+  }
+  std::string failure() const override { return failure_; }
+
+ private:
+  bool fail(std::string why) {
+    failure_ = std::move(why);
+    return true;
+  }
+
+  void simulate_here() {
+    auto s = std::make_shared<SimulatedProgram>();
+    s->run = simulate::simulate_program(model_, std::move(blocks_), {options_.reference_smoothing, options_.max_machine_time},
+                                        {}, progress_);
+    simulated_ = s;
+  }
+
+  // The "after" figures are those of the text as written, rounding included: it is parsed back
+  // (strict, in the writer's dialect) and simulated on the reference clock.
+  void read_back(const std::string& text) {
+    if (progress_) progress_("re-reading and simulating compensated.nc", 0, 0);
+    ParseOptions po = parse_options_;
+    po.strict = true;
+    po.dialect = write_options_.dialect;
+    po.decimal_point_increments = false;
+    Parser parser(po, machine_, "compensated.nc");
+    std::vector<ResolvedBlock> back;
+    ResolvedBlock block;
+    Diagnostic diag;
+    std::size_t begin = 0;
+    while (begin < text.size()) {
+      const std::size_t end = std::min(text.find('\n', begin), text.size());
+      const LineStatus st = parser.parse_line(std::string_view(text).substr(begin, end - begin), block, diag);
+      if (st == LineStatus::kRejected) throw std::runtime_error("compensated.nc does not read back: " + format(diag));
+      if (st == LineStatus::kBlock && block.motion != Motion::kNone) back.push_back(block);
+      begin = end + 1;
+    }
+    const auto& nodes = compensation_.result->nodes;
+    if (back.size() + 1 != nodes.size())
+      throw std::runtime_error("compensated.nc does not read back as written (" + std::to_string(back.size()) +
+                               " motion blocks for " + std::to_string(nodes.size() - 1) + " points)");
+    written_nodes_ = back.size();
+    const auto& run = simulated_->run;
+    after_ = simulate::evaluate(
+        model_, *run.nominal, run.program, back, run.start,
+        [&nodes](std::uint32_t i) { return nodes[std::min<std::size_t>(i + 1, nodes.size() - 1)].block; }, {}, true);
+  }
+
+  compensate::Model model_;
+  compensate::CompensateOptions options_;
+  WriteOptions write_options_;
+  ParseOptions parse_options_;
+  MachineConfig machine_;
+  pipeline::Progress progress_;
+  bool collect_;
+  bool too_many_ = false;
+  std::vector<ResolvedBlock> blocks_;
+  std::shared_ptr<const SimulatedProgram> simulated_;
+  compensate::ProgramCompensation compensation_;
+  std::optional<simulate::Evaluation> after_;
+  std::uint64_t written_nodes_ = 0;
+  std::string failure_;
+};
+
+}  // namespace
+
+pipeline::StageInfo compensate_stage() {
+  return {"compensate", "simulate",
+          "learning pre-compensation against the simulated machine; compensated.nc and its figures",
+          pipeline::Port::kBlocks, pipeline::Port::kGcode,
+          [](const pipeline::StageContext& c) -> std::unique_ptr<pipeline::Stage> {
+            return std::make_unique<CompensateStage>(c);
+          }};
+}
+
+}  // namespace gcpipe

@@ -1,0 +1,90 @@
+#include "simulation_report.hpp"
+
+#include <cmath>
+#include <cstdio>
+
+#include <nlohmann/json.hpp>
+
+#include "compensate_plots.hpp"
+#include "report.hpp"
+
+namespace gcpipe::compensate {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Seed 002 eq. (20) is about synchronising X/Y with a turning C: computed at the program's fastest
+// C speed when C turns and X, Y and C have drive models, and per circle segment at its own speed.
+void recommend_kffp(const Model& model, const Nominal& nominal, ReportInput& rin) {
+  const double omega = nominal.stats.interp.peak_velocity[kC] * kPi / 180.0;
+  const auto& d = model.drives.axes;
+  if (!(omega > 1e-6)) {
+    rin.best_kffp_note = "no recommendation: C does not turn in this program";
+    return;
+  }
+  if (d[kX].model != servo::DriveModel::kDrive || d[kY].model != servo::DriveModel::kDrive ||
+      d[kC].model != servo::DriveModel::kDrive) {
+    rin.best_kffp_note = "no recommendation: X, Y and C need drive models in the drives file";
+    return;
+  }
+  const double T = model.interp.period;
+  rin.best_kffp = servo::best_kffp(model.drives, model.interp.smoothing, T, omega, 2.0, 1.0);
+  rin.best_kffp_omega = omega;
+  std::vector<double> seg_omega(nominal.segments.size(), 0.0);
+  for (std::size_t n = 1; n < nominal.raw.size(); ++n) {
+    const std::size_t g = nominal.segment_of_block[nominal.block[n]];
+    if (g < seg_omega.size())
+      seg_omega[g] = std::max(seg_omega[g], std::abs(nominal.raw[n][kC] - nominal.raw[n - 1][kC]) / T * kPi / 180.0);
+  }
+  for (std::size_t g = 0; g < seg_omega.size(); ++g)
+    if (seg_omega[g] > 1e-6 && nominal.segments[g].circle)
+      rin.segment_kffp.push_back({g, {seg_omega[g], servo::best_kffp(model.drives, model.interp.smoothing, T, seg_omega[g], 2.0, 1.0)}});
+}
+
+void draw(pipeline::ReportContext& r, const Nominal& nominal, const Evaluation& before, const Evaluation* after) {
+  if (r.dir.empty()) return;
+  if (r.progress) r.progress("drawing the error figures", 0, 0);
+  const std::filesystem::path plots = r.dir / "plots";
+  const std::string& base = r.input_base;
+  plot_toolpath(plots / "toolpath.png", before, after, base + ": tool path");
+  r.files->push_back("plots/toolpath.png");
+  if (plot_ballbar(plots / "ballbar.png", nominal, before, after, base)) r.files->push_back("plots/ballbar.png");
+  plot_contour_error(plots / "contour_error.png", before, after, base + ": contour error, before and after compensation");
+  r.files->push_back("plots/contour_error.png");
+  plot_following_error(plots / "following_error.png", before, after, base);
+  r.files->push_back("plots/following_error.png");
+}
+
+}  // namespace
+
+void report_simulation(pipeline::ReportContext& r, const SimulationOutcome& o) {
+  if (o.run == nullptr || !o.run->before) {
+    (*r.json)["simulation"] = {{"skipped", o.skipped}};
+    *r.text += "  simulate: skipped (" + o.skipped + ")\n";
+    return;
+  }
+  const Nominal& nominal = *o.run->nominal;
+  ReportInput rin;
+  rin.model = o.model;
+  rin.nominal = &nominal;
+  rin.before = &*o.run->before;
+  rin.after = o.after;
+  rin.result = o.result;
+  recommend_kffp(*o.model, nominal, rin);
+  (*r.json)["simulation"] = nlohmann::ordered_json::parse(report_json(rin));
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "  simulate: %.3f s of machine time at %.4g s\n",
+                static_cast<double>(nominal.raw.size() - 1) * o.model->interp.period, o.model->interp.period);
+  *r.text += buf;
+  *r.text += report_text(rin);
+  if (o.after != nullptr) {
+    std::snprintf(buf, sizeof buf,
+                  "  compensated.nc: %llu timed points (G93, machine axes), read back and simulated for the 'after' figures\n",
+                  static_cast<unsigned long long>(o.written_nodes));
+    *r.text += buf;
+  }
+  draw(r, nominal, *o.run->before, o.after);
+}
+
+}  // namespace gcpipe::compensate

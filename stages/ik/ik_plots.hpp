@@ -1,0 +1,30 @@
+// The IK stage's figures: neural against analytic joints along the program, and each solver's
+// tool-tip error. PNG through OpenCV (gcpipe_plot); each function throws naming the file it
+// cannot write.
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "gcpipe/kinematics.hpp"
+
+namespace gcpipe {
+
+/// Neural and analytic IK along the program, one entry per IK point.
+struct IkSeries {
+  std::vector<double> index;                         //!< point number (x axis)
+  std::array<std::vector<double>, kNumAxes> diff;    //!< neural - analytic [mm, deg]
+  Axes tolerance{};                                  //!< divergence tolerance [mm, deg]
+  std::vector<double> flagged;                       //!< point numbers flagged neural_diverged
+  std::vector<double> tip_error_analytic;            //!< |FK(analytic) - programmed tip| [mm]
+  std::vector<double> tip_error_neural;              //!< |FK(neural) - programmed tip| [mm]
+};
+
+/// Neural minus analytic joints per axis along the path, with the tolerance band and flags.
+void plot_ik_divergence(const std::filesystem::path& png, const IkSeries& s, const std::string& title);
+/// Tool-tip error of each solver (log10 mm) along the path.
+void plot_ik_tip_error(const std::filesystem::path& png, const IkSeries& s, const std::string& title);
+
+}  // namespace gcpipe

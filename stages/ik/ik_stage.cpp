@@ -1,0 +1,131 @@
+#include "ik_stage.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+namespace gcpipe {
+
+namespace {
+
+IkOptions options_of(const pipeline::StageContext& c) {
+  IkOptions o = load_ik_options(c.config->root.section("ik"));
+  if (c.ik_tool_vector) o.resolve_orientation = IkInputMode::kToolVector;
+  return o;
+}
+
+double distance(const Vec3& a, const Vec3& b) {
+  return std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+nlohmann::ordered_json axes_json(const Axes& a) { return nlohmann::ordered_json(std::vector<double>(a.begin(), a.end())); }
+
+nlohmann::ordered_json neural_json(const IkSummary& s, const Axes& tolerance) {
+  Axes rms{};
+  for (std::size_t i = 0; i < kNumAxes; ++i)
+    rms[i] = s.neural_points ? std::sqrt(s.neural_sum_sq_diff[i] / static_cast<double>(s.neural_points)) : 0.0;
+  return {{"points", s.neural_points},
+          {"units", "mm (X Y Z), deg (A C)"},
+          {"tolerance", axes_json(tolerance)},
+          {"max_abs_diff", axes_json(s.neural_max_abs_diff)},
+          {"rms_diff", axes_json(rms)}};
+}
+
+nlohmann::ordered_json summary_json(const IkSummary& s, bool neural, const Axes& tolerance) {
+  nlohmann::ordered_json flags = nlohmann::ordered_json::object();
+  for (int bit = 0; bit < 16; ++bit)
+    if (s.flag_counts[bit] != 0) flags[ik_flags_to_string(1u << bit)] = s.flag_counts[bit];
+  return {{"points", s.points},
+          {"ok", s.ok},
+          {"degraded", s.degraded},
+          {"failed", s.failed},
+          {"first_failed_line", s.first_failed_line},
+          {"flags", flags},
+          {"neural", neural ? neural_json(s, tolerance) : nlohmann::ordered_json(nullptr)}};
+}
+
+}  // namespace
+
+std::optional<neural::NeuralIk> load_ik_model_for(const IkOptions& options, const std::string& path,
+                                                  const std::string& machine) {
+  if (path.empty()) return load_ik_model(options, machine);
+  std::optional<neural::NeuralIk> model(neural::NeuralIk::load(path));
+  // A model learns one machine's geometry; on another machine it would be confidently wrong.
+  if (model->provenance().machine != machine)
+    throw std::runtime_error(path + ": the model was trained for machine '" + model->provenance().machine +
+                             "', the config is for '" + machine + "': train one with gcpipe train-ik --config <this config>");
+  return model;
+}
+
+IkPipelineStage::IkPipelineStage(const pipeline::StageContext& c)
+    : kin_(c.config->machine.kinematics),
+      model_(load_ik_model_for(options_of(c), c.ik_model, c.config->machine.name)),
+      stage_(kin_, options_of(c), c.config->machine.initial_position, model_ ? &*model_ : nullptr) {
+  sampler_.s.tolerance = stage_.options().neural_tolerance;
+}
+
+bool IkPipelineStage::block(const ResolvedBlock& b, pipeline::Emitter& out) {
+  if (stage_.step(b, point_)) {
+    sampler_.add(point_, kin_, b.tool_length_active ? b.tool_length : kin_.tool_length);
+    if (tap_) tap_(point_);
+  }
+  return out.block(b);
+}
+
+void IkPipelineStage::report(pipeline::ReportContext& r) const {
+  const bool neural = model_.has_value();
+  (*r.json)["ik"] = summary_json(stage_.summary(), neural, stage_.options().neural_tolerance);
+  // format_summary starts each line with "ik: "; report.txt has its own column of stage names.
+  std::string text = format_summary(stage_.summary(), neural), indented = "  ik:       ";
+  for (std::size_t at = 0; at < text.size();) {
+    const std::size_t end = std::min(text.find('\n', at), text.size());
+    std::string_view line = std::string_view(text).substr(at, end - at);
+    if (line.starts_with("ik: ")) line.remove_prefix(4);
+    indented += std::string(line) + "\n";
+    at = end + 1;
+    if (at < text.size()) indented += "            ";
+  }
+  *r.text += indented;
+  if (!neural || sampler_.s.index.empty() || r.dir.empty()) return;
+  if (r.progress) r.progress("drawing the IK figures", 0, 0);
+  plot_ik_divergence(r.dir / "plots" / "ik_divergence.png", sampler_.s, r.input_base + ": neural against analytic IK, per axis");
+  plot_ik_tip_error(r.dir / "plots" / "ik_tip_error.png", sampler_.s, r.input_base + ": tool-tip error of each IK solver");
+  r.files->push_back("plots/ik_divergence.png");
+  r.files->push_back("plots/ik_tip_error.png");
+}
+
+void IkPipelineStage::Sampler::add(const IkPoint& p, const MachineKinematics& kin, double tool_length) {
+  const std::uint64_t k = seen++;
+  if (!p.has_neural) return;
+  if ((p.flags & kIkNeuralDiverged) != 0) s.flagged.push_back(static_cast<double>(k));
+  if (k % stride != 0) return;
+  s.index.push_back(static_cast<double>(k));
+  for (std::size_t i = 0; i < kNumAxes; ++i) s.diff[i].push_back(p.neural_joints[i] - p.joints[i]);
+  s.tip_error_analytic.push_back(distance(forward_kinematics(kin, p.joints, tool_length).tip, p.pose.tip));
+  s.tip_error_neural.push_back(distance(forward_kinematics(kin, p.neural_joints, tool_length).tip, p.pose.tip));
+  if (s.index.size() >= kCap) thin();
+}
+
+void IkPipelineStage::Sampler::thin() {
+  auto half = [](std::vector<double>& v) {
+    std::size_t j = 0;
+    for (std::size_t i = 0; i < v.size(); i += 2) v[j++] = v[i];
+    v.resize(j);
+  };
+  half(s.index);
+  for (auto& d : s.diff) half(d);
+  half(s.tip_error_analytic);
+  half(s.tip_error_neural);
+  stride *= 2;
+}
+
+pipeline::StageInfo ik_stage() {
+  return {"ik", "trochoid", "analytic and neural inverse kinematics side by side, with divergence flags",
+          pipeline::Port::kBlocks, pipeline::Port::kBlocks,
+          [](const pipeline::StageContext& c) -> std::unique_ptr<pipeline::Stage> {
+            return std::make_unique<IkPipelineStage>(c);
+          }};
+}
+
+}  // namespace gcpipe

@@ -1,0 +1,526 @@
+#include "simulate.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <deque>
+#include <limits>
+
+#include "contour.hpp"
+#include "gcpipe/config.hpp"
+
+namespace gcpipe::simulate {
+
+namespace {
+
+double dist3(const Vec3& a, const Vec3& b) {
+  return std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+Axes lerp(const Axes& a, const Axes& b, double s) {
+  Axes r;
+  for (std::size_t i = 0; i < kNumAxes; ++i) r[i] = a[i] + (b[i] - a[i]) * s;
+  return r;
+}
+
+bool is_motion(Motion m) {
+  return m == Motion::kRapid || m == Motion::kLinear || m == Motion::kArcCW || m == Motion::kArcCCW ||
+         m == Motion::kTrochoidSlot;
+}
+
+/// The nominal tool-tip path as a polyline without repeated points, and the polyline index of
+/// every tick, so that the contour error can be searched near the previous match (a dwell or a
+/// stop adds many identical points that would otherwise stall the search).
+struct NominalPath {
+  std::vector<Vec3> pts;
+  std::vector<std::uint32_t> index_of_tick;
+};
+
+NominalPath nominal_path(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program) {
+  NominalPath p;
+  p.index_of_tick.reserve(nom.raw.size());
+  for (std::size_t n = 0; n < nom.raw.size(); ++n) {
+    const Vec3 tip = forward_kinematics(model.kin, nom.raw[n], tool_length_of(model, program[nom.block[n]])).tip;
+    if (p.pts.empty() || dist3(p.pts.back(), tip) > 1e-9) p.pts.push_back(tip);
+    p.index_of_tick.push_back(static_cast<std::uint32_t>(p.pts.size() - 1));
+  }
+  return p;
+}
+
+/// Contour error: the distance from the actual tip to the nominal polyline among the points the
+/// nominal could have reached by now, looking back at most `kLookBack` points. The window stops
+/// a looping path (a trochoid) from matching a crossing of a much earlier loop; the actual trails
+/// the nominal by the acc/dec and servo lag (tens of ms), far less than the window. Segments are
+/// grouped with bounding boxes so that most of the window is skipped after the first good match.
+class LocalContour {
+ public:
+  static constexpr std::size_t kGroup = 32;
+  static constexpr std::size_t kLookBack = 3000;
+  explicit LocalContour(const NominalPath& p) : p_(p) {
+    for (std::size_t g = 0; g * kGroup + 1 < p.pts.size(); ++g) {
+      Box b;
+      const std::size_t end = std::min(p.pts.size() - 1, (g + 1) * kGroup);
+      for (std::size_t i = g * kGroup; i <= end; ++i)
+        for (int k = 0; k < 3; ++k) b.lo[k] = std::min(b.lo[k], p.pts[i][k]), b.hi[k] = std::max(b.hi[k], p.pts[i][k]);
+      boxes_.push_back(b);
+    }
+  }
+  /// `limit`: the newest polyline index the nominal has reached at this tick.
+  double distance(const Vec3& actual, std::size_t limit, Vec3& closest) {
+    const auto& pts = p_.pts;
+    closest = pts.empty() ? actual : pts[0];
+    if (pts.size() < 2) return pts.empty() ? 0.0 : dist3(pts[0], actual);
+    const std::size_t hi = std::min(std::max<std::size_t>(limit, 1), pts.size() - 1);  // last segment end
+    const std::size_t lo = hi > kLookBack ? hi - kLookBack : 0;
+    double best = std::numeric_limits<double>::infinity();
+    Vec3 c;
+    auto scan = [&](std::size_t a, std::size_t b) {  // segments [a, b)
+      for (std::size_t i = a; i < b; ++i) {
+        const double d = servo::segment_distance(pts[i], pts[i + 1], actual, &c);
+        if (d < best) best = d, closest = c, j_ = i;
+      }
+    };
+    // Start near the previous match: a tight bound makes the box test skip most groups.
+    if (j_ >= lo && j_ < hi) scan(j_ > lo + 8 ? j_ - 8 : lo, std::min(hi, j_ + 64));
+    for (std::size_t g = lo / kGroup; g * kGroup < hi && g < boxes_.size(); ++g) {
+      const Box& bx = boxes_[g];
+      double dd = 0;
+      for (int k = 0; k < 3; ++k) {
+        const double o = std::max({bx.lo[k] - actual[k], 0.0, actual[k] - bx.hi[k]});
+        dd += o * o;
+      }
+      if (dd >= best * best) continue;
+      scan(std::max(lo, g * kGroup), std::min(hi, (g + 1) * kGroup));
+    }
+    return best;
+  }
+
+ private:
+  struct Box {
+    Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  };
+  const NominalPath& p_;
+  std::vector<Box> boxes_;
+  std::size_t j_ = 0;
+};
+
+void add_error(ErrorStats& s, double& sum_sq, std::uint64_t& count, double e, double t, std::uint64_t line) {
+  if (e > s.max) {
+    s.max = e;
+    s.t_at_max = t;
+    s.line_at_max = line;
+  }
+  sum_sq += e * e;
+  ++count;
+}
+
+/// Circle through the segment's nominal tip points (Kasa's algebraic fit, in X Y), accepted when
+/// every point lies within 1e-4 R of it, Z is constant and the points cover most of a turn.
+void detect_circle(Segment& seg, const std::vector<Vec3>& tips) {
+  if (tips.size() < 50) return;
+  double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, sxz = 0, syz = 0, sz = 0, zmin = 1e300, zmax = -1e300;
+  for (const auto& p : tips) {
+    const double x = p[0], y = p[1], z = x * x + y * y;
+    sx += x; sy += y; sxx += x * x; syy += y * y; sxy += x * y; sxz += x * z; syz += y * z; sz += z;
+    zmin = std::min(zmin, p[2]);
+    zmax = std::max(zmax, p[2]);
+  }
+  const double n = static_cast<double>(tips.size());
+  // Solve [sxx sxy sx; sxy syy sy; sx sy n] [a b c] = [sxz syz sz]; centre (a/2, b/2).
+  const double m[3][4] = {{sxx, sxy, sx, sxz}, {sxy, syy, sy, syz}, {sx, sy, n, sz}};
+  double a[3][4];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 4; ++j) a[i][j] = m[i][j];
+  for (int c = 0; c < 3; ++c) {
+    int piv = c;
+    for (int r = c + 1; r < 3; ++r)
+      if (std::abs(a[r][c]) > std::abs(a[piv][c])) piv = r;
+    if (std::abs(a[piv][c]) < 1e-300) return;
+    for (int j = 0; j < 4; ++j) std::swap(a[c][j], a[piv][j]);
+    for (int r = 0; r < 3; ++r) {
+      if (r == c) continue;
+      const double f = a[r][c] / a[c][c];
+      for (int j = c; j < 4; ++j) a[r][j] -= f * a[c][j];
+    }
+  }
+  const double A = a[0][3] / a[0][0], B = a[1][3] / a[1][1], C = a[2][3] / a[2][2];
+  const double cx = A / 2, cy = B / 2, r2 = C + cx * cx + cy * cy;
+  if (!(r2 > 0)) return;
+  const double R = std::sqrt(r2);
+  double worst = 0, span = 0, prev = std::atan2(tips[0][1] - cy, tips[0][0] - cx);
+  for (const auto& p : tips) {
+    worst = std::max(worst, std::abs(std::hypot(p[0] - cx, p[1] - cy) - R));
+    const double ang = std::atan2(p[1] - cy, p[0] - cx);
+    double d = ang - prev;
+    if (d > M_PI) d -= 2 * M_PI;
+    if (d < -M_PI) d += 2 * M_PI;
+    span += d;
+    prev = ang;
+  }
+  if (worst <= 1e-4 * R && zmax - zmin <= 1e-6 && std::abs(span) >= 1.5 * M_PI) {
+    seg.circle = true;
+    seg.circle_radius = R;
+    seg.circle_centre = {cx, cy};
+  }
+}
+
+}  // namespace
+
+Model load_model(const PipelineConfig& pc) {
+  if (!pc.root.has("servo"))
+    throw pc.root.error("servo", "missing: name the drives file, e.g. 'servo: {drives: drives/seed002.yaml}'");
+  const Config servo_section = pc.root.section("servo");
+  servo_section.reject_unknown({"drives"});
+  if (!servo_section.has("drives"))
+    throw servo_section.error("drives", "missing: the drives file, e.g. drives/seed002.yaml");
+  Model m;
+  m.kin = pc.machine.kinematics;
+  m.drives = servo::load_drives(Config::load_file(servo_section.resolve(servo_section.string("drives", ""))));
+  m.interp = interpolate::load_interpolate_options(pc.root.section("interpolate"));
+  m.interp.max_velocity = m.kin.max_velocity;
+  m.interp.max_acceleration = m.kin.max_acceleration;
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    m.interp.travel_min[i] = m.kin.travel[i].min;
+    m.interp.travel_max[i] = m.kin.travel[i].max;
+    m.interp.smoothing_time[i] = m.drives.axes[i].Ts;
+  }
+  return m;
+}
+
+Axes machine_start(const MachineKinematics& kin, const ResolvedBlock& b, double tool_length) {
+  if (!b.tcp) return b.start;
+  const Vec3 tip{b.start[kX], b.start[kY], b.start[kZ]};
+  return b.tool_vector_mode ? inverse_kinematics(kin, ToolPose{tip, b.tool_vector}, b.start, tool_length).joints
+                            : inverse_kinematics_ac(kin, tip, b.start[kA], b.start[kC], tool_length).joints;
+}
+
+double tool_length_of(const Model& model, const ResolvedBlock& b) {
+  return b.tool_length_active ? b.tool_length : model.kin.tool_length;
+}
+
+RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, const Axes& start,
+                     const std::function<void(const Tick&)>& on_tick, std::uint64_t max_ticks) {
+  struct Sink final : interpolate::SampleSink {
+    servo::ServoSimulator sim;
+    std::deque<std::pair<Axes, std::uint32_t>> raw;
+    std::uint32_t block = 0;
+    std::uint64_t n = 0;
+    std::uint64_t max_ticks = 0;
+    bool over = false;  // max_ticks reached: later ticks are simulated but not handed on
+    RunStats& stats;
+    const std::function<void(const Tick&)>& on_tick;
+    Sink(const Model& m, RunStats& s, const std::function<void(const Tick&)>& f)
+        : sim(m.drives, m.interp.period), stats(s), on_tick(f) {}
+    void raw_sample(const Axes& r) override { raw.emplace_back(r, block); }
+    void sample(const Axes& c) override {
+      servo::ServoSample s;
+      if (sim.push(c, s)) emit(s);
+    }
+    void emit(const servo::ServoSample& s) {
+      Tick t;
+      t.n = n++;
+      t.raw = raw.front().first;
+      t.block = raw.front().second;
+      raw.pop_front();
+      t.command = s.command;
+      t.actual = s.actual;
+      t.torque = s.torque;
+      t.saturated = s.saturated;
+      for (std::size_t i = 0; i < kNumAxes; ++i) {
+        if (s.saturated & (1u << i)) ++stats.saturated_ticks[i];
+      }
+      ++stats.ticks;
+      if (t.n >= max_ticks) {
+        over = true;
+        return;
+      }
+      on_tick(t);
+    }
+  };
+  RunStats stats;
+  interpolate::InterpolateOptions io = model.interp;
+  io.kinematics = &model.kin;  // TCP blocks: inverse kinematics per tick, feed along the tool tip
+  Sink sink(model, stats, on_tick);
+  sink.max_ticks = max_ticks;
+  interpolate::Interpolator interp(io, start);
+  while (sink.block + 1 < blocks.size() && blocks[sink.block].motion == Motion::kNone) ++sink.block;
+  sink.raw.emplace_back(start, sink.block);
+  sink.emit(sink.sim.reset(start, 0.0));
+  for (std::size_t i = 0; i < blocks.size(); ++i) {
+    const ResolvedBlock& b = blocks[i];
+    // Samples belong to the block that moves (or dwells): a block without motion emits none,
+    // and the settling after the last move belongs to that move.
+    if (b.motion != Motion::kNone) sink.block = static_cast<std::uint32_t>(i);
+    const auto r = interp.add(b, sink);
+    if (r.status != interpolate::InterpolateStatus::kOk) {
+      stats.ok = false;
+      stats.message = r.message;
+      stats.failed_line = b.line;
+      break;
+    }
+    if (sink.over) {
+      char msg[160];
+      std::snprintf(msg, sizeof msg, "the program runs longer than %.0f s of machine time (compensate.max_machine_time)",
+                    static_cast<double>(max_ticks) * model.interp.period);
+      stats.ok = false;
+      stats.message = msg;
+      stats.failed_line = b.line;
+      stats.interp = interp.stats();
+      return stats;
+    }
+  }
+  interp.finish(sink);
+  servo::ServoSample s;
+  while (sink.sim.flush(s)) sink.emit(s);
+  stats.interp = interp.stats();
+  return stats;
+}
+
+Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program, const Axes& start,
+                      double reference_smoothing, double max_machine_time) {
+  Nominal nom;
+  nom.period = model.interp.period;
+  const double max_ticks = std::floor(max_machine_time / model.interp.period);
+  nom.stats = run_program(
+      model, program, start,
+      [&](const Tick& t) {
+        nom.raw.push_back(t.raw);
+        nom.block.push_back(t.block);
+      },
+      max_ticks < 1.8e19 ? static_cast<std::uint64_t>(max_ticks) : UINT64_MAX);
+  if (nom.raw.empty() || !nom.stats.ok) return nom;
+
+  // Segments: a dwell or a program stop ends one (the machine is at rest or about to be).
+  nom.segment_of_block.assign(program.size(), 0);
+  std::uint32_t seg = 0;
+  bool seg_has_motion = false;
+  Motion last_motion = Motion::kNone;
+  for (std::size_t i = 0; i < program.size(); ++i) {
+    const ResolvedBlock& b = program[i];
+    // Positioning (rapids) and cutting are separate segments: a cut starts a new one.
+    if (is_motion(b.motion) && b.motion != Motion::kRapid && last_motion == Motion::kRapid && seg_has_motion) ++seg;
+    if (is_motion(b.motion)) seg_has_motion = true, last_motion = b.motion;
+    nom.segment_of_block[i] = seg;
+    if ((b.motion == Motion::kDwell || b.stop != ProgramStop::kNone) && seg_has_motion) {
+      ++seg;
+      seg_has_motion = false;
+    }
+  }
+  const std::size_t nseg = static_cast<std::size_t>(seg) + 1;
+  nom.segments.assign(nseg, Segment{});
+  std::vector<bool> seen(nseg, false);
+  std::vector<std::vector<Vec3>> tips(nseg);
+  std::uint32_t last_block = std::numeric_limits<std::uint32_t>::max();
+  for (std::size_t n = 0; n < nom.raw.size(); ++n) {
+    const std::uint32_t b = nom.block[n];
+    const std::uint32_t s = nom.segment_of_block[b];
+    Segment& g = nom.segments[s];
+    const double t = static_cast<double>(n) * nom.period;
+    if (!seen[s]) {
+      seen[s] = true;
+      g.t_begin = t;
+      g.first_line = program[b].line;
+    }
+    g.t_end = t;
+    if (b != last_block && is_motion(program[b].motion)) g.last_line = std::max(g.last_line, program[b].line);
+    last_block = b;
+    if (is_motion(program[b].motion) && program[b].motion != Motion::kRapid && (n == 0 || nom.raw[n] != nom.raw[n - 1]))
+      tips[s].push_back(forward_kinematics(model.kin, nom.raw[n], tool_length_of(model, program[b])).tip);
+  }
+  for (std::size_t s = 0; s < nseg; ++s) {
+    if (nom.segments[s].last_line == 0) nom.segments[s].last_line = nom.segments[s].first_line;
+    detect_circle(nom.segments[s], tips[s]);
+  }
+
+  // Reference: the nominal path re-timed by the control's own kind of acc/dec applied to the
+  // progress index, with `reference_smoothing` times the slowest axis's Ts: the starts and stops
+  // of the reference are gentler than the control's own, which leaves the learned commands
+  // headroom in acceleration and torque there. Re-timing keeps speed changes but cannot turn a corner at speed:
+  // at a sharp corner (and at the end of a rapid, where controls check in-position) the progress
+  // is held until the re-timed speed has decayed, so the reference turns the corner at rest.
+  double Ts = 0;
+  Axes vb;
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    Ts = std::max(Ts, reference_smoothing * model.interp.smoothing_time[i]);
+    vb[i] = model.interp.max_velocity[i] > 0 ? model.interp.max_velocity[i] : 1.0;
+  }
+  const std::size_t N = nom.raw.size();
+  const auto hold = static_cast<std::size_t>(std::ceil(
+      (model.interp.smoothing == interpolate::Smoothing::kExponential ? 12.0 : 1.0) * Ts / nom.period));
+  std::vector<std::uint8_t> corner(N, 0);
+  auto step = [&](std::size_t n) {  // per-axis step n-1 -> n, scaled by the axis speed limit
+    Axes d;
+    for (std::size_t i = 0; i < kNumAxes; ++i) d[i] = (nom.raw[n][i] - nom.raw[n - 1][i]) / vb[i];
+    return d;
+  };
+  if (hold > 0) {
+    std::size_t last_corner = 0;
+    for (std::size_t n = 1; n + 1 < N; ++n) {
+      const Axes a = step(n), b = step(n + 1);
+      double aa = 0, bb = 0, ab = 0;
+      for (std::size_t i = 0; i < kNumAxes; ++i) aa += a[i] * a[i], bb += b[i] * b[i], ab += a[i] * b[i];
+      // A start and a stop count as corners too: the raw path starts and stops dead there (a
+      // dwell, the end), and the re-timed progress must come to rest at that index, not sweep
+      // through it at speed.
+      const bool moving = aa > 1e-24, next_moving = bb > 1e-24;
+      const bool sharp = moving != next_moving ||
+                         (moving && next_moving && ab < std::cos(5.0 * M_PI / 180) * std::sqrt(aa * bb));
+      const bool rapid_end = moving && program[nom.block[n]].motion == Motion::kRapid &&
+                             program[nom.block[n + 1]].motion != Motion::kRapid;
+      if ((sharp || rapid_end) && (last_corner == 0 || n > last_corner + 2 || moving != next_moving)) {
+        corner[n] = 1;
+        last_corner = n;
+      }
+    }
+  }
+  interpolate::AxisSmoother progress(model.interp.smoothing, Ts, nom.period, 0.0);
+  const double last = static_cast<double>(N - 1);
+  double q = 0;          // held raw index fed to the smoother
+  std::size_t held = 0;  // ticks held at the current corner
+  for (std::size_t n = 0;; ++n) {
+    const double p = std::min(progress.filter(q), last);
+    const auto i0 = static_cast<std::size_t>(std::floor(p));
+    const std::size_t i1 = std::min(i0 + 1, N - 1);
+    nom.reference.push_back(lerp(nom.raw[i0], nom.raw[i1], p - static_cast<double>(i0)));
+    nom.progress.push_back(p);
+    if (q >= last && last - p < 1e-6) break;
+    if (static_cast<double>(n) >= max_ticks) {
+      // Every corner adds a hold: a program of many short corners re-times far longer than it
+      // runs. Bounded like the run itself; the compensation then says why it did not run.
+      nom.reference.clear();
+      nom.progress.clear();
+      nom.reference_too_long = true;
+      break;
+    }
+    const auto qi = static_cast<std::size_t>(q);
+    if (qi < N && corner[qi] && held < hold) {
+      ++held;
+    } else {
+      held = 0;
+      q = std::min(q + 1, last);
+    }
+  }
+  return nom;
+}
+
+Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
+                    std::span<const ResolvedBlock> blocks, const Axes& start,
+                    const std::function<std::uint32_t(std::uint32_t)>& source_block,
+                    const std::function<void(const Tick&)>& also, bool on_reference_clock) {
+  Evaluation ev;
+  const NominalPath path = nominal_path(model, nom, program);
+  LocalContour contour(path);
+  ev.per_segment.assign(nom.segments.size(), ErrorStats{});
+  ev.demand.assign(std::max<std::size_t>(1, nom.segments.size()), SegmentDemand{});
+  Axes c1{}, c2{};  // the two previous smoothed commands
+  std::vector<double> seg_sq(nom.segments.size(), 0.0);
+  std::vector<std::uint64_t> seg_n(nom.segments.size(), 0);
+  double sum_sq = 0;
+  std::uint64_t count = 0;
+  Axes fe_sq{};
+  for (std::size_t i = 0; i < kNumAxes; ++i)
+    ev.axes.travel_margin[i] = std::numeric_limits<double>::infinity();
+  const std::size_t expected = std::max(nom.reference.size(), nom.raw.size());
+  const std::size_t bucket = std::max<std::size_t>(1, expected / 20000);
+  double bucket_max = 0;
+  const Axes& ref_end = nom.reference.empty() ? start : nom.reference.back();
+  ev.stats = run_program(model, blocks, start, [&](const Tick& t) {
+    const std::uint32_t src = source_block(t.block);
+    const ResolvedBlock& b = program[std::min<std::size_t>(src, program.size() - 1)];
+    const Vec3 tip = forward_kinematics(model.kin, t.actual, tool_length_of(model, b)).tip;
+    const std::size_t n = static_cast<std::size_t>(t.n);
+    // The raw tick the nominal has reached: the tick itself for the program's own run; for a
+    // node program, which follows the re-timed reference, the reference's progress plus a
+    // margin for an actual that runs slightly ahead.
+    std::size_t raw_tick = n;
+    if (on_reference_clock && !nom.progress.empty())
+      raw_tick = static_cast<std::size_t>(nom.progress[std::min(n, nom.progress.size() - 1)]) + 300;
+    const std::uint32_t limit = path.index_of_tick.empty()
+                                    ? 0
+                                    : path.index_of_tick[std::min(raw_tick, path.index_of_tick.size() - 1)];
+    Vec3 nearest;
+    const double e = contour.distance(tip, limit, nearest);
+    const double time = static_cast<double>(t.n) * nom.period;
+    // Rapids position the tool and do not cut: the contour error counts on feed moves and dwells.
+    const bool cutting = b.motion != Motion::kRapid && b.motion != Motion::kNone;
+    if (cutting) add_error(ev.contour, sum_sq, count, e, time, b.line);
+    if (also) {
+      Tick marked = t;
+      marked.contour = cutting ? e : 0.0;
+      marked.tip = tip;
+      also(marked);
+    }
+    const std::uint32_t seg = nom.segment_of_block.empty() ? 0 : nom.segment_of_block[std::min<std::size_t>(src, nom.segment_of_block.size() - 1)];
+    if (cutting && seg < ev.per_segment.size()) add_error(ev.per_segment[seg], seg_sq[seg], seg_n[seg], e, time, b.line);
+    SegmentDemand& dm = ev.demand[std::min<std::size_t>(seg, ev.demand.size() - 1)];
+    for (std::size_t i = 0; i < kNumAxes; ++i) {
+      if (t.saturated & (1u << i)) ++dm.saturated_ticks[i];
+      if (t.n >= 2)
+        dm.peak_acceleration[i] = std::max(dm.peak_acceleration[i], std::abs(t.command[i] - 2 * c1[i] + c2[i]) /
+                                                                        (nom.period * nom.period));
+    }
+    c2 = c1;
+    c1 = t.command;
+    const Axes& ref = n < nom.reference.size() ? nom.reference[n] : ref_end;
+    for (std::size_t i = 0; i < kNumAxes; ++i) {
+      const double fe = t.command[i] - t.actual[i];
+      ev.axes.max_following[i] = std::max(ev.axes.max_following[i], std::abs(fe));
+      fe_sq[i] += fe * fe;
+      ev.axes.max_tracking[i] = std::max(ev.axes.max_tracking[i], std::abs(ref[i] - t.actual[i]));
+      const auto& tr = model.kin.travel[i];
+      ev.axes.travel_margin[i] = std::min(ev.axes.travel_margin[i], std::min(t.actual[i] - tr.min, tr.max - t.actual[i]));
+    }
+    if (cutting) bucket_max = std::max(bucket_max, e);
+    if ((t.n + 1) % bucket == 0) {
+      Series& s = ev.series;
+      s.t.push_back(time);
+      s.contour.push_back(bucket_max);
+      bucket_max = 0;
+      for (std::size_t i = 0; i < kNumAxes; ++i) s.following[i].push_back(t.command[i] - t.actual[i]);
+      for (std::size_t k = 0; k < 3; ++k) {
+        s.tip[k].push_back(tip[k]);
+        s.nominal[k].push_back(nearest[k]);
+      }
+      s.segment.push_back(seg);
+    }
+  });
+  ev.contour.rms = count ? std::sqrt(sum_sq / static_cast<double>(count)) : 0.0;
+  for (std::size_t s = 0; s < ev.per_segment.size(); ++s)
+    ev.per_segment[s].rms = seg_n[s] ? std::sqrt(seg_sq[s] / static_cast<double>(seg_n[s])) : 0.0;
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    ev.axes.rms_following[i] = count ? std::sqrt(fe_sq[i] / static_cast<double>(count)) : 0.0;
+    ev.axes.peak_velocity[i] = ev.stats.interp.peak_velocity[i];
+    ev.axes.peak_acceleration[i] = ev.stats.interp.peak_acceleration[i];
+    ev.axes.saturated_ticks[i] = ev.stats.saturated_ticks[i];
+  }
+  return ev;
+}
+
+}  // namespace gcpipe::simulate
+
+namespace gcpipe::simulate {
+
+SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> program, const RunBounds& bounds,
+                               const std::function<void(const Tick&)>& on_tick, const Progress& progress) {
+  SimulationRun run;
+  run.program = std::move(program);
+  const auto& p = run.program;
+  std::size_t first = 0;
+  while (first < p.size() && p[first].motion == Motion::kNone) ++first;
+  if (first == p.size()) {
+    run.note = "the program moves nothing";
+    return run;
+  }
+  run.start = machine_start(model.kin, p[first], tool_length_of(model, p[first]));
+  if (progress) progress("simulating the program (interpolator + feed drives)", 0, 1);
+  run.nominal = build_nominal(model, p, run.start, bounds.reference_smoothing, bounds.max_machine_time);
+  if (!run.nominal->stats.ok) {
+    run.note = "line " + std::to_string(run.nominal->stats.failed_line) + ": " + run.nominal->stats.message;
+    return run;
+  }
+  run.before = evaluate(model, *run.nominal, p, p, run.start, [](std::uint32_t i) { return i; }, on_tick);
+  return run;
+}
+
+}  // namespace gcpipe::simulate

@@ -1,0 +1,184 @@
+// Stage `simulate`: a program through the machine model (interpolator with TCP per tick, acc/dec,
+// the five feed drives of seed 002, forward kinematics) and its contour error against the nominal
+// tool path. The one simulation harness and the one contour metric of gcpipe: `gcpipe simulate`,
+// the compensation and the report all call these functions (README.md beside this file).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "gcpipe/block.hpp"
+#include "gcpipe/kinematics.hpp"
+#include "gcpipe/pipeline_config.hpp"
+#include "interpolate.hpp"
+#include "servo.hpp"
+
+namespace gcpipe::simulate {
+
+/// The machine as the simulation (and the compensation) sees it. Every part comes from the config.
+struct Model {
+  MachineKinematics kin;
+  interpolate::InterpolateOptions interp;  //!< period, smoothing, limits, Ts per axis
+  servo::DriveSet drives;
+};
+
+/// The model of a pipeline config: machine kinematics and limits, the `interpolate` section, the
+/// drives file named by `servo.drives` (Ts per axis from it). Throws ConfigError naming the key.
+Model load_model(const PipelineConfig& pc);
+
+/// One simulated tick.
+struct Tick {
+  std::uint64_t n = 0;      //!< tick index, t = n * period
+  Axes raw{};               //!< raw interpolated joints (before acc/dec) [mm, deg]
+  Axes command{};           //!< smoothed command [mm, deg]
+  Axes actual{};            //!< actual joints [mm, deg]
+  Axes torque{};            //!< [N*m]
+  std::uint8_t saturated = 0;  //!< bit per axis: torque-limited in this tick
+  std::uint32_t block = 0;  //!< index of the block whose raw sample this is
+  double contour = 0;       //!< contour error [mm] (set by evaluate(); 0 on rapids)
+  Vec3 tip{};               //!< actual tool tip, workpiece frame [mm] (set by evaluate())
+};
+
+/// How a run ended.
+struct RunStats {
+  bool ok = true;
+  std::string message;            //!< when !ok: the block and why the machine would stop
+  std::uint64_t failed_line = 0;  //!< source line of that block
+  std::uint64_t ticks = 0;
+  interpolate::InterpolateStats interp;
+  std::array<std::uint64_t, kNumAxes> saturated_ticks{};
+};
+
+/// Interpolates `blocks` (from rest at `start`) at the model's period, runs the five drives and
+/// calls `on_tick` for every tick, in order. Blocks without motion are skipped by the
+/// interpolator; a block it cannot run stops the run (RunStats::ok false).
+/// After `max_ticks` ticks the run stops with RunStats::ok false (a bound on memory and time).
+RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, const Axes& start,
+                     const std::function<void(const Tick&)>& on_tick, std::uint64_t max_ticks = UINT64_MAX);
+
+/// Joints at which the machine starts, at rest, for the program's first moving block: where the
+/// program believes it is. In TCP mode the parser's position is a tool tip (with A C or a tool
+/// vector), so it is turned into joints.
+Axes machine_start(const MachineKinematics& kin, const ResolvedBlock& first_motion, double tool_length);
+
+/// Tool length in force for a block [mm].
+double tool_length_of(const Model& model, const ResolvedBlock& b);
+
+/// Contour and axis error figures of one simulated run against the nominal path.
+struct ErrorStats {
+  double max = 0;            //!< [mm]
+  double rms = 0;            //!< [mm]
+  double t_at_max = 0;       //!< [s]
+  std::uint64_t line_at_max = 0;  //!< source line
+};
+
+struct AxisStats {
+  Axes max_following{};      //!< max |command - actual| [mm, deg]
+  Axes rms_following{};      //!< [mm, deg]
+  Axes max_tracking{};       //!< max |reference - actual| [mm, deg]
+  Axes travel_margin{};      //!< smallest distance of the actual joint to its travel limit
+                             //!< [mm, deg] (negative: outside)
+  Axes peak_velocity{};      //!< of the smoothed commands [mm/s, deg/s]
+  Axes peak_acceleration{};  //!< [mm/s^2, deg/s^2]
+  std::array<std::uint64_t, kNumAxes> saturated_ticks{};
+};
+
+/// A part of the program between dwells or stops (one circle-test condition, one cycle).
+struct Segment {
+  std::uint64_t first_line = 0, last_line = 0;
+  double t_begin = 0, t_end = 0;  //!< [s] in the original's time
+  bool circle = false;            //!< the nominal tool-tip path of the segment is a circle
+  double circle_radius = 0;       //!< [mm]
+  std::array<double, 2> circle_centre{};  //!< [mm] (workpiece X Y)
+};
+
+/// Decimated per-tick series for the figures (<= about 20,000 points per series).
+struct Series {
+  std::vector<double> t;                    //!< [s]
+  std::vector<double> contour;              //!< max contour error in the bucket [mm]
+  std::array<std::vector<double>, kNumAxes> following;  //!< command - actual at the bucket end
+  std::array<std::vector<double>, 3> tip;   //!< actual tool tip, workpiece frame [mm]
+  std::array<std::vector<double>, 3> nominal;  //!< nearest point of the nominal path [mm]
+  std::vector<std::uint32_t> segment;       //!< segment index of the bucket end
+};
+
+
+
+/// The nominal run of the original program.
+struct Nominal {
+  double period = 0.001;
+  std::vector<Axes> raw;               //!< R_n, n = 0..N-1
+  std::vector<std::uint32_t> block;    //!< block index of each raw sample
+  std::vector<Axes> reference;         //!< r_n (re-timed path), n = 0..E-1 (E >= N)
+  std::vector<double> progress;        //!< p_n, fractional raw index of r_n
+  bool reference_too_long = false;     //!< the reference would exceed max_machine_time (empty)
+  std::vector<std::uint32_t> segment_of_block;  //!< per program block
+  std::vector<Segment> segments;
+  RunStats stats;
+};
+
+/// Evaluation of one run against the nominal: contour error per tick and the axis figures.
+/// What a run demanded of the axes within one segment (the compensation's limits are judged
+/// against the original's own figures segment by segment).
+struct SegmentDemand {
+  std::array<std::uint64_t, kNumAxes> saturated_ticks{};  //!< torque-limited ticks
+  Axes peak_acceleration{};  //!< of the smoothed commands, second difference [mm/s^2, deg/s^2]
+};
+
+struct Evaluation {
+  RunStats stats;
+  ErrorStats contour;
+  AxisStats axes;
+  std::vector<ErrorStats> per_segment;
+  std::vector<SegmentDemand> demand;  //!< per segment
+  Series series;
+};
+
+/// Progress callback: (what, done, total).
+using Progress = std::function<void(const char* what, std::uint64_t done, std::uint64_t total)>;
+
+/// Runs the original program and builds the nominal path and reference.
+/// Programs longer than `max_machine_time` [s] stop the run (Nominal::stats.ok false).
+Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program, const Axes& start,
+                      double reference_smoothing = 2.0, double max_machine_time = 3600);
+
+/// Runs `blocks` and measures them against the nominal path. `source_block(i)` is the program
+/// block that block i of `blocks` stands for (its tool length and segment); `also` sees every tick.
+/// `on_reference_clock`: `blocks` is a node program, timed like the re-timed reference.
+Evaluation evaluate(const Model& model, const Nominal& nominal, std::span<const ResolvedBlock> program,
+                    std::span<const ResolvedBlock> blocks, const Axes& start,
+                    const std::function<std::uint32_t(std::uint32_t)>& source_block,
+                    const std::function<void(const Tick&)>& also = {}, bool on_reference_clock = false);
+
+}  // namespace gcpipe::simulate
+
+namespace gcpipe::simulate {
+
+/// The simulation of one whole program: what `gcpipe simulate` reports and what the compensation
+/// starts from. Handed from the simulate stage to the compensate stage in one process.
+struct SimulationRun {
+  std::vector<ResolvedBlock> program;  //!< the blocks simulated, in order
+  Axes start{};                        //!< machine joints the simulation starts from, at rest
+  std::optional<Nominal> nominal;      //!< set when the program moves
+  std::optional<Evaluation> before;    //!< set when the nominal run completed
+  std::string note;                    //!< why there is no nominal or no evaluation
+};
+
+/// Bounds of a simulation run (from the `compensate` section, whose reference it builds).
+struct RunBounds {
+  double reference_smoothing = 2.0;  //!< see build_nominal
+  double max_machine_time = 3600;    //!< [s]
+};
+
+/// The one harness: nominal run (build_nominal) and its contour-error evaluation (evaluate) of
+/// `program`. `on_tick` sees every tick of the evaluated run (trace output). Never throws for a
+/// program the machine cannot run: the reason goes to `note`.
+SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> program, const RunBounds& bounds,
+                               const std::function<void(const Tick&)>& on_tick = {}, const Progress& progress = {});
+
+}  // namespace gcpipe::simulate

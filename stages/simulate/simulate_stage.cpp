@@ -1,0 +1,60 @@
+#include "simulate_stage.hpp"
+
+#include <algorithm>
+
+#include "simulation_report.hpp"
+
+namespace gcpipe {
+
+SimulateStage::SimulateStage(const pipeline::StageContext& c)
+    : model_(compensate::load_model(*c.config)),
+      bounds_(compensate::load_compensate_options(c.config->root.section("compensate"))),
+      progress_(c.progress),
+      reports_(std::find(c.stages.begin(), c.stages.end(), "compensate") == c.stages.end()) {}
+
+bool SimulateStage::block(const ResolvedBlock& b, pipeline::Emitter& out) {
+  // The whole program is kept (the learning replays it), up to a bound on memory.
+  if (skipped_.empty()) {
+    if (program_.size() >= bounds_.max_blocks) {
+      skipped_ = "the program has more than compensate.max_blocks = " + std::to_string(bounds_.max_blocks) + " blocks";
+      program_ = {};
+    } else {
+      program_.push_back(b);
+    }
+  }
+  return out.block(b);
+}
+
+bool SimulateStage::finish(bool complete, pipeline::Emitter& out) {
+  if (!complete && skipped_.empty()) skipped_ = "the program did not arrive whole";
+  if (!skipped_.empty()) {
+    failure_ = "not simulated: " + skipped_;
+    return true;
+  }
+  result_ = std::make_shared<SimulatedProgram>();
+  simulate::RunBounds bounds{bounds_.reference_smoothing, bounds_.max_machine_time};
+  result_->run = simulate::simulate_program(model_, std::move(program_), bounds, tap_, progress_);
+  if (!result_->run.before) failure_ = "not simulated: " + result_->run.note;
+  out.product(result_);
+  return true;
+}
+
+void SimulateStage::report(pipeline::ReportContext& r) const {
+  if (!reports_) return;
+  compensate::SimulationOutcome o;
+  o.model = &model_;
+  o.run = run();
+  o.skipped = result_ ? result_->run.note : skipped_;
+  compensate::report_simulation(r, o);
+}
+
+pipeline::StageInfo simulate_stage() {
+  return {"simulate", "ik",
+          "interpolation, acc/dec and feed drives (seed 002), forward kinematics, contour error",
+          pipeline::Port::kBlocks, pipeline::Port::kBlocks,
+          [](const pipeline::StageContext& c) -> std::unique_ptr<pipeline::Stage> {
+            return std::make_unique<SimulateStage>(c);
+          }};
+}
+
+}  // namespace gcpipe

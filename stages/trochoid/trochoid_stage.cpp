@@ -1,0 +1,105 @@
+// The trochoid stage in the pipeline: every G275 cycle expanded into its tool path, every other
+// block copied; a cycle that cannot be machined is rejected at its line and replaced by skip moves.
+#include <cmath>
+#include <cstdio>
+
+#include <nlohmann/json.hpp>
+
+#include "parse.hpp"
+#include "stage.hpp"
+#include "trochoid.hpp"
+#include "trochoid_report.hpp"
+
+namespace gcpipe {
+namespace {
+
+using pipeline::Emitter;
+
+class TrochoidStage final : public pipeline::Stage {
+ public:
+  explicit TrochoidStage(const pipeline::StageContext& c)
+      : expander_(load_trochoid_options(c.config->root.section("trochoid"))), file_(c.file), log_(*c.log),
+        strict_(c.strict || load_parse_options(c.config->root.section("parse")).strict) {}
+
+  bool block(const ResolvedBlock& b, Emitter& out) override {
+    expanded_.clear();
+    parts_.clear();
+    const auto st = expander_.step(b, file_, expanded_, diag_, &parts_);
+    bool go = true;
+    if (!st.ok()) {
+      ++cycles_rejected_;
+      log_.report(diag_);
+      go = out.diagnostic(diag_, DiagnosticKind::kBlockRejected);
+    } else if (st.code == TrochoidExpander::Status::Code::kExpanded) {
+      keep_for_figure(b);
+    }
+    for (const ResolvedBlock& e : expanded_) go = out.block(e) && go;
+    return go && !(strict_ && !st.ok());
+  }
+
+  void report(pipeline::ReportContext& r) const override {
+    double max_engagement = 0, max_ae = 0;
+    if (cycles_ > 0) draw_engagement(r, max_engagement, max_ae);
+    (*r.json)["trochoid"] = {{"cycles_expanded", cycles_},
+                             {"cycles_rejected", cycles_rejected_},
+                             {"max_engagement_deg", max_engagement},
+                             {"max_ae_mm", max_ae}};
+    if (cycles_ + cycles_rejected_ == 0) return;
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  "  trochoid: %llu G275 cycles expanded, %llu rejected; max radial engagement %.1f deg (ae %.3f mm)\n",
+                  static_cast<unsigned long long>(cycles_), static_cast<unsigned long long>(cycles_rejected_),
+                  max_engagement, max_ae);
+    *r.text += buf;
+  }
+  std::uint64_t rejected() const override { return cycles_rejected_; }
+
+ private:
+  // Only the expanded cycles are kept (for the engagement figure), never the whole program.
+  void keep_for_figure(const ResolvedBlock& cycle) {
+    ++cycles_;
+    if (tool_diameter_ == 0) tool_diameter_ = cycle.slot.tool_diameter;
+    outlines_.push_back(slot_outline(cycle.slot));
+    figure_blocks_.insert(figure_blocks_.end(), expanded_.begin(), expanded_.end());
+    figure_parts_.insert(figure_parts_.end(), parts_.begin(), parts_.end());
+  }
+
+  void draw_engagement(pipeline::ReportContext& r, double& max_engagement, double& max_ae) const {
+    PathAnalysisOptions ao;
+    ao.tool_radius = 0.5 * tool_diameter_;
+    const PathAnalysis a = analyse_path(figure_blocks_, &figure_parts_, ao);
+    max_engagement = a.max_angle * 180 / 3.14159265358979323846;
+    max_ae = equivalent_ae(a.max_angle, ao.tool_radius);
+    if (r.dir.empty()) return;
+    if (r.progress) r.progress("drawing the trochoid engagement figure", 0, 0);
+    char title[200];
+    std::snprintf(title, sizeof title, "%s: G275 tool centre path, D%g mm", r.input_base.c_str(), tool_diameter_);
+    write_engagement_png(r.dir / "plots" / "trochoid_engagement.png", a, ao.tool_radius, title, outlines_);
+    r.files->push_back("plots/trochoid_engagement.png");
+  }
+
+  TrochoidExpander expander_;
+  std::string file_;
+  pipeline::DiagnosticLog& log_;
+  bool strict_;
+  std::vector<ResolvedBlock> expanded_;
+  std::vector<TrochoidPart> parts_;
+  Diagnostic diag_;
+  std::uint64_t cycles_ = 0, cycles_rejected_ = 0;
+  double tool_diameter_ = 0;
+  std::vector<ResolvedBlock> figure_blocks_;
+  std::vector<TrochoidPart> figure_parts_;
+  std::vector<std::vector<Point2>> outlines_;
+};
+
+}  // namespace
+
+pipeline::StageInfo trochoid_stage() {
+  return {"trochoid", "parse", "G275 trochoidal slot cycles expanded into G1/G2/G3 tool paths (seed 000 eq. 6)",
+          pipeline::Port::kBlocks, pipeline::Port::kBlocks,
+          [](const pipeline::StageContext& c) -> std::unique_ptr<pipeline::Stage> {
+            return std::make_unique<TrochoidStage>(c);
+          }};
+}
+
+}  // namespace gcpipe
