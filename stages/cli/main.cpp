@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 
 #include "commands.hpp"
+#include "output_dir.hpp"
 
 using namespace gcpipe::cli;
 
@@ -219,6 +220,8 @@ int main(int argc, char** argv) {
     if (name == "monitor") return run_monitor(monitor);
 #endif
   } catch (const std::exception& e) {
+    // A long step polls for SIGINT/SIGTERM through its progress callback, which throws.
+    if (gcpipe::pipeline::stop_requested()) return 128 + gcpipe::pipeline::stop_signal();
     // Configuration and construction errors arrive here; per-line errors never throw.
     std::cerr << "gcpipe " << name << ": " << e.what() << "\n";
     return 1;

@@ -33,6 +33,24 @@ std::string shown(const YAML::Node& n) {
   return "nothing";
 }
 
+// yaml-cpp keeps every pair of a mapping but looks keys up in the first one, so a repeated key
+// would silently lose its second value: reject it, naming both places.
+void reject_duplicate_keys(const std::string& file, const YAML::Node& n, const std::string& path) {
+  if (n.IsSequence())
+    for (const auto& item : n) reject_duplicate_keys(file, item, path);
+  if (!n.IsMap()) return;
+  std::vector<std::pair<std::string, YAML::Node>> seen;
+  for (const auto& kv : n) {
+    const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : std::string();
+    for (const auto& [k, first] : seen)
+      if (k == key)
+        throw ConfigError(where(file, kv.first) + ": key '" + join(path, key) + "' appears twice (first at line " +
+                          std::to_string(first.Mark().line + 1) + "): keep one of them");
+    seen.emplace_back(key, kv.first);
+    reject_duplicate_keys(file, kv.second, join(path, key));
+  }
+}
+
 }  // namespace
 
 Config::Config() : impl_(std::make_shared<Impl>()) {}
@@ -44,8 +62,11 @@ Config::Config(std::shared_ptr<const Impl> impl) : impl_(std::move(impl)) {}
 Config Config::load_file(const std::filesystem::path& path) {
   auto impl = std::make_shared<Impl>();
   impl->file = path.string();
+  if (std::filesystem::is_directory(path))
+    throw ConfigError(path.string() + ": is a directory, not a config file (check the path given with --config)");
   try {
     impl->node = YAML::LoadFile(path.string());
+    reject_duplicate_keys(impl->file, impl->node, "");
   } catch (const YAML::BadFile&) {
     throw ConfigError(path.string() + ": cannot open config file (check the path given with --config)");
   } catch (const YAML::Exception& e) {
@@ -62,6 +83,7 @@ Config Config::from_string(std::string_view yaml, std::string name) {
   impl->file = std::move(name);
   try {
     impl->node = YAML::Load(std::string(yaml));
+    reject_duplicate_keys(impl->file, impl->node, "");
   } catch (const YAML::Exception& e) {
     throw ConfigError(impl->file + ":" + std::to_string(e.mark.line + 1) + ":" +
                       std::to_string(e.mark.column + 1) + ": not valid YAML: " + e.msg);
@@ -218,6 +240,18 @@ std::vector<double> Config::numbers(std::string_view key, std::size_t n, std::st
 
 const std::string& Config::path() const { return impl_->path; }
 const std::string& Config::file() const { return impl_->file; }
+
+std::filesystem::path Config::file_path(std::string_view key, std::string_view what) const {
+  const std::string rel = string(key, "");
+  if (rel.empty()) throw error(key, "is empty: name " + std::string(what));
+  const std::filesystem::path p = resolve(rel);
+  if (std::filesystem::is_directory(p))
+    throw error(key, "'" + rel + "' is a directory (" + p.string() + "): name " + std::string(what));
+  if (!std::filesystem::is_regular_file(p))
+    throw error(key, "'" + rel + "': no such file (" + p.string() + ", relative to " +
+                         std::filesystem::path(impl_->file).parent_path().string() + "): name " + std::string(what));
+  return p;
+}
 
 std::filesystem::path Config::resolve(const std::string& relative) const {
   std::filesystem::path p(relative);

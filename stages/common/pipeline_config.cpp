@@ -11,7 +11,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& path) {
   pc.root.reject_unknown({"machine", "parse", "trochoid", "write", "ik", "interpolate", "servo", "compensate"});
   if (!pc.root.has("machine"))
     throw pc.root.error("machine", "missing: name the machine file, e.g. 'machine: machines/mx330.yaml'");
-  auto machine_path = pc.root.resolve(pc.root.string("machine", ""));
+  const auto machine_path = pc.root.file_path("machine", "the machine file, e.g. machines/mx330.yaml");
   pc.machine_section = Config::load_file(machine_path);
   pc.machine = load_machine(pc.machine_section);
   return pc;

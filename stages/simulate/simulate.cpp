@@ -55,15 +55,17 @@ NominalPath nominal_path(const Model& model, const Nominal& nom, std::span<const
 /// grouped with bounding boxes so that most of the window is skipped after the first good match.
 class LocalContour {
  public:
-  static constexpr std::size_t kGroup = 32;
+  static constexpr std::size_t kGroup = 8;
   static constexpr std::size_t kLookBack = 3000;
+  static constexpr std::size_t kGroupsPerSuper = 8;
   explicit LocalContour(const NominalPath& p) : p_(p) {
     for (std::size_t g = 0; g * kGroup + 1 < p.pts.size(); ++g) {
       Box b;
       const std::size_t end = std::min(p.pts.size() - 1, (g + 1) * kGroup);
-      for (std::size_t i = g * kGroup; i <= end; ++i)
-        for (int k = 0; k < 3; ++k) b.lo[k] = std::min(b.lo[k], p.pts[i][k]), b.hi[k] = std::max(b.hi[k], p.pts[i][k]);
+      for (std::size_t i = g * kGroup; i <= end; ++i) b.add(p.pts[i]);
       boxes_.push_back(b);
+      if (g % kGroupsPerSuper == 0) supers_.emplace_back();
+      supers_.back().add(b);
     }
   }
   /// `limit`: the newest polyline index the nominal has reached at this tick.
@@ -82,16 +84,16 @@ class LocalContour {
       }
     };
     // Start near the previous match: a tight bound makes the box test skip most groups.
-    if (j_ >= lo && j_ < hi) scan(j_ > lo + 8 ? j_ - 8 : lo, std::min(hi, j_ + 64));
-    for (std::size_t g = lo / kGroup; g * kGroup < hi && g < boxes_.size(); ++g) {
-      const Box& bx = boxes_[g];
-      double dd = 0;
-      for (int k = 0; k < 3; ++k) {
-        const double o = std::max({bx.lo[k] - actual[k], 0.0, actual[k] - bx.hi[k]});
-        dd += o * o;
+    if (j_ >= lo && j_ < hi) scan(j_ > lo + 2 ? j_ - 2 : lo, std::min(hi, j_ + 16));
+    // Two levels of boxes: a group of 8 segments, a super-group of 64; a box farther than the best
+    // match so far cannot hold a closer segment.
+    const std::size_t super_span = kGroup * kGroupsPerSuper;
+    for (std::size_t sg = lo / super_span; sg * super_span < hi && sg < supers_.size(); ++sg) {
+      if (supers_[sg].distance_sq(actual) >= best * best) continue;
+      for (std::size_t g = sg * kGroupsPerSuper; g < (sg + 1) * kGroupsPerSuper && g * kGroup < hi && g < boxes_.size(); ++g) {
+        if (g * kGroup + kGroup <= lo || boxes_[g].distance_sq(actual) >= best * best) continue;
+        scan(std::max(lo, g * kGroup), std::min(hi, (g + 1) * kGroup));
       }
-      if (dd >= best * best) continue;
-      scan(std::max(lo, g * kGroup), std::min(hi, (g + 1) * kGroup));
     }
     return best;
   }
@@ -99,9 +101,24 @@ class LocalContour {
  private:
   struct Box {
     Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+    void add(const Vec3& p) {
+      for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
+    }
+    void add(const Box& b) {
+      add(b.lo);
+      add(b.hi);
+    }
+    double distance_sq(const Vec3& p) const {
+      double dd = 0;
+      for (int k = 0; k < 3; ++k) {
+        const double o = std::max({lo[k] - p[k], 0.0, p[k] - hi[k]});
+        dd += o * o;
+      }
+      return dd;
+    }
   };
   const NominalPath& p_;
-  std::vector<Box> boxes_;
+  std::vector<Box> boxes_, supers_;
   std::size_t j_ = 0;
 };
 
@@ -176,7 +193,7 @@ Model load_model(const PipelineConfig& pc) {
     throw servo_section.error("drives", "missing: the drives file, e.g. drives/seed002.yaml");
   Model m;
   m.kin = pc.machine.kinematics;
-  m.drives = servo::load_drives(Config::load_file(servo_section.resolve(servo_section.string("drives", ""))));
+  m.drives = servo::load_drives(Config::load_file(servo_section.file_path("drives", "the drives file, e.g. drives/seed002.yaml")));
   m.interp = interpolate::load_interpolate_options(pc.root.section("interpolate"));
   m.interp.max_velocity = m.kin.max_velocity;
   m.interp.max_acceleration = m.kin.max_acceleration;

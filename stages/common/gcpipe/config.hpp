@@ -66,6 +66,10 @@ class Config {
   const std::string& file() const;
   /// `relative` resolved against the directory of file() (for `machine: machines/mx330.yaml`).
   std::filesystem::path resolve(const std::string& relative) const;
+  /// The file named by `key`, resolved like resolve(); throws error(key, ...) naming the key, the
+  /// value and the resolved path when it is empty, missing or a directory (`what`: what it should
+  /// name, for the message, e.g. "the machine file").
+  std::filesystem::path file_path(std::string_view key, std::string_view what) const;
   /// Builds the error for `key` of this mapping, with its position in the file.
   ConfigError error(std::string_view key, const std::string& reason) const;
 

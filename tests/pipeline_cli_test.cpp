@@ -1,0 +1,129 @@
+// One pipeline (issue 10): every subcommand is a prefix of batch's chain and agrees with batch;
+// outputs are complete or absent under their final names; an output folder is never left with
+// files of an earlier run; a missing compensated.nc is a failure with its reason.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdio>
+#include <thread>
+
+#include "cli_helpers.hpp"
+
+namespace {
+
+const std::string kSamples = std::string(GCPIPE_SOURCE_DIR) + "/samples/";
+
+// The number gcpipe simulate prints after "max contour error", in um.
+double printed_max_contour_um(const std::string& err) {
+  const auto at = err.find("max contour error ");
+  if (at == std::string::npos) return -1;
+  return std::stod(err.substr(at + 18));
+}
+
+std::size_t lines_of(const std::string& text) {
+  std::size_t n = 0;
+  for (char c : text) n += c == '\n';
+  return n;
+}
+
+class SubcommandAgrees : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(SubcommandAgrees, WithBatchOnPointsContourErrorAndBytes) {
+  const std::string program = kSamples + GetParam();
+  const fs::path dir = tmpdir(std::string("agree_") + GetParam());
+  Outcome b = gcpipe({"batch", program, "-o", (dir / "batch").string(), "--quiet"});
+  ASSERT_EQ(b.status, 0) << b.err;
+  const auto report = read_json(dir / "batch" / "report.json");
+  // trochoid = parse -> trochoid -> write: the same bytes as batch's output.nc.
+  Outcome t = gcpipe({"trochoid", program, "-o", (dir / "trochoid.nc").string()});
+  ASSERT_EQ(t.status, 0) << t.err;
+  EXPECT_EQ(slurp(dir / "trochoid.nc"), slurp(dir / "batch" / "output.nc"));
+  // ik = parse -> trochoid -> ik: one CSV row per point batch counted.
+  Outcome k = gcpipe({"ik", program, "--csv", "-o", (dir / "ik.csv").string()});
+  ASSERT_EQ(k.status, 0) << k.err;
+  EXPECT_EQ(lines_of(slurp(dir / "ik.csv")) - 1, report.at("ik").at("points").get<std::size_t>());
+  // simulate = parse -> trochoid -> ik -> simulate: the report's contour error, to the printed digit.
+  Outcome s = gcpipe({"simulate", program, "-o", (dir / "trace.csv").string()});
+  ASSERT_EQ(s.status, 0) << s.err;
+  const double batch_um = report.at("simulation").at("contour_error_before").at("max_mm").get<double>() * 1e3;
+  EXPECT_NEAR(printed_max_contour_um(s.err), batch_um, 0.00005 + 1e-9 * batch_um) << s.err;
+  const auto ticks_at = s.err.find(": ") + 2;
+  EXPECT_EQ(lines_of(slurp(dir / "trace.csv")) - 1, std::stoull(s.err.substr(ticks_at))) << "one trace row per tick";
+  // parse alone: one line per block the parser emitted.
+  Outcome p = gcpipe({"parse", program, "-o", (dir / "parse.txt").string()});
+  ASSERT_EQ(p.status, 0) << p.err;
+  EXPECT_EQ(lines_of(slurp(dir / "parse.txt")), report.at("blocks_emitted").get<std::size_t>());
+}
+
+INSTANTIATE_TEST_SUITE_P(Samples, SubcommandAgrees, ::testing::Values("trochoid_slot_seed000.nc", "five_axis_demo.nc"));
+
+const std::vector<std::string> kFinalNames = {"output.nc", "compensated.nc", "report.json", "report.txt",
+                                              "summary.json", "diagnostics.txt"};
+
+class Interrupted : public ::testing::TestWithParam<int> {};
+
+// A batch stopped half way leaves nothing under a final name: neither its own cut-short files
+// nor the complete files of an earlier run in the same folder.
+TEST_P(Interrupted, BatchLeavesNoCompleteLookingOutput) {
+  const int sig = GetParam();
+  const fs::path dir = tmpdir("interrupt_" + std::to_string(sig));
+  const fs::path out = dir / "out";
+  ASSERT_EQ(gcpipe({"batch", kSamples + "five_axis_demo.nc", "-o", out.string(), "--quiet"}).status, 0);
+  ASSERT_TRUE(fs::exists(out / "compensated.nc"));
+  const auto t0 = std::chrono::steady_clock::now();
+  const pid_t pid = spawn_gcpipe({"batch", kSamples + "trochoid_slot_seed000.nc", "-o", out.string()},
+                                 dir / "stdout", dir / "stderr");
+  ASSERT_GT(pid, 0);
+  // Half way: the program is read and the simulation or the learning is running.
+  std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+  ::kill(pid, sig);
+  int st = 0;
+  ::waitpid(pid, &st, 0);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_TRUE(WIFEXITED(st)) << "killed by the signal instead of stopping cleanly";
+  EXPECT_EQ(WEXITSTATUS(st), 128 + sig) << slurp(dir / "stderr");
+  for (const auto& f : kFinalNames) EXPECT_FALSE(fs::exists(out / f)) << f << " exists after the stop";
+  for (const auto& e : fs::recursive_directory_iterator(out))
+    EXPECT_NE(e.path().extension(), ".part") << e.path() << " left behind";
+  EXPECT_LT(seconds, 60.0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Signals, Interrupted, ::testing::Values(SIGINT, SIGTERM));
+
+TEST(OutputFolder, ReusedFolderKeepsNothingOfTheEarlierRun) {
+  const fs::path out = tmpdir("reuse") / "out";
+  ASSERT_EQ(gcpipe({"batch", kSamples + "five_axis_demo.nc", "-o", out.string(), "--quiet"}).status, 0);
+  ASSERT_TRUE(fs::exists(out / "compensated.nc"));
+  ASSERT_TRUE(fs::exists(out / "plots" / "toolpath.png"));
+  Outcome r = gcpipe({"batch", kSamples + "trochoid_slot_seed000.nc", "-o", out.string(), "--no-simulate", "--quiet"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_FALSE(fs::exists(out / "compensated.nc"));
+  EXPECT_FALSE(fs::exists(out / "plots" / "toolpath.png"));
+  EXPECT_TRUE(fs::exists(out / "plots" / "trochoid_engagement.png"));
+  const auto summary = read_json(out / "summary.json");
+  EXPECT_NE(summary.at("input").get<std::string>().find("trochoid_slot_seed000.nc"), std::string::npos);
+  const auto report = read_json(out / "report.json");
+  for (const auto& f : report.at("outputs")) EXPECT_TRUE(fs::exists(out / f.get<std::string>())) << f;
+}
+
+// No compensated.nc (here: the program runs longer than compensate.max_machine_time) is a
+// failure: non-zero exit status and the reason in summary.json, not exit 0.
+TEST(OutputFolder, MissingCompensatedProgramIsAFailureWithItsReason) {
+  const fs::path dir = tmpdir("nocomp");
+  {
+    std::ofstream c(dir / "short.yaml");
+    c << "machine: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/machines/mx330.yaml\n"
+      << "servo:\n  drives: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/drives/seed002.yaml\n"
+      << "compensate:\n  max_machine_time: 2\n";
+  }
+  Outcome r = gcpipe({"batch", kSamples + "five_axis_demo.nc", "-o", (dir / "out").string(), "--config",
+                      (dir / "short.yaml").string(), "--quiet"});
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "out" / "compensated.nc"));
+  const auto summary = read_json(dir / "out" / "summary.json");
+  ASSERT_TRUE(summary.contains("failure")) << summary.dump();
+  EXPECT_NE(summary.at("failure").get<std::string>().find("max_machine_time"), std::string::npos) << summary.dump();
+  EXPECT_TRUE(fs::exists(dir / "out" / "output.nc")) << "the streaming stages' output stays";
+}
+
+}  // namespace
