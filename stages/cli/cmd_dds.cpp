@@ -1,17 +1,15 @@
 // The streaming pipeline's commands: feed, node, sink, monitor (built with GCPIPE_WITH_DDS).
-// Options come from main.cpp; the work is in stages/dds (gcpipe_dds) and the stage nodes.
+// Options come from main.cpp; the work is in stages/dds (gcpipe_dds): feed, sink, monitor and
+// StageNode, which runs any registered stage.
 #include <iostream>
 
 #include "commands.hpp"
-#include "compensate_node.hpp"
 #include "dds_runtime.hpp"
 #include "dds_tools.hpp"
+#include "parse.hpp"
+#include "stage_node.hpp"
 #include "gcpipe/config.hpp"
-#include "parse_node.hpp"
 #include "program_stream.hpp"
-#include "trochoid.hpp"
-#include "trochoid_node.hpp"
-#include "write_node.hpp"
 
 namespace gcpipe::cli {
 
@@ -35,32 +33,6 @@ void node_topics(const NodeArgs& a, std::string& in, std::string& out) {
   dds::check_topic_name(in);
   dds::check_topic_name(out);
   if (in == out) throw std::invalid_argument("--in and --out name the same topic '" + in + "'");
-}
-
-int run_node_of(const NodeArgs& a, const PipelineConfig& pc, dds::Participant& participant) {
-  std::string in, out;
-  node_topics(a, in, out);
-  if (a.stage == "parse") {
-    ParseOptions po = load_parse_options(pc.root.section("parse"));
-    po.strict = po.strict || a.strict;
-    ParseNode node(participant, po, pc.machine, ParseNodeOptions{a.batch_bytes, a.forever, in, out});
-    return node.run();
-  }
-  if (a.stage == "trochoid") {
-    // The trochoid stage's strict mode is batch mode's: parse.strict or --strict.
-    TrochoidNodeOptions no{a.batch_bytes, a.forever, a.strict || load_parse_options(pc.root.section("parse")).strict, in, out};
-    TrochoidNode node(participant, load_trochoid_options(pc.root.section("trochoid")), no);
-    return node.run();
-  }
-  if (a.strict) throw std::invalid_argument("--strict belongs to the parse and trochoid nodes");
-  if (a.stage == "write") {
-    WriteNode node(participant, load_write_options(pc.root.section("write")), WriteNodeOptions{a.batch_bytes, a.forever, in, out});
-    return node.run();
-  }
-  // compensate: the same model and options `gcpipe batch` compensates with (servo section required).
-  CompensateNode node(participant, compensate::load_model(pc), compensate::load_compensate_options(pc.root.section("compensate")),
-                      load_write_options(pc.root.section("write")), CompensateNodeOptions{a.batch_bytes, a.forever, in, out});
-  return node.run();
 }
 
 }  // namespace
@@ -87,9 +59,16 @@ int run_node(const NodeArgs& a) {
     std::cerr << "gcpipe node: " << e.what() << "\n";
     return 2;
   }
+  if (a.strict && a.stage != "parse" && a.stage != "trochoid") {
+    std::cerr << "gcpipe node: --strict belongs to the parse and trochoid nodes\n";
+    return 2;
+  }
   dds::install_stop_handlers();
   dds::Participant participant(dds_options(a));
-  return run_node_of(a, pc, participant);
+  std::string in, out;
+  node_topics(a, in, out);
+  dds::StageNode node(participant, pc, dds::StageNodeOptions{a.stage, a.batch_bytes, a.forever, a.strict, in, out});
+  return node.run();
 }
 
 int run_sink(const SinkArgs& a) {

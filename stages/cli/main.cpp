@@ -140,7 +140,7 @@ void add_feed(CLI::App& app, FeedArgs& a) {
 
 void add_node(CLI::App& app, NodeArgs& a) {
   auto* s = app.add_subcommand("node", "run one stage of the pipeline as a DDS node");
-  s->add_option("stage", a.stage, "parse, trochoid, write or compensate")->required();
+  s->add_option("stage", a.stage, "the stage: parse, trochoid, write or compensate (see gcpipe stages)")->required();
   s->add_option("--config", a.config, "pipeline config");
   s->add_option("--batch-bytes", a.batch_bytes, "publish a batch once it holds this much")->check(CLI::Range(1024, 1048576));
   s->add_option("--in", a.in, "input topic (default: the stage's edge)");

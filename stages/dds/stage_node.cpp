@@ -1,0 +1,386 @@
+#include "stage_node.hpp"
+
+#include <iostream>
+#include <map>
+#include <set>
+
+#include <nlohmann/json.hpp>
+
+#include "dds_convert.hpp"
+#include "dds_runtime.hpp"
+#include "parse.hpp"
+#include "stage.hpp"
+
+namespace gcpipe::dds {
+
+namespace {
+
+using pipeline::Port;
+
+// Diagnostics travel downstream; the node that writes them (sink, batch) shows them.
+class SilentLog final : public pipeline::DiagnosticLog {
+ public:
+  void report(const Diagnostic&) override {}
+};
+
+// A stage's report of one program (no output folder: no figures), for the node's log and counts.
+nlohmann::ordered_json report_of(const pipeline::Stage& stage, std::string& text) {
+  nlohmann::ordered_json j;
+  std::vector<std::string> files;
+  pipeline::ReportContext r;
+  r.json = &j;
+  r.text = &text;
+  r.files = &files;
+  stage.report(r);
+  return j;
+}
+
+// The parser's accounting, as the parse stage reports it.
+ParseSummary parse_summary_of(const pipeline::Stage& stage) {
+  std::string text;
+  const nlohmann::ordered_json j = report_of(stage, text);
+  ParseSummary s;
+  s.lines_read = j.value("lines_read", 0ull);
+  s.blocks_emitted = j.value("blocks_emitted", 0ull);
+  s.lines_rejected = j.value("lines_rejected", 0ull);
+  s.lines_deleted = j.value("lines_deleted", 0ull);
+  s.bytes_read = j.value("bytes_read", 0ull);
+  return s;
+}
+
+// What one program has sent downstream, and the batch or chunk being filled. The emitter the
+// stage writes into.
+struct Outbox final : pipeline::Emitter {
+  Port port;
+  std::size_t limit;
+  RawWriter& writer;
+  std::uint64_t id = 0;
+  std::string file;
+  bool strict = false;
+  std::uint64_t sequence = 0;
+  // kBlocks
+  msg::BlockBatch batch;
+  std::size_t batch_size = 0;
+  std::uint64_t blocks_sent = 0, diagnostics_sent = 0, block_rejections_sent = 0;
+  // kGcode
+  std::string pending;  // text not yet published
+  std::uint64_t bytes = 0;
+  bool failed = false;  // a publish failed (stop requested or timeout)
+
+  Outbox(Port p, std::size_t l, RawWriter& w) : port(p), limit(l), writer(w) {}
+
+  bool block(const ResolvedBlock& b) override {
+    msg::Block& m = batch.blocks().emplace_back();
+    to_msg(b, m);
+    batch_size += msg::Block::getCdrSerializedSize(m);
+    return batch_size < limit || publish_batch();
+  }
+  bool diagnostic(const Diagnostic& d, DiagnosticKind kind) override {
+    if (kind == DiagnosticKind::kBlockRejected) ++block_rejections_sent;
+    msg::LineDiagnostic& m = batch.diagnostics().emplace_back();
+    to_msg(d, kind, m);
+    batch_size += msg::LineDiagnostic::getCdrSerializedSize(m);
+    return batch_size < limit || publish_batch();
+  }
+  bool text(std::string& gcode) override {
+    pending += gcode;
+    gcode.clear();
+    // Whole lines per chunk, so that a chunk never ends inside a line.
+    std::size_t at = 0;
+    while (pending.size() - at > limit) {
+      const std::size_t cut = pending.find('\n', at + limit);
+      if (cut == std::string::npos) break;
+      if (!publish_text(pending.substr(at, cut + 1 - at), false)) return false;
+      at = cut + 1;
+    }
+    pending.erase(0, at);
+    return true;
+  }
+  void product(const std::shared_ptr<const pipeline::Product>&) override {}
+
+  bool publish_batch() {
+    batch.program_id(id);
+    batch.file(file);
+    batch.sequence_number(sequence++);
+    batch.strict(strict);
+    if (!writer.publish(&batch)) return !(failed = true);
+    blocks_sent += batch.blocks().size();
+    diagnostics_sent += batch.diagnostics().size();
+    batch.blocks().clear();
+    batch.diagnostics().clear();
+    batch_size = 0;
+    return true;
+  }
+  bool publish_text(std::string piece, bool end, msg::GcodeChunk* marker = nullptr) {
+    msg::GcodeChunk local;
+    msg::GcodeChunk& chunk = marker ? *marker : local;
+    chunk.program_id(id);
+    chunk.file(file);
+    chunk.sequence_number(sequence++);
+    bytes += piece.size();
+    chunk.text(std::move(piece));
+    chunk.end_of_program(end);
+    if (!writer.publish(&chunk)) return !(failed = true);
+    return true;
+  }
+};
+
+// One program in flight: the stage object, its outbox, and the input bookkeeping.
+struct Program : BatchProgram {
+  std::unique_ptr<pipeline::Stage> stage;
+  std::unique_ptr<Outbox> out;
+  bool stopped = false;         // strict mode stopped it: inputs are still counted
+  std::uint64_t next_chunk = 0, lines_seen = 0;  // ProgramChunk input
+};
+
+}  // namespace
+
+struct StageNode::Impl {
+  Participant& participant;
+  const PipelineConfig& config;
+  StageNodeOptions options;
+  const pipeline::StageInfo& info;
+  std::unique_ptr<RawReader> reader;
+  std::unique_ptr<RawWriter> writer;
+  BatchIntake<Program> intake;
+  std::map<std::uint64_t, Program> chunk_programs;  // ProgramChunk input
+  std::set<std::uint64_t> skipped;
+  SilentLog log;
+  std::size_t max_line;
+  bool config_strict;  // parse.strict: batch mode's strict mode, as --strict
+  int status = 0;
+
+  Impl(Participant& p, const PipelineConfig& c, StageNodeOptions o)
+      : participant(p), config(c), options(std::move(o)), info(pipeline::find_stage(options.stage)),
+        intake(options.stage), max_line(load_parse_options(c.root.section("parse")).max_line_length),
+        config_strict(load_parse_options(c.root.section("parse")).strict) {
+    reader = std::make_unique<RawReader>(p, wire_type(info.input), options.input_topic);
+    writer = std::make_unique<RawWriter>(p, wire_type(info.output), options.output_topic);
+  }
+
+  static MessageType wire_type(Port p) {
+    switch (p) {
+      case Port::kProgram: return MessageType::kProgramChunk;
+      case Port::kBlocks: return MessageType::kBlockBatch;
+      case Port::kGcode: return MessageType::kGcodeChunk;
+    }
+    throw std::logic_error("no wire type");
+  }
+
+  Program make_program(const std::string& file, bool strict) {
+    Program prog;
+    pipeline::StageContext c;
+    c.config = &config;
+    c.file = file;
+    c.log = &log;
+    c.strict = strict;
+    c.stages = {options.stage};
+    prog.stage = info.make(c);
+    prog.out = std::make_unique<Outbox>(info.output, options.batch_bytes, *writer);
+    prog.out->file = file;
+    prog.out->strict = strict;
+    return prog;
+  }
+
+  void fail(Program& prog, std::uint64_t id, const std::string& why) { intake.fail(prog, id, why); }
+
+  // ---- ProgramChunk input (the parse stage) ----
+
+  bool take_chunk(double timeout) {
+    msg::ProgramChunk chunk;
+    double source_time = 0;
+    if (!reader->take(&chunk, timeout, &source_time)) return false;
+    const std::uint64_t id = chunk.program_id();
+    if (skipped.count(id) != 0) {
+      if (chunk.end_of_program()) skipped.erase(id);
+      ended = false;
+      return true;
+    }
+    auto it = chunk_programs.find(id);
+    if (it == chunk_programs.end()) {
+      if (participant.published_before_start(source_time)) {
+        std::cerr << "gcpipe node " << options.stage << ": skipping program " << id << " ('" << chunk.file()
+                  << "'), published before this node started (--replay takes it)\n";
+        if (!chunk.end_of_program()) skipped.insert(id);
+        ended = false;
+        return true;
+      }
+      it = chunk_programs.emplace(id, make_program(chunk.file(), options.strict || config_strict)).first;
+      it->second.file = chunk.file();
+      it->second.out->id = id;
+      if (chunk.sequence_number() != 0)
+        fail(it->second, id, "joined the program at chunk " + std::to_string(chunk.sequence_number()) +
+                                 ": its beginning is no longer available from the feeder");
+      it->second.next_chunk = chunk.sequence_number();
+    }
+    Program& prog = it->second;
+    if (chunk.sequence_number() != prog.next_chunk)
+      fail(prog, id, "chunk " + std::to_string(prog.next_chunk) + " is missing (got chunk " +
+                         std::to_string(chunk.sequence_number()) + ")");
+    prog.next_chunk = chunk.sequence_number() + 1;
+    feed_lines(prog, id, chunk);
+    ended = chunk.end_of_program();
+    if (!ended) return true;
+    if (prog.error.empty() && chunk.line_count() != prog.lines_seen)
+      fail(prog, id, "the feeder sent " + std::to_string(chunk.line_count()) + " lines but " +
+                         std::to_string(prog.lines_seen) + " arrived");
+    finish_blocks(prog, id, parse_summary_of(*prog.stage), false, 0);
+    chunk_programs.erase(it);
+    return true;
+  }
+
+  void feed_lines(Program& prog, std::uint64_t id, const msg::ProgramChunk& chunk) {
+    for (std::size_t k = 0; k < chunk.lines().size(); ++k) {
+      const std::uint64_t number = chunk.first_line() + k;
+      if (number != prog.lines_seen + 1) {
+        fail(prog, id, "chunk " + std::to_string(chunk.sequence_number()) + " starts at line " +
+                           std::to_string(chunk.first_line()) + ", expected line " + std::to_string(prog.lines_seen + 1));
+        return;
+      }
+      prog.lines_seen = number;
+      if (prog.stopped || !prog.error.empty() || prog.out->failed) continue;
+      const msg::SourceLine& src = chunk.lines()[k];
+      // Cut as batch mode's LineReader does when the feeder's limit was larger than ours.
+      std::string_view text = src.text();
+      std::size_t overlong = src.full_length();
+      if (text.size() > max_line) {
+        if (overlong == 0) overlong = text.size();
+        text = text.substr(0, max_line);
+      }
+      if (!prog.stage->line(text, overlong, *prog.out) && !prog.out->failed) prog.stopped = true;
+    }
+  }
+
+  // ---- BlockBatch input (every other stage) ----
+
+  bool take_batch(double timeout) {
+    msg::BlockBatch batch;
+    double source_time = 0;
+    if (!reader->take(&batch, timeout, &source_time)) return false;
+    const std::uint64_t id = batch.program_id();
+    Program* found = intake.admit(batch, participant.published_before_start(source_time), [&] {
+      return make_program(batch.file(), options.strict || config_strict || batch.strict());
+    });
+    ended = false;
+    if (found == nullptr) return true;
+    Program& prog = *found;
+    prog.out->id = id;
+    if (prog.error.empty()) process(prog, id, batch);
+    if (!batch.end_of_program()) return true;
+    ended = true;
+    intake.close(prog, batch);
+    const BatchTotals upstream = totals_of(batch);
+    if (info.output == Port::kBlocks) finish_blocks(prog, id, upstream.summary, upstream.stopped, upstream.blocks_rejected);
+    else finish_text(prog, id, batch);
+    intake.erase(id);
+    return true;
+  }
+
+  // Batch mode's loop body for one input batch, in batch mode's order.
+  void process(Program& prog, std::uint64_t id, const msg::BlockBatch& batch) {
+    ResolvedBlock block;
+    Diagnostic diag;
+    DiagnosticKind kind{};
+    std::string why;
+    const auto& blocks = batch.blocks();
+    const auto& diags = batch.diagnostics();
+    auto bad = [&](std::uint64_t line) {
+      fail(prog, id, "batch " + std::to_string(batch.sequence_number()) + ", line " + std::to_string(line) + ": " + why);
+      return false;
+    };
+    for_each_in_line_order(
+        batch,
+        [&](std::size_t b) {
+          if (!from_msg(blocks[b], block, &why)) return bad(blocks[b].line());
+          ++prog.arrived.blocks;
+          if (!prog.stopped && !prog.stage->block(block, *prog.out)) prog.stopped = !prog.out->failed;
+          return !prog.out->failed;
+        },
+        [&](std::size_t d) {
+          if (!from_msg(diags[d], diag, kind, &why)) return bad(diags[d].line());
+          prog.arrived.count(kind);
+          if (!prog.stopped && !prog.stage->diagnostic(diag, kind, *prog.out)) prog.stopped = !prog.out->failed;
+          return !prog.out->failed;
+        });
+  }
+
+  // ---- end of program ----
+
+  void finish_stage(Program& prog, std::uint64_t id, bool upstream_stopped) {
+    const bool complete = prog.error.empty() && !prog.stopped && !upstream_stopped;
+    prog.stage->finish(complete, *prog.out);
+    const std::string failure = prog.stage->failure();
+    if (prog.error.empty() && !failure.empty()) fail(prog, id, failure);
+    if (prog.out->failed && prog.error.empty()) fail(prog, id, "a publish on " + options.output_topic + " failed");
+    // What the stage says of the program, as batch's report.txt says it.
+    std::string text;
+    report_of(*prog.stage, text);
+    std::cerr << "gcpipe node " << options.stage << ": program " << id << " '" << prog.file << "':\n" << text;
+  }
+
+  void finish_blocks(Program& prog, std::uint64_t id, const ParseSummary& summary, bool upstream_stopped,
+                     std::uint64_t) {
+    finish_stage(prog, id, upstream_stopped);
+    Outbox& out = *prog.out;
+    out.batch.end_of_program(true);
+    BatchTotals totals;
+    totals.summary = summary;
+    totals.blocks_sent = out.blocks_sent + out.batch.blocks().size();
+    totals.diagnostics_sent = out.diagnostics_sent + out.batch.diagnostics().size();
+    totals.blocks_rejected = out.block_rejections_sent;
+    totals.stopped = upstream_stopped || prog.stopped;
+    set_totals(totals, out.batch);
+    out.batch.error(prog.error);
+    if (!prog.error.empty()) status = 1;
+    out.publish_batch();
+    std::cerr << "gcpipe node " << options.stage << ": program " << id << ": "
+              << totals.blocks_sent << " blocks and " << totals.diagnostics_sent << " diagnostics out in "
+              << out.sequence << " batches" << (prog.stopped ? " (strict stop)" : "")
+              << "; writes retried on a full history: " << writer->blocked_writes() << "\n";
+  }
+
+  void finish_text(Program& prog, std::uint64_t id, const msg::BlockBatch& end) {
+    finish_stage(prog, id, end.stopped());
+    Outbox& out = *prog.out;
+    msg::GcodeChunk marker;
+    marker.byte_count(out.bytes + out.pending.size());
+    marker.blocks_written(prog.arrived.blocks);
+    marker.diagnostics_written(prog.arrived.diagnostics());
+    // Upstream's accounting goes on, so that the sink exits with batch mode's status.
+    marker.blocks_rejected(end.blocks_rejected());
+    marker.stopped(end.stopped());
+    marker.summary(end.summary());
+    marker.error(prog.error);
+    if (!prog.error.empty()) status = 1;
+    out.publish_text(std::move(out.pending), true, &marker);
+    std::cerr << "gcpipe node " << options.stage << ": program " << id << ": "
+              << prog.arrived.blocks << " blocks, " << prog.arrived.diagnostics() << " diagnostics in; "
+              << out.bytes << " bytes out in " << out.sequence << " chunks"
+              << (prog.error.empty() ? "" : "; " + prog.error) << "\n";
+  }
+
+  bool ended = false;
+};
+
+StageNode::StageNode(Participant& participant, const PipelineConfig& config, StageNodeOptions options)
+    : impl_(std::make_unique<Impl>(participant, config, std::move(options))) {
+  const Port in = impl_->info.input, out = impl_->info.output;
+  if (in == Port::kGcode || out == Port::kProgram)
+    throw std::runtime_error("stage '" + impl_->options.stage + "' has no DDS node: its ports have no wire type");
+}
+
+StageNode::~StageNode() = default;
+
+int StageNode::run() {
+  Impl& m = *impl_;
+  return run_stage_node(
+      m.options.stage, m.participant, *m.writer, m.options.forever,
+      [&m](double timeout) {
+        const bool took = m.info.input == Port::kProgram ? m.take_chunk(timeout) : m.take_batch(timeout);
+        if (!took) return Taken::kNothing;
+        return m.ended ? Taken::kProgramEnd : Taken::kHandled;
+      },
+      m.status);
+}
+
+}  // namespace gcpipe::dds

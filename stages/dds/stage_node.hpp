@@ -1,0 +1,47 @@
+// The one DDS node: any registered stage (stages/pipeline/stage.hpp) between its input and output
+// topics. What the stage's ports say decides the wire types:
+//
+//   input  program -> msg::ProgramChunk (lines, from `gcpipe feed`)
+//          blocks  -> msg::BlockBatch   (blocks and line diagnostics, in line order)
+//   output blocks  -> msg::BlockBatch   (cut into batches of about batch_bytes)
+//          gcode   -> msg::GcodeChunk   (whole lines, chunks of about batch_bytes)
+//
+// Around the stage the node does what every edge needs: programs told apart by id, replayed
+// programs skipped, sequence numbers checked, strict stops, and an end-of-program marker whose
+// counts the next node checks (dds_convert.hpp, check_counts). The stage runs exactly as in
+// `gcpipe batch`, one stage object per program, so the bytes are batch mode's.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <string>
+
+#include "gcpipe/pipeline_config.hpp"
+
+namespace gcpipe::dds {
+
+class Participant;
+
+struct StageNodeOptions {
+  std::string stage;                    //!< a registered stage with a node (dds::edges)
+  std::size_t batch_bytes = 32 * 1024;  //!< publish a batch or chunk once it holds this much [bytes]
+  bool forever = false;                 //!< serve programs until SIGINT/SIGTERM
+  bool strict = false;                  //!< stop each program at its first rejected line or cycle
+  std::string input_topic, output_topic;
+};
+
+class StageNode {
+ public:
+  /// Throws when the stage is unknown or its ports have no wire type.
+  StageNode(Participant& participant, const PipelineConfig& config, StageNodeOptions options);
+  ~StageNode();
+  /// Runs until one program ended (or, with `forever`, until stopped). 0 when every program
+  /// arrived whole with consistent counts, was processed and acknowledged downstream; else 1.
+  int run();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace gcpipe::dds
