@@ -16,7 +16,7 @@ packages=(
   libeigen3-dev libyaml-cpp-dev libopencv-dev
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools
   libgtest-dev libgmock-dev libbenchmark-dev
-  libcli11-dev nlohmann-json3-dev
+  libcli11-dev nlohmann-json3-dev libpng-dev
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -5,10 +5,10 @@
 #include <cstdio>
 
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "plot.hpp"
+#include "png.hpp"
 
 namespace gcpipe::compensate {
 
@@ -29,7 +29,7 @@ double nice_below(double v) {
 void save_stack(const std::filesystem::path& png, const std::vector<cv::Mat>& panels) {
   cv::Mat out;
   cv::vconcat(panels, out);
-  if (!cv::imwrite(png.string(), out)) throw std::runtime_error(png.string() + ": cannot write the PNG");
+  plot::write_png(png, out);
 }
 
 std::string fmt(const char* f, double a, double b = 0, double c = 0) {
@@ -107,7 +107,7 @@ void plot_toolpath(const std::filesystem::path& png, const Evaluation& before, c
   if (!b.t.empty()) panels.push_back(panel(b.nominal[0][worst], b.nominal[1][worst], 10.0, true));
   cv::Mat out;
   cv::hconcat(panels, out);
-  if (!cv::imwrite(png.string(), out)) throw std::runtime_error(png.string() + ": cannot write the PNG");
+  plot::write_png(png, out);
 }
 
 bool plot_ballbar(const std::filesystem::path& png, const Nominal& nominal, const Evaluation& before,

@@ -1,5 +1,7 @@
 #include "plot.hpp"
 
+#include "png.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -7,7 +9,6 @@
 #include <limits>
 #include <stdexcept>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 namespace gcpipe::plot {
@@ -289,14 +290,7 @@ cv::Mat Figure::render() const {
 }
 
 void Figure::save_png(const std::filesystem::path& path) const {
-  const cv::Mat img = render();
-  bool ok = false;
-  try {
-    ok = cv::imwrite(path.string(), img);
-  } catch (const cv::Exception& e) {
-    throw std::runtime_error("cannot write PNG '" + path.string() + "': " + e.what());
-  }
-  if (!ok) throw std::runtime_error("cannot write PNG '" + path.string() + "'");
+  write_png(path, render());
 }
 
 }  // namespace gcpipe::plot
