@@ -131,6 +131,108 @@ void project_speed(std::vector<Node>& nodes, const Axes& vmax, double period) {
   }
 }
 
+// Where a tick of the re-timed reference is in the program, and its reference tool tip.
+struct ReferenceClock {
+  const Model& model;
+  const Nominal& nom;
+  std::span<const ResolvedBlock> program;
+  std::uint32_t block_at(std::uint64_t tick) const {
+    const double p = nom.progress[std::min<std::size_t>(tick, nom.progress.size() - 1)];
+    return nom.block[std::min<std::size_t>(static_cast<std::size_t>(p), nom.block.size() - 1)];
+  }
+  Vec3 tip_at(const Axes& j, std::uint64_t tick) const {
+    return forward_kinematics(model.kin, j, tool_length_of(model, program[block_at(tick)])).tip;
+  }
+};
+
+// Node grid every `m` ticks, then kinematic linearisation: an interval is halved while
+// joint-linear motion between its ends leaves the reference tool-tip path by more than the
+// tolerance at its midpoint.
+std::vector<std::uint64_t> linearised_grid(const ReferenceClock& clock, std::uint64_t m, double tolerance, Result& res) {
+  const Nominal& nom = clock.nom;
+  const std::uint64_t E = nom.reference.size();
+  std::vector<std::uint64_t> ticks;
+  for (std::uint64_t k = 0; k < E; k += m) ticks.push_back(k);
+  if (ticks.back() != E - 1) ticks.push_back(E - 1);
+  std::vector<std::uint64_t> grid;
+  grid.push_back(0);
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> stack;
+  for (std::size_t k = 1; k < ticks.size(); ++k) {
+    stack.clear();
+    stack.emplace_back(ticks[k - 1], ticks[k]);
+    std::vector<std::uint64_t> added;
+    while (!stack.empty()) {
+      auto [a, b] = stack.back();
+      stack.pop_back();
+      if (b - a >= 2) {
+        const std::uint64_t c = (a + b) / 2;
+        // Deviation of joint-linear motion from the path: the tip of the joint midpoint against
+        // the reference tool-tip polyline between the two nodes (not against the time-matched
+        // point: a speed change along a straight path is no deviation).
+        const Vec3 mid = clock.tip_at(lerp(nom.reference[a], nom.reference[b], 0.5), c);
+        double dev = std::numeric_limits<double>::infinity();
+        Vec3 prev = clock.tip_at(nom.reference[a], a);
+        for (std::uint64_t n = a + 1; n <= b; ++n) {
+          const Vec3 cur = clock.tip_at(nom.reference[n], n);
+          dev = std::min(dev, servo::segment_distance(prev, cur, mid));
+          prev = cur;
+        }
+        if (dev > tolerance) {
+          ++res.linearisation_splits;
+          stack.emplace_back(c, b);
+          stack.emplace_back(a, c);
+          continue;
+        }
+        res.linearisation_max_deviation = std::max(res.linearisation_max_deviation, dev);
+      }
+      added.push_back(b);
+    }
+    std::sort(added.begin(), added.end());
+    grid.insert(grid.end(), added.begin(), added.end());
+  }
+  return grid;
+}
+
+// What the source's own TCP blocks would do if run joint-linearly between their IK end points
+// (a control without TCP): reported, since it is the error the node program removes.
+void measure_source_joint_linear_deviation(const Model& model, std::span<const ResolvedBlock> program, double tolerance,
+                                           Result& res) {
+  for (const ResolvedBlock& b : program) {
+    if (!b.tcp || b.motion != Motion::kLinear) continue;
+    const double L = tool_length_of(model, b);
+    const IkResult s = inverse_kinematics_ac(model.kin, {b.start[kX], b.start[kY], b.start[kZ]}, b.start[kA], b.start[kC], L);
+    const IkResult e = inverse_kinematics_ac(model.kin, {b.target[kX], b.target[kY], b.target[kZ]}, b.target[kA], b.target[kC], L);
+    if (s.status == IkStatus::kFailed || e.status == IkStatus::kFailed) continue;
+    double worst = 0;
+    for (int k = 1; k < 8; ++k) {
+      const double u = k / 8.0;
+      const Vec3 tip = forward_kinematics(model.kin, lerp(s.joints, e.joints, u), L).tip;
+      const Vec3 line{b.start[kX] + (b.target[kX] - b.start[kX]) * u, b.start[kY] + (b.target[kY] - b.start[kY]) * u,
+                      b.start[kZ] + (b.target[kZ] - b.start[kZ]) * u};
+      worst = std::max(worst, dist3(tip, line));
+    }
+    res.source_joint_linear_deviation = std::max(res.source_joint_linear_deviation, worst);
+    if (worst > tolerance) ++res.source_blocks_needing_split;
+  }
+}
+
+// Model-inverse start u = L r at every node of the grid; the first node is where the machine
+// stands, the last the program's end point (the learning may move it, the end stays).
+std::vector<Node> model_inverse_nodes(const ReferenceClock& clock, const std::vector<std::uint64_t>& grid,
+                                      const Axes& start, const Learning& L, std::int64_t h) {
+  const Nominal& nom = clock.nom;
+  std::vector<Node> nodes(grid.size());
+  for (std::size_t k = 0; k < grid.size(); ++k) {
+    nodes[k].tick = grid[k];
+    nodes[k].block = clock.block_at(grid[k]);
+    for (std::size_t i = 0; i < kNumAxes; ++i)
+      nodes[k].joints[i] = k == 0 ? start[i]
+                                  : apply_learning(nom.reference, static_cast<std::int64_t>(grid[k]), i, L, nom.period, h);
+  }
+  nodes.back().joints = nom.reference.back();
+  return nodes;
+}
+
 }  // namespace
 
 Result compensate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
@@ -156,94 +258,16 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
   }
   const auto m = static_cast<std::uint64_t>(std::max(1L, std::lround(opt.node_period / T)));
   const std::uint64_t E = nom.reference.size();
-  auto block_at = [&](std::uint64_t tick) -> std::uint32_t {
-    const double p = nom.progress[std::min<std::size_t>(tick, nom.progress.size() - 1)];
-    return nom.block[std::min<std::size_t>(static_cast<std::size_t>(p), nom.block.size() - 1)];
-  };
-  auto tip_at = [&](const Axes& j, std::uint64_t tick) {
-    return forward_kinematics(model.kin, j, tool_length_of(model, program[block_at(tick)])).tip;
-  };
-
-  // Node grid, then kinematic linearisation: halve an interval while joint-linear motion between
-  // its ends leaves the reference tool-tip path by more than the tolerance at its midpoint.
-  std::vector<std::uint64_t> ticks;
-  for (std::uint64_t k = 0; k < E; k += m) ticks.push_back(k);
-  if (ticks.back() != E - 1) ticks.push_back(E - 1);
-  std::vector<std::uint64_t> grid;
-  grid.push_back(0);
-  std::vector<std::pair<std::uint64_t, std::uint64_t>> stack;
-  for (std::size_t k = 1; k < ticks.size(); ++k) {
-    stack.clear();
-    stack.emplace_back(ticks[k - 1], ticks[k]);
-    std::vector<std::uint64_t> added;
-    while (!stack.empty()) {
-      auto [a, b] = stack.back();
-      stack.pop_back();
-      if (b - a >= 2) {
-        const std::uint64_t c = (a + b) / 2;
-        // Deviation of joint-linear motion from the path: the tip of the joint midpoint against
-        // the reference tool-tip polyline between the two nodes (not against the time-matched
-        // point: a speed change along a straight path is no deviation).
-        const Vec3 mid = tip_at(lerp(nom.reference[a], nom.reference[b], 0.5), c);
-        double dev = std::numeric_limits<double>::infinity();
-        Vec3 prev = tip_at(nom.reference[a], a);
-        for (std::uint64_t n = a + 1; n <= b; ++n) {
-          const Vec3 cur = tip_at(nom.reference[n], n);
-          dev = std::min(dev, servo::segment_distance(prev, cur, mid));
-          prev = cur;
-        }
-        if (dev > opt.linearisation_tolerance) {
-          ++res.linearisation_splits;
-          stack.emplace_back(c, b);
-          stack.emplace_back(a, c);
-          continue;
-        }
-        res.linearisation_max_deviation = std::max(res.linearisation_max_deviation, dev);
-      }
-      added.push_back(b);
-    }
-    std::sort(added.begin(), added.end());
-    grid.insert(grid.end(), added.begin(), added.end());
-  }
-
-  // What the source's own TCP blocks would do if run joint-linearly between their IK end points
-  // (a control without TCP): reported, since it is the error the node program removes.
-  for (const ResolvedBlock& b : program) {
-    if (!b.tcp || b.motion != Motion::kLinear) continue;
-    const double L = tool_length_of(model, b);
-    const IkResult s = inverse_kinematics_ac(model.kin, {b.start[kX], b.start[kY], b.start[kZ]}, b.start[kA], b.start[kC], L);
-    const IkResult e = inverse_kinematics_ac(model.kin, {b.target[kX], b.target[kY], b.target[kZ]}, b.target[kA], b.target[kC], L);
-    if (s.status == IkStatus::kFailed || e.status == IkStatus::kFailed) continue;
-    double worst = 0;
-    for (int k = 1; k < 8; ++k) {
-      const double u = k / 8.0;
-      const Vec3 tip = forward_kinematics(model.kin, lerp(s.joints, e.joints, u), L).tip;
-      const Vec3 line{b.start[kX] + (b.target[kX] - b.start[kX]) * u, b.start[kY] + (b.target[kY] - b.start[kY]) * u,
-                      b.start[kZ] + (b.target[kZ] - b.start[kZ]) * u};
-      worst = std::max(worst, dist3(tip, line));
-    }
-    res.source_joint_linear_deviation = std::max(res.source_joint_linear_deviation, worst);
-    if (worst > opt.linearisation_tolerance) ++res.source_blocks_needing_split;
-  }
-
-  // Model-inverse start: u = L r, then learning iterations on the simulated error.
+  const ReferenceClock clock{model, nom, program};
+  const std::vector<std::uint64_t> grid = linearised_grid(clock, m, opt.linearisation_tolerance, res);
+  measure_source_joint_linear_deviation(model, program, opt.linearisation_tolerance, res);
   const Learning L = learning_operator(model);
   // Derivatives by central differences over +-10 ms: wide enough that the corners of a finely
   // chorded path (G275 loops: a chord every 4 ms) do not become steps in the commands.
   const auto h = static_cast<std::int64_t>(std::max<long>(1, std::lround(0.010 / T)));
-  std::vector<Node> nodes(grid.size());
-  for (std::size_t k = 0; k < grid.size(); ++k) {
-    nodes[k].tick = grid[k];
-    nodes[k].block = block_at(grid[k]);
-    for (std::size_t i = 0; i < kNumAxes; ++i)
-      nodes[k].joints[i] = k == 0 ? start[i]
-                                  : apply_learning(nom.reference, static_cast<std::int64_t>(grid[k]), i, L, T, h);
-  }
-  // The last node is the program's end point: the learning may move it, the end stays.
-  nodes.back().joints = nom.reference.back();
+  std::vector<Node> nodes = model_inverse_nodes(clock, grid, start, L, h);
   const Axes vbound = interpolate::speed_bound(model.interp);
   project_speed(nodes, vbound, T);
-
 
   // The learning is local in time: the program is cut into windows of about a second, and an
   // iterate that breaks a limit or does worse in one window is dropped there only (its nodes
