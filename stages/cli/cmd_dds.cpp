@@ -7,6 +7,7 @@
 #include "dds_runtime.hpp"
 #include "dds_tools.hpp"
 #include "parse.hpp"
+#include "stage.hpp"
 #include "stage_node.hpp"
 #include "gcpipe/config.hpp"
 #include "program_stream.hpp"
@@ -28,8 +29,11 @@ dds::DdsOptions dds_options(const DdsArgs& a) {
 
 // The stage's declared edges (dds::edges), renamed by --in/--out.
 void node_topics(const NodeArgs& a, std::string& in, std::string& out) {
-  in = a.in.empty() ? dds::input_edge(a.stage).topic : a.in;
-  out = a.out.empty() ? dds::output_edge(a.stage).topic : a.out;
+  const pipeline::StageInfo& info = pipeline::find_stage(a.stage);
+  if (*info.topic == '\0' && a.out.empty())
+    throw std::invalid_argument("stage '" + a.stage + "' has no DDS node yet (nodes: every stage with a topic in gcpipe stages)");
+  in = a.in.empty() ? pipeline::input_topic(a.stage) : a.in;
+  out = a.out.empty() ? std::string(info.topic) : a.out;
   dds::check_topic_name(in);
   dds::check_topic_name(out);
   if (in == out) throw std::invalid_argument("--in and --out name the same topic '" + in + "'");

@@ -7,10 +7,14 @@
 namespace gcpipe::cli {
 
 int run_stages() {
-  std::printf("%-11s %-11s %-8s %-8s %s\n", "stage", "upstream", "in", "out", "what it does");
-  for (const pipeline::StageInfo& s : pipeline::registry())
-    std::printf("%-11s %-11s %-8s %-8s %s\n", s.name, *s.upstream ? s.upstream : "-", pipeline::to_string(s.input),
-                pipeline::to_string(s.output), s.summary);
+  std::printf("%-11s %-11s %-8s %-8s %-19s %-19s %s\n", "stage", "upstream", "in", "out", "reads topic",
+              "writes topic", "what it does");
+  for (const pipeline::StageInfo& s : pipeline::registry()) {
+    const bool node = *s.topic != '\0';
+    std::printf("%-11s %-11s %-8s %-8s %-19s %-19s %s\n", s.name, *s.upstream ? s.upstream : "-",
+                pipeline::to_string(s.input), pipeline::to_string(s.output),
+                node ? pipeline::input_topic(s.name).c_str() : "-", node ? s.topic : "(no node yet)", s.summary);
+  }
   std::printf("\nbatch runs them all; trochoid = parse..write, ik = parse..ik, simulate = parse..simulate.\n");
   return 0;
 }

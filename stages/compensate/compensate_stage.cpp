@@ -129,7 +129,8 @@ pipeline::StageInfo compensate_stage() {
           pipeline::Port::kBlocks, pipeline::Port::kGcode,
           [](const pipeline::StageContext& c) -> std::unique_ptr<pipeline::Stage> {
             return std::make_unique<CompensateStage>(c);
-          }};
+          },
+          "gcpipe_compensated"};
 }
 
 }  // namespace gcpipe

@@ -1,6 +1,7 @@
 #include "dds_runtime.hpp"
 
 #include "output_dir.hpp"
+#include "stage.hpp"
 
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
@@ -77,36 +78,16 @@ MessageType message_type_from_name(const std::string& name) {
                            "' (known: program, blocks, gcode, or ProgramChunk, BlockBatch, GcodeChunk)");
 }
 
-const std::vector<Edge>& edges() {
-  static const std::vector<Edge> e = {
-      {kProgramTopicName, MessageType::kProgramChunk, "feed", "parse"},
-      {"gcpipe_blocks", MessageType::kBlockBatch, "parse", "trochoid"},
-      {"gcpipe_toolpath", MessageType::kBlockBatch, "trochoid", "write"},
-      {"gcpipe_toolpath", MessageType::kBlockBatch, "trochoid", "compensate"},
-      {kGcodeTopicName, MessageType::kGcodeChunk, "write", "sink"},
-      {kCompensatedTopicName, MessageType::kGcodeChunk, "compensate", "sink"},
-  };
-  return e;
-}
-
-const Edge& input_edge(const std::string& stage) {
-  for (const Edge& e : edges())
-    if (stage == e.reader) return e;
-  throw std::runtime_error("stage '" + stage + "' has no DDS node (nodes: parse, trochoid, write, compensate)");
-}
-
-const Edge& output_edge(const std::string& stage) {
-  for (const Edge& e : edges())
-    if (stage == e.writer) return e;
-  throw std::runtime_error("stage '" + stage + "' has no DDS node (nodes: parse, trochoid, write, compensate)");
-}
-
 bool default_topic_type(const std::string& topic, MessageType& type) {
-  for (const Edge& e : edges())
-    if (topic == e.topic) {
-      type = e.type;
-      return true;
-    }
+  if (topic == pipeline::kProgramTopic) {
+    type = MessageType::kProgramChunk;
+    return true;
+  }
+  for (const pipeline::StageInfo& s : pipeline::registry()) {
+    if (topic != s.topic) continue;
+    type = s.output == pipeline::Port::kGcode ? MessageType::kGcodeChunk : MessageType::kBlockBatch;
+    return true;
+  }
   return false;
 }
 

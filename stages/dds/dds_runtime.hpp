@@ -29,23 +29,13 @@ const char* type_name(MessageType type);
 /// Accepts program|blocks|gcode and ProgramChunk|BlockBatch|GcodeChunk; throws otherwise.
 MessageType message_type_from_name(const std::string& name);
 
-/// One edge of the streaming pipeline: its topic, its type and the stages at its ends. The only
-/// place topic names are declared; every node's --in/--out may rename them.
-struct Edge {
-  const char* topic;
-  MessageType type;
-  const char* writer;  //!< the stage (or tool) that publishes it
-  const char* reader;  //!< the stage (or tool) that takes it
-};
-/// feed -> parse -> trochoid -> write -> sink, and trochoid -> compensate -> sink.
-const std::vector<Edge>& edges();
+/// Topic names are declared once, by the stages (StageInfo::topic, stages/pipeline/stage.hpp):
+/// a node writes its stage's topic and reads its nearest upstream's; `gcpipe feed` writes
+/// pipeline::kProgramTopic. Every node's --in/--out may rename them.
 inline constexpr const char* kProgramTopicName = "gcpipe_program";
 inline constexpr const char* kGcodeTopicName = "gcpipe_gcode";
-inline constexpr const char* kCompensatedTopicName = "gcpipe_compensated";
-/// The topic `stage` reads and the one it writes by default; throws for a stage without a node.
-const Edge& input_edge(const std::string& stage);
-const Edge& output_edge(const std::string& stage);
-/// The type of a declared topic name, false for any other name (then the type must be given).
+/// The type of a declared topic name (the program topic or a stage's), false for any other
+/// name (then the type must be given).
 bool default_topic_type(const std::string& topic, MessageType& type);
 /// Throws std::runtime_error unless `topic` is a usable topic name: 1..200 characters of
 /// [A-Za-z0-9_], not starting with a digit (a conservative subset of what DDS accepts).

@@ -60,7 +60,8 @@ class ParseStage final : public pipeline::Stage {
 pipeline::StageInfo parse_stage() {
   return {"parse", "", "ISO 6983 text to resolved blocks, with file:line:col errors", pipeline::Port::kProgram,
           pipeline::Port::kBlocks,
-          [](const pipeline::StageContext& c) -> std::unique_ptr<pipeline::Stage> { return std::make_unique<ParseStage>(c); }};
+          [](const pipeline::StageContext& c) -> std::unique_ptr<pipeline::Stage> { return std::make_unique<ParseStage>(c); },
+          "gcpipe_blocks"};
 }
 
 }  // namespace gcpipe

@@ -34,6 +34,14 @@ const StageInfo& find_stage(std::string_view name) {
   throw std::runtime_error("unknown stage '" + std::string(name) + "' (known: " + known + ")");
 }
 
+std::string input_topic(std::string_view name) {
+  for (const StageInfo* s = &find_stage(name); *s->upstream != '\0';) {
+    s = &find_stage(s->upstream);
+    if (*s->topic != '\0') return s->topic;
+  }
+  return kProgramTopic;
+}
+
 std::vector<std::string> chain_to(std::string_view name) {
   std::vector<std::string> chain;
   for (const StageInfo* s = &find_stage(name);; s = &find_stage(s->upstream)) {

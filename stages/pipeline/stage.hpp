@@ -121,11 +121,18 @@ struct StageInfo {
   Port input;
   Port output;
   std::unique_ptr<Stage> (*make)(const StageContext& context);
+  /// The DDS topic its output goes on when it runs as a node ("" = not on DDS yet); a node reads
+  /// the topic of its nearest upstream that has one (the program topic for the source).
+  const char* topic = "";
 };
 
 /// Every stage, in pipeline order (generated from stages/CMakeLists.txt's GCPIPE_STAGES list).
 const std::vector<StageInfo>& registry();
 /// The registered stage called `name`; throws std::runtime_error listing the known names.
 const StageInfo& find_stage(std::string_view name);
+/// The topic `gcpipe feed` publishes programs on, which the source stage reads.
+inline constexpr const char* kProgramTopic = "gcpipe_program";
+/// The topic stage `name` reads by default as a node: its nearest upstream's with a topic.
+std::string input_topic(std::string_view name);
 
 }  // namespace gcpipe::pipeline

@@ -99,7 +99,8 @@ pipeline::StageInfo trochoid_stage() {
           pipeline::Port::kBlocks, pipeline::Port::kBlocks,
           [](const pipeline::StageContext& c) -> std::unique_ptr<pipeline::Stage> {
             return std::make_unique<TrochoidStage>(c);
-          }};
+          },
+          "gcpipe_toolpath"};
 }
 
 }  // namespace gcpipe

@@ -45,7 +45,8 @@ class WriteStage final : public pipeline::Stage {
 pipeline::StageInfo write_stage() {
   return {"write", "trochoid", "resolved blocks to explicit, portable G-code (output.nc)", pipeline::Port::kBlocks,
           pipeline::Port::kGcode,
-          [](const pipeline::StageContext& c) -> std::unique_ptr<pipeline::Stage> { return std::make_unique<WriteStage>(c); }};
+          [](const pipeline::StageContext& c) -> std::unique_ptr<pipeline::Stage> { return std::make_unique<WriteStage>(c); },
+          "gcpipe_gcode"};
 }
 
 }  // namespace gcpipe
