@@ -289,32 +289,3 @@ TEST(ServoConfig, EveryShippedDrivesFileAndServoSectionLoads) {
   EXPECT_GE(drives, 1);
   EXPECT_GE(pipelines, 1);
 }
-
-// Contour error is the distance to the path, not to the time-matched point: a point that trails
-// in time on the path has (almost) none; a point off the path by d has d.
-#include "contour.hpp"
-
-TEST(Contour, TrailingOnThePathIsNotAnErrorButLeavingItIs) {
-  ContourTracker on, off;
-  const double R = 10, w = 2 * kPi;
-  double worst_on = 0, worst_off = 0, worst_time_matched = 0;
-  for (int k = 0; k < 2000; ++k) {
-    const double t = k * kT;
-    const Vec3 nominal{R * std::cos(w * t), R * std::sin(w * t), 0};
-    on.add_nominal(nominal);
-    off.add_nominal(nominal);
-    const double lag = 0.0505;  // 50.5 ms behind: half-way between nominal points (worst case)
-    const Vec3 trailing{R * std::cos(w * (t - lag)), R * std::sin(w * (t - lag)), 0};
-    const Vec3 outside{(R + 0.01) * std::cos(w * (t - lag)), (R + 0.01) * std::sin(w * (t - lag)), 0};
-    if (k < 100) continue;  // the trailing point needs nominal history behind it
-    worst_on = std::max(worst_on, on.distance(trailing));
-    worst_off = std::max(worst_off, std::abs(off.distance(outside) - 0.01));
-    worst_time_matched = std::max(worst_time_matched, std::hypot(trailing[0] - nominal[0], trailing[1] - nominal[1]));
-  }
-  // The nominal path is a polyline of 1 ms chords; half-way along a chord the true circle lies
-  // R (1 - cos(w T / 2)) = 4.93e-5 mm outside it.
-  const double sag = R * (1 - std::cos(w * kT / 2));
-  EXPECT_NEAR(worst_on, sag, 1e-8);
-  EXPECT_LT(worst_off, sag + 1e-8);
-  EXPECT_GT(worst_time_matched, 3.0);
-}

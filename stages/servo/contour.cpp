@@ -17,20 +17,4 @@ double segment_distance(const Vec3& a, const Vec3& b, const Vec3& p, Vec3* close
   return std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
 }
 
-ContourTracker::ContourTracker(std::size_t window) : window_(std::max<std::size_t>(window, 1)) {}
-
-void ContourTracker::add_nominal(const Vec3& p) {
-  pts_.push_back(p);
-  if (pts_.size() > window_ + 1) pts_.pop_front();
-}
-
-double ContourTracker::distance(const Vec3& actual) {
-  if (pts_.empty()) return 0.0;
-  if (pts_.size() == 1) return segment_distance(pts_[0], pts_[0], actual);
-  double best = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i + 1 < pts_.size(); ++i)
-    best = std::min(best, segment_distance(pts_[i], pts_[i + 1], actual));
-  return best;
-}
-
 }  // namespace gcpipe::servo

@@ -48,79 +48,67 @@ NominalPath nominal_path(const Model& model, const Nominal& nom, std::span<const
   return p;
 }
 
-/// Contour error: the distance from the actual tip to the nominal polyline among the points the
-/// nominal could have reached by now, looking back at most `kLookBack` points. The window stops
-/// a looping path (a trochoid) from matching a crossing of a much earlier loop; the actual trails
-/// the nominal by the acc/dec and servo lag (tens of ms), far less than the window. Segments are
-/// grouped with bounding boxes so that most of the window is skipped after the first good match.
-class LocalContour {
- public:
-  static constexpr std::size_t kGroup = 8;
-  static constexpr std::size_t kLookBack = 3000;
-  static constexpr std::size_t kGroupsPerSuper = 8;
-  explicit LocalContour(const NominalPath& p) : p_(p) {
-    for (std::size_t g = 0; g * kGroup + 1 < p.pts.size(); ++g) {
-      Box b;
-      const std::size_t end = std::min(p.pts.size() - 1, (g + 1) * kGroup);
-      for (std::size_t i = g * kGroup; i <= end; ++i) b.add(p.pts[i]);
-      boxes_.push_back(b);
-      if (g % kGroupsPerSuper == 0) supers_.emplace_back();
-      supers_.back().add(b);
-    }
-  }
-  /// `limit`: the newest polyline index the nominal has reached at this tick.
-  double distance(const Vec3& actual, std::size_t limit, Vec3& closest) {
-    const auto& pts = p_.pts;
-    closest = pts.empty() ? actual : pts[0];
-    if (pts.size() < 2) return pts.empty() ? 0.0 : dist3(pts[0], actual);
-    const std::size_t hi = std::min(std::max<std::size_t>(limit, 1), pts.size() - 1);  // last segment end
-    const std::size_t lo = hi > kLookBack ? hi - kLookBack : 0;
-    double best = std::numeric_limits<double>::infinity();
-    Vec3 c;
-    auto scan = [&](std::size_t a, std::size_t b) {  // segments [a, b)
-      for (std::size_t i = a; i < b; ++i) {
-        const double d = servo::segment_distance(pts[i], pts[i + 1], actual, &c);
-        if (d < best) best = d, closest = c, j_ = i;
-      }
-    };
-    // Start near the previous match: a tight bound makes the box test skip most groups.
-    if (j_ >= lo && j_ < hi) scan(j_ > lo + 2 ? j_ - 2 : lo, std::min(hi, j_ + 16));
-    // Two levels of boxes: a group of 8 segments, a super-group of 64; a box farther than the best
-    // match so far cannot hold a closer segment.
-    const std::size_t super_span = kGroup * kGroupsPerSuper;
-    for (std::size_t sg = lo / super_span; sg * super_span < hi && sg < supers_.size(); ++sg) {
-      if (supers_[sg].distance_sq(actual) >= best * best) continue;
-      for (std::size_t g = sg * kGroupsPerSuper; g < (sg + 1) * kGroupsPerSuper && g * kGroup < hi && g < boxes_.size(); ++g) {
-        if (g * kGroup + kGroup <= lo || boxes_[g].distance_sq(actual) >= best * best) continue;
-        scan(std::max(lo, g * kGroup), std::min(hi, (g + 1) * kGroup));
-      }
-    }
-    return best;
-  }
+}  // namespace
 
- private:
-  struct Box {
-    Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
-    void add(const Vec3& p) {
-      for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
-    }
-    void add(const Box& b) {
-      add(b.lo);
-      add(b.hi);
-    }
-    double distance_sq(const Vec3& p) const {
-      double dd = 0;
-      for (int k = 0; k < 3; ++k) {
-        const double o = std::max({lo[k] - p[k], 0.0, p[k] - hi[k]});
-        dd += o * o;
-      }
-      return dd;
+ContourSearch::ContourSearch(const std::vector<Vec3>& pts) : pts_(pts) {
+  for (std::size_t g = 0; g * kGroup + 1 < pts.size(); ++g) {
+    Box b;
+    const std::size_t end = std::min(pts.size() - 1, (g + 1) * kGroup);
+    for (std::size_t i = g * kGroup; i <= end; ++i) b.add(pts[i]);
+    boxes_.push_back(b);
+    if (g % kGroupsPerSuper == 0) supers_.emplace_back();
+    supers_.back().add(b);
+  }
+}
+
+void ContourSearch::Box::add(const Vec3& p) {
+  for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
+}
+
+void ContourSearch::Box::add(const Box& b) {
+  add(b.lo);
+  add(b.hi);
+}
+
+double ContourSearch::Box::distance_sq(const Vec3& p) const {
+  double dd = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double o = std::max({lo[k] - p[k], 0.0, p[k] - hi[k]});
+    dd += o * o;
+  }
+  return dd;
+}
+
+double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& closest) {
+  const auto& pts = pts_;
+  closest = pts.empty() ? actual : pts[0];
+  if (pts.size() < 2) return pts.empty() ? 0.0 : dist3(pts[0], actual);
+  const std::size_t hi = std::min(std::max<std::size_t>(limit, 1), pts.size() - 1);  // last segment end
+  const std::size_t lo = hi > kLookBack ? hi - kLookBack : 0;
+  double best = std::numeric_limits<double>::infinity();
+  Vec3 c;
+  auto scan = [&](std::size_t a, std::size_t b) {  // segments [a, b)
+    for (std::size_t i = a; i < b; ++i) {
+      const double d = servo::segment_distance(pts[i], pts[i + 1], actual, &c);
+      if (d < best) best = d, closest = c, j_ = i;
     }
   };
-  const NominalPath& p_;
-  std::vector<Box> boxes_, supers_;
-  std::size_t j_ = 0;
-};
+  // Start near the previous match: a tight bound makes the box test skip most groups.
+  if (j_ >= lo && j_ < hi) scan(j_ > lo + 2 ? j_ - 2 : lo, std::min(hi, j_ + 16));
+  // Two levels of boxes: a group of 8 segments, a super-group of 64; a box farther than the best
+  // match so far cannot hold a closer segment.
+  const std::size_t super_span = kGroup * kGroupsPerSuper;
+  for (std::size_t sg = lo / super_span; sg * super_span < hi && sg < supers_.size(); ++sg) {
+    if (supers_[sg].distance_sq(actual) >= best * best) continue;
+    for (std::size_t g = sg * kGroupsPerSuper; g < (sg + 1) * kGroupsPerSuper && g * kGroup < hi && g < boxes_.size(); ++g) {
+      if (g * kGroup + kGroup <= lo || boxes_[g].distance_sq(actual) >= best * best) continue;
+      scan(std::max(lo, g * kGroup), std::min(hi, (g + 1) * kGroup));
+    }
+  }
+  return best;
+}
+
+namespace {
 
 void add_error(ErrorStats& s, double& sum_sq, std::uint64_t& count, double e, double t, std::uint64_t line) {
   if (e > s.max) {
@@ -427,7 +415,7 @@ Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const Reso
                     const std::function<void(const Tick&)>& also, bool on_reference_clock) {
   Evaluation ev;
   const NominalPath path = nominal_path(model, nom, program);
-  LocalContour contour(path);
+  ContourSearch contour(path.pts);
   ev.per_segment.assign(nom.segments.size(), ErrorStats{});
   ev.demand.assign(std::max<std::size_t>(1, nom.segments.size()), SegmentDemand{});
   Axes c1{}, c2{};  // the two previous smoothed commands

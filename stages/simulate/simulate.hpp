@@ -61,6 +61,36 @@ struct RunStats {
 RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, const Axes& start,
                      const std::function<void(const Tick&)>& on_tick, std::uint64_t max_ticks = UINT64_MAX);
 
+/// The contour metric: the distance from the actual tool tip to the nominal tool-tip polyline
+/// among the points the nominal could have reached by now, looking back at most kLookBack points.
+/// The window stops a looping path (a trochoid) from matching a crossing of a much earlier loop;
+/// the actual trails the nominal by the acc/dec and servo lag (tens of ms), far less than the
+/// window. Segments are grouped in two levels of bounding boxes, so that most of the window is
+/// skipped once a good match is known. The distance is to the path, not to the time-matched
+/// point: an axis that trails in time on the path has no contour error.
+class ContourSearch {
+ public:
+  static constexpr std::size_t kGroup = 8;
+  static constexpr std::size_t kGroupsPerSuper = 8;
+  static constexpr std::size_t kLookBack = 3000;
+  /// `pts`: the nominal polyline [mm], without repeated points; must outlive the search.
+  explicit ContourSearch(const std::vector<Vec3>& pts);
+  /// `limit`: the newest polyline index the nominal has reached at this tick. Returns the
+  /// distance [mm]; `closest` receives the nearest point of the path.
+  double distance(const Vec3& actual, std::size_t limit, Vec3& closest);
+
+ private:
+  struct Box {
+    Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+    void add(const Vec3& p);
+    void add(const Box& b);
+    double distance_sq(const Vec3& p) const;
+  };
+  const std::vector<Vec3>& pts_;
+  std::vector<Box> boxes_, supers_;
+  std::size_t j_ = 0;  //!< segment of the previous match
+};
+
 /// Joints at which the machine starts, at rest, for the program's first moving block: where the
 /// program believes it is. In TCP mode the parser's position is a tool tip (with A C or a tool
 /// vector), so it is turned into joints.
