@@ -2,179 +2,120 @@
 
 #include <cstdio>
 
-#include "gcpipe/number_format.hpp"
+#include <nlohmann/json.hpp>
 
 namespace gcpipe::compensate {
 
 namespace {
 
-void num(std::string& s, double v) { append_json_number(s, v); }
+using Json = nlohmann::ordered_json;
 
-void error_json(std::string& s, const ErrorStats& e) {
-  s += "{\"max_mm\":";
-  num(s, e.max);
-  s += ",\"rms_mm\":";
-  num(s, e.rms);
-  s += ",\"t_at_max_s\":";
-  num(s, e.t_at_max);
-  s += ",\"line_at_max\":" + std::to_string(e.line_at_max) + "}";
+Json error_json(const ErrorStats& e) {
+  return {{"max_mm", e.max}, {"rms_mm", e.rms}, {"t_at_max_s", e.t_at_max}, {"line_at_max", e.line_at_max}};
 }
 
-void axes_json(std::string& s, const char* key, const Axes& a) {
-  s += ",\"";
-  s += key;
-  s += "\":{";
-  for (int i = 0; i < kNumAxes; ++i) {
-    if (i) s += ',';
-    s += '"';
-    s += kAxisLetters[i];
-    s += "\":";
-    num(s, a[static_cast<std::size_t>(i)]);
-  }
-  s += '}';
+Json per_axis(const Axes& a) {
+  Json j;
+  for (int i = 0; i < kNumAxes; ++i) j[std::string(1, kAxisLetters[i])] = a[static_cast<std::size_t>(i)];
+  return j;
 }
 
-void axis_stats_json(std::string& s, const AxisStats& a) {
-  s += "{\"units\":\"mm (X Y Z), deg (A C)\"";
-  axes_json(s, "max_following_error", a.max_following);
-  axes_json(s, "rms_following_error", a.rms_following);
-  axes_json(s, "max_tracking_error", a.max_tracking);
-  axes_json(s, "travel_margin", a.travel_margin);
-  axes_json(s, "peak_velocity", a.peak_velocity);
-  axes_json(s, "peak_acceleration", a.peak_acceleration);
-  s += ",\"torque_limited_ticks\":{";
-  for (int i = 0; i < kNumAxes; ++i) {
-    if (i) s += ',';
-    s += '"';
-    s += kAxisLetters[i];
-    s += "\":" + std::to_string(a.saturated_ticks[static_cast<std::size_t>(i)]);
-  }
-  s += "}}";
+Json axis_stats_json(const AxisStats& a) {
+  Json ticks;
+  for (int i = 0; i < kNumAxes; ++i) ticks[std::string(1, kAxisLetters[i])] = a.saturated_ticks[static_cast<std::size_t>(i)];
+  return {{"units", "mm (X Y Z), deg (A C)"},
+          {"max_following_error", per_axis(a.max_following)},
+          {"rms_following_error", per_axis(a.rms_following)},
+          {"max_tracking_error", per_axis(a.max_tracking)},
+          {"travel_margin", per_axis(a.travel_margin)},
+          {"peak_velocity", per_axis(a.peak_velocity)},
+          {"peak_acceleration", per_axis(a.peak_acceleration)},
+          {"torque_limited_ticks", ticks}};
 }
 
 double ratio(double before, double after) { return after > 0 ? before / after : 0.0; }
 
-}  // namespace
+const char* smoothing_name(interpolate::Smoothing s) {
+  return s == interpolate::Smoothing::kExponential ? "exponential" : s == interpolate::Smoothing::kLinear ? "linear" : "none";
+}
 
-std::string report_json(const ReportInput& in) {
-  std::string s = "{\"model\":{\"period_s\":";
-  num(s, in.model->interp.period);
-  s += ",\"smoothing\":\"";
-  s += in.model->interp.smoothing == interpolate::Smoothing::kExponential ? "exponential"
-       : in.model->interp.smoothing == interpolate::Smoothing::kLinear    ? "linear"
-                                                                          : "none";
-  s += "\"}";
-  s += ",\"compensated\":";
-  s += in.result && in.result->compensated && in.after ? "true" : "false";
-  s += ",\"note\":";
-  append_json_string(s, in.result ? in.result->note : std::string());
-  s += ",\"contour_error_before\":";
-  error_json(s, in.before->contour);
-  if (in.after) {
-    s += ",\"contour_error_after\":";
-    error_json(s, in.after->contour);
-    s += ",\"max_contour_error_reduction\":";
-    num(s, ratio(in.before->contour.max, in.after->contour.max));
-  }
-  s += ",\"axes_before\":";
-  axis_stats_json(s, in.before->axes);
-  if (in.after) {
-    s += ",\"axes_after\":";
-    axis_stats_json(s, in.after->axes);
-  }
-  s += ",\"segments\":[";
+Json segments_json(const ReportInput& in) {
+  Json list = Json::array();
   for (std::size_t k = 0; k < in.nominal->segments.size(); ++k) {
     const Segment& g = in.nominal->segments[k];
-    if (k) s += ',';
-    s += "{\"first_line\":" + std::to_string(g.first_line) + ",\"last_line\":" + std::to_string(g.last_line) + ",\"t_begin_s\":";
-    num(s, g.t_begin);
-    s += ",\"t_end_s\":";
-    num(s, g.t_end);
-    if (g.circle) {
-      s += ",\"circle\":{\"radius_mm\":";
-      num(s, g.circle_radius);
-      s += ",\"centre_mm\":[";
-      num(s, g.circle_centre[0]);
-      s += ',';
-      num(s, g.circle_centre[1]);
-      s += "]}";
-    }
-    s += ",\"contour_error_before\":";
-    error_json(s, in.before->per_segment[k]);
+    Json j = {{"first_line", g.first_line}, {"last_line", g.last_line}, {"t_begin_s", g.t_begin}, {"t_end_s", g.t_end}};
+    if (g.circle) j["circle"] = {{"radius_mm", g.circle_radius}, {"centre_mm", {g.circle_centre[0], g.circle_centre[1]}}};
+    j["contour_error_before"] = error_json(in.before->per_segment[k]);
     if (in.after && k < in.after->per_segment.size()) {
-      s += ",\"contour_error_after\":";
-      error_json(s, in.after->per_segment[k]);
-      s += ",\"max_contour_error_reduction\":";
-      num(s, ratio(in.before->per_segment[k].max, in.after->per_segment[k].max));
+      j["contour_error_after"] = error_json(in.after->per_segment[k]);
+      j["max_contour_error_reduction"] = ratio(in.before->per_segment[k].max, in.after->per_segment[k].max);
     }
-    s += '}';
+    list.push_back(std::move(j));
   }
-  s += ']';
-  if (in.result) {
-    const Result& r = *in.result;
-    s += ",\"nodes\":" + std::to_string(r.nodes.empty() ? 0 : r.nodes.size() - 1);
-    s += ",\"original_duration_s\":";
-    num(s, static_cast<double>(in.nominal->raw.size()) * in.model->interp.period);
-    s += ",\"compensated_duration_s\":";
-    num(s, r.nodes.empty() ? 0.0 : static_cast<double>(r.nodes.back().tick) * in.model->interp.period);
-    s += ",\"linearisation\":{\"splits\":" + std::to_string(r.linearisation_splits) + ",\"max_deviation_mm\":";
-    num(s, r.linearisation_max_deviation);
-    s += ",\"source_tcp_blocks_needing_split\":" + std::to_string(r.source_blocks_needing_split) +
-         ",\"source_joint_linear_deviation_mm\":";
-    num(s, r.source_joint_linear_deviation);
-    s += "},\"iterations\":[";
-    for (std::size_t k = 0; k < r.iterations.size(); ++k) {
-      const Iteration& it = r.iterations[k];
-      if (k) s += ',';
-      s += "{\"index\":" + std::to_string(it.index) + ",\"max_contour_mm\":";
-      num(s, it.max_contour);
-      s += ",\"rms_contour_mm\":";
-      num(s, it.rms_contour);
-      s += ",\"gain\":";
-      num(s, it.gain);
-      s += ",\"accepted\":";
-      s += it.accepted ? "true" : "false";
-      if (!it.accepted) {
-        s += ",\"rejected_because\":";
-        append_json_string(s, it.rejected_because);
-      }
-      s += '}';
-    }
-    s += ']';
+  return list;
+}
+
+void add_result(Json& j, const ReportInput& in) {
+  const Result& r = *in.result;
+  const double T = in.model->interp.period;
+  j["nodes"] = r.nodes.empty() ? 0 : r.nodes.size() - 1;
+  j["original_duration_s"] = static_cast<double>(in.nominal->raw.size()) * T;
+  j["compensated_duration_s"] = r.nodes.empty() ? 0.0 : static_cast<double>(r.nodes.back().tick) * T;
+  j["linearisation"] = {{"splits", r.linearisation_splits},
+                        {"max_deviation_mm", r.linearisation_max_deviation},
+                        {"source_tcp_blocks_needing_split", r.source_blocks_needing_split},
+                        {"source_joint_linear_deviation_mm", r.source_joint_linear_deviation}};
+  Json iterations = Json::array();
+  for (const Iteration& it : r.iterations) {
+    Json i = {{"index", it.index}, {"max_contour_mm", it.max_contour}, {"rms_contour_mm", it.rms_contour},
+              {"gain", it.gain}, {"accepted", it.accepted}};
+    if (!it.accepted) i["rejected_because"] = it.rejected_because;
+    iterations.push_back(std::move(i));
   }
-  s += ",\"best_kffp\":{";
-  if (in.best_kffp.ok) {
-    s += "\"omega_rad_s\":";
-    num(s, in.best_kffp_omega);
-    s += ",\"rotary_lag_rad\":";
-    num(s, in.best_kffp.alpha);
-    s += ",\"X_percent\":";
-    num(s, in.best_kffp.K_FFP[0]);
-    s += ",\"Y_percent\":";
-    num(s, in.best_kffp.K_FFP[1]);
-  } else {
-    s += "\"note\":";
-    append_json_string(s, in.best_kffp_note.empty() ? in.best_kffp.message : in.best_kffp_note);
-  }
-  s += "},\"best_kffp_per_segment\":[";
-  for (std::size_t k = 0; k < in.segment_kffp.size(); ++k) {
-    const auto& [seg, v] = in.segment_kffp[k];
-    if (k) s += ',';
-    s += "{\"first_line\":" + std::to_string(in.nominal->segments[seg].first_line) + ",\"omega_rad_s\":";
-    num(s, v.first);
+  j["iterations"] = std::move(iterations);
+}
+
+Json kffp_json(const ReportInput& in) {
+  if (!in.best_kffp.ok)
+    return {{"note", in.best_kffp_note.empty() ? in.best_kffp.message : in.best_kffp_note}};
+  return {{"omega_rad_s", in.best_kffp_omega}, {"rotary_lag_rad", in.best_kffp.alpha},
+          {"X_percent", in.best_kffp.K_FFP[0]}, {"Y_percent", in.best_kffp.K_FFP[1]}};
+}
+
+Json kffp_per_segment_json(const ReportInput& in) {
+  Json list = Json::array();
+  for (const auto& [seg, v] : in.segment_kffp) {
+    Json j = {{"first_line", in.nominal->segments[seg].first_line}, {"omega_rad_s", v.first}};
     if (v.second.ok) {
-      s += ",\"X_percent\":";
-      num(s, v.second.K_FFP[0]);
-      s += ",\"Y_percent\":";
-      num(s, v.second.K_FFP[1]);
+      j["X_percent"] = v.second.K_FFP[0];
+      j["Y_percent"] = v.second.K_FFP[1];
     } else {
-      s += ",\"note\":";
-      append_json_string(s, v.second.message);
+      j["note"] = v.second.message;
     }
-    s += '}';
+    list.push_back(std::move(j));
   }
-  s += "]}";
-  return s;
+  return list;
+}
+
+}  // namespace
+
+nlohmann::ordered_json report_json(const ReportInput& in) {
+  Json j;
+  j["model"] = {{"period_s", in.model->interp.period}, {"smoothing", smoothing_name(in.model->interp.smoothing)}};
+  j["compensated"] = in.result && in.result->compensated && in.after;
+  j["note"] = in.result ? in.result->note : std::string();
+  j["contour_error_before"] = error_json(in.before->contour);
+  if (in.after) {
+    j["contour_error_after"] = error_json(in.after->contour);
+    j["max_contour_error_reduction"] = ratio(in.before->contour.max, in.after->contour.max);
+  }
+  j["axes_before"] = axis_stats_json(in.before->axes);
+  if (in.after) j["axes_after"] = axis_stats_json(in.after->axes);
+  j["segments"] = segments_json(in);
+  if (in.result) add_result(j, in);
+  j["best_kffp"] = kffp_json(in);
+  j["best_kffp_per_segment"] = kffp_per_segment_json(in);
+  return j;
 }
 
 std::string report_text(const ReportInput& in) {

@@ -3,6 +3,8 @@
 #pragma once
 
 #include <string>
+
+#include <nlohmann/json_fwd.hpp>
 #include <utility>
 #include <vector>
 
@@ -28,7 +30,7 @@ struct ReportInput {
 
 /// The "compensation" JSON object (no trailing newline): contour error before/after per program
 /// and per segment, per-axis following errors, travel margins, iterations, linearisation, K_FFP.
-std::string report_json(const ReportInput& in);
+nlohmann::ordered_json report_json(const ReportInput& in);
 
 /// Readable summary, a few lines, each starting with two spaces.
 std::string report_text(const ReportInput& in);

@@ -72,7 +72,7 @@ void report_simulation(pipeline::ReportContext& r, const SimulationOutcome& o) {
   rin.after = o.after;
   rin.result = o.result;
   recommend_kffp(*o.model, nominal, rin);
-  (*r.json)["simulation"] = nlohmann::ordered_json::parse(report_json(rin));
+  (*r.json)["simulation"] = report_json(rin);
   char buf[256];
   std::snprintf(buf, sizeof buf, "  simulate: %.3f s of machine time at %.4g s\n",
                 static_cast<double>(nominal.raw.size() - 1) * o.model->interp.period, o.model->interp.period);
