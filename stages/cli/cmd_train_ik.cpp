@@ -14,9 +14,8 @@
 namespace gcpipe::cli {
 namespace {
 
-}  // namespace
-
-int run_train_ik(const TrainIkArgs& args) {
+// The preset named, with the command line's changes (which make it a "custom" one).
+neural::NeuralTrainingOptions training_options(const TrainIkArgs& args) {
   neural::NeuralTrainingOptions options = neural::preset_options(args.preset);
   options.seed = args.seed;
   if (args.samples != 0) {
@@ -42,27 +41,12 @@ int run_train_ik(const TrainIkArgs& args) {
     options.c_output = args.c_output == "angle" ? neural::COutput::kAngle : neural::COutput::kSinCos;
     options.preset = "custom";
   }
-  const auto output = std::optional<std::string>(args.output);
-  const PipelineConfig pc = load_config_option(args.config);
-  const MachineKinematics kinematics = load_kinematics(pc.machine_section);
-  const bool quiet = args.quiet;
-  neural::NeuralProgressCallback progress;
-  if (!quiet)
-    progress = [](int axis, const neural::TrainingProgress& p) {
-      if (p.iteration % 10 == 0 || p.iteration == 1)
-        std::fprintf(stderr, "  net %c  iteration %5d  training MSE %.4e  validation MSE %.4e%s\n",
-                     kAxisLetters[axis], p.iteration, p.training_mse, p.validation_mse,
-                     p.damping > 0 ? "" : " (gradient descent)");
-    };
-  if (!quiet)
-    std::fprintf(stderr, "training neural IK for machine '%s', preset %s, seed %" PRIu64 "\n",
-                 pc.machine.name.c_str(), options.preset.c_str(), options.seed);
-  neural::NeuralTrainingReport report;
-  const neural::NeuralIk model =
-      neural::train_neural_ik(kinematics, pc.machine.name, options, &report, progress);
-  model.save(*output);
+  return options;
+}
 
-  // Summary on stdout (a Markdown table, pasted into stages/ik/README.md).
+// The summary on stdout: a Markdown table, pasted into stages/ik/README.md.
+void print_training_table(const neural::NeuralIk& model, const neural::NeuralTrainingReport& report,
+                          const std::string& output) {
   std::printf("| net | layers | train/val/test | iterations | stop | MSE val | MSE test | "
               "RMS val | RMS test | max test | CPU [s] |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
@@ -95,7 +79,34 @@ int run_train_ik(const TrainIkArgs& args) {
   for (int a = kX; a <= kZ; ++a)
     std::printf(" %c %.4g", kAxisLetters[a], report.position_only.max_abs[a]);
   std::printf(" [mm]\ntraining time %.1f s CPU (%.1f s wall); model written to %s\n",
-              report.cpu_seconds, report.seconds, output->c_str());
+              report.cpu_seconds, report.seconds, output.c_str());
+}
+
+}  // namespace
+
+int run_train_ik(const TrainIkArgs& args) {
+  const neural::NeuralTrainingOptions options = training_options(args);
+  const auto output = std::optional<std::string>(args.output);
+  const PipelineConfig pc = load_config_option(args.config);
+  const MachineKinematics kinematics = load_kinematics(pc.machine_section);
+  const bool quiet = args.quiet;
+  neural::NeuralProgressCallback progress;
+  if (!quiet)
+    progress = [](int axis, const neural::TrainingProgress& p) {
+      if (p.iteration % 10 == 0 || p.iteration == 1)
+        std::fprintf(stderr, "  net %c  iteration %5d  training MSE %.4e  validation MSE %.4e%s\n",
+                     kAxisLetters[axis], p.iteration, p.training_mse, p.validation_mse,
+                     p.damping > 0 ? "" : " (gradient descent)");
+    };
+  if (!quiet)
+    std::fprintf(stderr, "training neural IK for machine '%s', preset %s, seed %" PRIu64 "\n",
+                 pc.machine.name.c_str(), options.preset.c_str(), options.seed);
+  neural::NeuralTrainingReport report;
+  const neural::NeuralIk model =
+      neural::train_neural_ik(kinematics, pc.machine.name, options, &report, progress);
+  model.save(*output);
+
+  print_training_table(model, report, *output);
   return 0;
 }
 
