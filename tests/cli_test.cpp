@@ -165,6 +165,19 @@ TEST(Cli, BatchCompensatesTheCircleTestAndWritesReportAndPlots) {
     EXPECT_GE(seg.at("max_contour_error_reduction").get<double>(), 10.0) << seg.dump();
   }
   EXPECT_TRUE(found) << sim.dump().substr(0, 2000);
+  // What a sceptic asks for: cutting and rapid moves apart, both cycle times, and the original
+  // slowed to the compensated program's cycle time.
+  for (const char* k : {"contour_error_before", "contour_error_after"})
+    for (const char* part : {"cutting", "rapid"}) {
+      EXPECT_GE(sim.at(k).at(part).at("max_mm").get<double>(), 0.0) << k << "." << part;
+      EXPECT_GE(sim.at(k).at(part).at("rms_mm").get<double>(), 0.0) << k << "." << part;
+    }
+  EXPECT_EQ(sim.at("contour_error_before").at("cutting").at("max_mm"), sim.at("contour_error_before").at("max_mm"));
+  const double before_s = sim.at("cycle_time_before_s").get<double>(), after_s = sim.at("cycle_time_after_s").get<double>();
+  EXPECT_NEAR(before_s, 34.6, 0.5);
+  const auto& slowed = sim.at("slowed_original");
+  EXPECT_LT(slowed.at("feed_factor").get<double>(), 1.0);
+  EXPECT_NEAR(slowed.at("cycle_time_s").get<double>(), after_s, 0.02 * after_s) << slowed.dump();
   // The compensated program keeps the structure and reads back in both dialects.
   std::ifstream c(out / "compensated.nc");
   std::stringstream cs;

@@ -46,6 +46,7 @@ class CompensateStage final : public pipeline::Stage {
     compensation_ = compensate::compensate_program(model_, options_, write_options_, simulated_->run, progress_);
     if (compensation_.text.empty()) return fail("no compensated program: " + compensation_.note);
     read_back(compensation_.text);
+    measure_slowed_baseline();
     return out.text(compensation_.text);
   }
 
@@ -56,6 +57,7 @@ class CompensateStage final : public pipeline::Stage {
     o.after = after_ ? &*after_ : nullptr;
     o.result = compensation_.result ? &*compensation_.result : nullptr;
     o.written_nodes = written_nodes_;
+    o.slowed = slowed_ ? &*slowed_ : nullptr;
     o.skipped = failure_;
     compensate::report_simulation(r, o);
   }
@@ -105,6 +107,15 @@ class CompensateStage final : public pipeline::Stage {
         [&nodes](std::uint32_t i) { return nodes[std::min<std::size_t>(i + 1, nodes.size() - 1)].block; }, {}, true);
   }
 
+  // The original slowed to the compensated program's cycle time: what a sceptic compares with.
+  void measure_slowed_baseline() {
+    if (!options_.slowed_baseline || !compensation_.result || compensation_.result->nodes.empty()) return;
+    if (progress_) progress_("simulating the original slowed to the compensated cycle time", 0, 0);
+    const double target = static_cast<double>(compensation_.result->nodes.back().tick) * model_.interp.period;
+    slowed_ = simulate::slowed_original(model_, simulated_->run.program, target,
+                                        {options_.reference_smoothing, options_.max_machine_time});
+  }
+
   compensate::Model model_;
   compensate::CompensateOptions options_;
   WriteOptions write_options_;
@@ -117,6 +128,7 @@ class CompensateStage final : public pipeline::Stage {
   std::shared_ptr<const SimulatedProgram> simulated_;
   compensate::ProgramCompensation compensation_;
   std::optional<simulate::Evaluation> after_;
+  std::optional<simulate::SlowedBaseline> slowed_;
   std::uint64_t written_nodes_ = 0;
   std::string failure_;
 };

@@ -14,6 +14,15 @@ Json error_json(const ErrorStats& e) {
   return {{"max_mm", e.max}, {"rms_mm", e.rms}, {"t_at_max_s", e.t_at_max}, {"line_at_max", e.line_at_max}};
 }
 
+// The whole-program keys (max_mm ... line_at_max) have always been on cutting moves; the
+// `cutting` and `rapid` objects say so explicitly and give the rapids' figure apart.
+Json contour_json(const Evaluation& ev) {
+  Json j = error_json(ev.contour);
+  j["cutting"] = {{"max_mm", ev.contour.max}, {"rms_mm", ev.contour.rms}};
+  j["rapid"] = {{"max_mm", ev.rapid.max}, {"rms_mm", ev.rapid.rms}};
+  return j;
+}
+
 Json per_axis(const Axes& a) {
   Json j;
   for (int i = 0; i < kNumAxes; ++i) j[std::string(1, kAxisLetters[i])] = a[static_cast<std::size_t>(i)];
@@ -104,10 +113,21 @@ nlohmann::ordered_json report_json(const ReportInput& in) {
   j["model"] = {{"period_s", in.model->interp.period}, {"smoothing", smoothing_name(in.model->interp.smoothing)}};
   j["compensated"] = in.result && in.result->compensated && in.after;
   j["note"] = in.result ? in.result->note : std::string();
-  j["contour_error_before"] = error_json(in.before->contour);
+  const double T = in.model->interp.period;
+  j["cycle_time_before_s"] = static_cast<double>(in.nominal->raw.size()) * T;
+  if (in.result && !in.result->nodes.empty() && in.after)
+    j["cycle_time_after_s"] = static_cast<double>(in.result->nodes.back().tick) * T;
+  j["contour_error_before"] = contour_json(*in.before);
   if (in.after) {
-    j["contour_error_after"] = error_json(in.after->contour);
+    j["contour_error_after"] = contour_json(*in.after);
     j["max_contour_error_reduction"] = ratio(in.before->contour.max, in.after->contour.max);
+  }
+  if (in.slowed != nullptr) {
+    const simulate::SlowedBaseline& b = *in.slowed;
+    j["slowed_original"] = b.ok ? Json{{"feed_factor", b.feed_factor},
+                                       {"cycle_time_s", b.cycle_time},
+                                       {"contour_error", {{"max_mm", b.contour.max}, {"rms_mm", b.contour.rms}}}}
+                                : Json{{"note", b.note}};
   }
   j["axes_before"] = axis_stats_json(in.before->axes);
   if (in.after) j["axes_after"] = axis_stats_json(in.after->axes);
@@ -132,6 +152,19 @@ std::string report_text(const ReportInput& in) {
     s += buf;
   }
   if (in.result && !in.result->note.empty()) s += "  compensation: " + in.result->note + "\n";
+  if (in.slowed != nullptr && in.slowed->ok) {
+    std::snprintf(buf, sizeof buf,
+                  "  baseline: the original with feeds x%.3f runs %.3f s: max %.2f um, RMS %.2f um (cutting moves)\n",
+                  in.slowed->feed_factor, in.slowed->cycle_time, in.slowed->contour.max * 1e3, in.slowed->contour.rms * 1e3);
+    s += buf;
+  }
+  std::snprintf(buf, sizeof buf, "  rapids (G0, not cutting): max %.2f um before", in.before->rapid.max * 1e3);
+  s += buf;
+  if (in.after) {
+    std::snprintf(buf, sizeof buf, ", %.2f um after", in.after->rapid.max * 1e3);
+    s += buf;
+  }
+  s += "\n";
   if (in.result && !in.result->nodes.empty()) {
     std::snprintf(buf, sizeof buf, "  compensated program runs %.3f s (original %.3f s: the reference stops at corners, starts and stops)\n",
                   static_cast<double>(in.result->nodes.back().tick) * in.model->interp.period,

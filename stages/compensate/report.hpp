@@ -18,6 +18,8 @@ struct ReportInput {
   const Model* model = nullptr;
   const Nominal* nominal = nullptr;
   const Evaluation* before = nullptr;    //!< the original program, simulated
+  const simulate::SlowedBaseline* slowed = nullptr;  //!< the original slowed to the compensated
+                                                     //!< cycle time (null when not compensated)
   const Evaluation* after = nullptr;     //!< the written compensated program, re-parsed and
                                          //!< simulated (null when not compensated)
   const Result* result = nullptr;

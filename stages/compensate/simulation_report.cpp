@@ -71,6 +71,7 @@ void report_simulation(pipeline::ReportContext& r, const SimulationOutcome& o) {
   rin.before = &*o.run->before;
   rin.after = o.after;
   rin.result = o.result;
+  rin.slowed = o.slowed;
   recommend_kffp(*o.model, nominal, rin);
   (*r.json)["simulation"] = report_json(rin);
   char buf[256];

@@ -13,6 +13,7 @@ struct SimulationOutcome {
   const simulate::SimulationRun* run = nullptr;  //!< the original program's simulation
   const Evaluation* after = nullptr;             //!< the compensated program's, or null
   const Result* result = nullptr;                //!< the compensation, or null
+  const simulate::SlowedBaseline* slowed = nullptr;  //!< the sceptic's baseline, or null
   std::uint64_t written_nodes = 0;               //!< motion blocks of compensated.nc
   std::string skipped;                           //!< why nothing was simulated
 };

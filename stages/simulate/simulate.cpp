@@ -421,8 +421,8 @@ Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const Reso
   Axes c1{}, c2{};  // the two previous smoothed commands
   std::vector<double> seg_sq(nom.segments.size(), 0.0);
   std::vector<std::uint64_t> seg_n(nom.segments.size(), 0);
-  double sum_sq = 0;
-  std::uint64_t count = 0;
+  double sum_sq = 0, rapid_sq = 0;
+  std::uint64_t count = 0, rapid_count = 0;
   Axes fe_sq{};
   for (std::size_t i = 0; i < kNumAxes; ++i)
     ev.axes.travel_margin[i] = std::numeric_limits<double>::infinity();
@@ -450,6 +450,7 @@ Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const Reso
     // Rapids position the tool and do not cut: the contour error counts on feed moves and dwells.
     const bool cutting = b.motion != Motion::kRapid && b.motion != Motion::kNone;
     if (cutting) add_error(ev.contour, sum_sq, count, e, time, b.line);
+    else if (b.motion == Motion::kRapid) add_error(ev.rapid, rapid_sq, rapid_count, e, time, b.line);
     if (also) {
       Tick marked = t;
       marked.contour = cutting ? e : 0.0;
@@ -491,6 +492,7 @@ Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const Reso
     }
   });
   ev.contour.rms = count ? std::sqrt(sum_sq / static_cast<double>(count)) : 0.0;
+  ev.rapid.rms = rapid_count ? std::sqrt(rapid_sq / static_cast<double>(rapid_count)) : 0.0;
   for (std::size_t s = 0; s < ev.per_segment.size(); ++s)
     ev.per_segment[s].rms = seg_n[s] ? std::sqrt(seg_sq[s] / static_cast<double>(seg_n[s])) : 0.0;
   for (std::size_t i = 0; i < kNumAxes; ++i) {
@@ -526,6 +528,57 @@ SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> pr
   }
   run.before = evaluate(model, *run.nominal, p, p, run.start, [](std::uint32_t i) { return i; }, on_tick);
   return run;
+}
+
+}  // namespace gcpipe::simulate
+
+namespace gcpipe::simulate {
+
+namespace {
+
+// The program with every feed move's F multiplied by `f` (in G93, F is 1/min: smaller is slower
+// too); rapids keep the machine's rapid rate.
+std::vector<ResolvedBlock> with_feeds_scaled(std::span<const ResolvedBlock> program, double f) {
+  std::vector<ResolvedBlock> out(program.begin(), program.end());
+  for (ResolvedBlock& b : out)
+    if (b.motion == Motion::kLinear || b.motion == Motion::kArcCW || b.motion == Motion::kArcCCW) b.feed *= f;
+  return out;
+}
+
+}  // namespace
+
+SlowedBaseline slowed_original(const Model& model, std::span<const ResolvedBlock> program, double target_cycle_time,
+                               const RunBounds& bounds) {
+  SlowedBaseline best;
+  auto run_at = [&](double f) {
+    const SimulationRun run = simulate_program(model, with_feeds_scaled(program, f), bounds);
+    SlowedBaseline r;
+    if (!run.before) {
+      r.note = run.note;
+      return r;
+    }
+    r.ok = true;
+    r.feed_factor = f;
+    r.cycle_time = static_cast<double>(run.nominal->raw.size()) * model.interp.period;
+    r.contour = run.before->contour;
+    return r;
+  };
+  double hi = 1.0, lo = 1.0;  // feed factors: cycle(hi) <= target <= cycle(lo)
+  SlowedBaseline at_lo = run_at(lo);
+  for (int k = 0; k < 6 && at_lo.ok && at_lo.cycle_time < target_cycle_time; ++k) at_lo = run_at(lo *= 0.5);
+  if (!at_lo.ok || at_lo.cycle_time < target_cycle_time) {
+    best.note = at_lo.ok ? "the program does not slow to the compensated cycle time at 1/64 of its feeds" : at_lo.note;
+    return best;
+  }
+  best = at_lo;
+  for (int k = 0; k < 8 && std::abs(best.cycle_time / target_cycle_time - 1) > 0.02 && hi > lo; ++k) {
+    const double mid = std::sqrt(lo * hi);
+    const SlowedBaseline m = run_at(mid);
+    if (!m.ok) break;
+    (m.cycle_time < target_cycle_time ? hi : lo) = mid;
+    if (std::abs(m.cycle_time / target_cycle_time - 1) < std::abs(best.cycle_time / target_cycle_time - 1)) best = m;
+  }
+  return best;
 }
 
 }  // namespace gcpipe::simulate

@@ -162,7 +162,8 @@ struct SegmentDemand {
 
 struct Evaluation {
   RunStats stats;
-  ErrorStats contour;
+  ErrorStats contour;  //!< on cutting moves (G1 G2 G3 at feed) and dwells: what the part sees
+  ErrorStats rapid;    //!< on G0 positioning moves: not a cutting error, reported apart
   AxisStats axes;
   std::vector<ErrorStats> per_segment;
   std::vector<SegmentDemand> demand;  //!< per segment
@@ -210,5 +211,24 @@ struct RunBounds {
 /// program the machine cannot run: the reason goes to `note`.
 SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> program, const RunBounds& bounds,
                                const std::function<void(const Tick&)>& on_tick = {}, const Progress& progress = {});
+
+}  // namespace gcpipe::simulate
+
+namespace gcpipe::simulate {
+
+/// The sceptic's baseline for a compensation: the original program with its feeds lowered until
+/// it runs as long as the compensated one. Slowing down also shrinks the contour error; a
+/// compensation is worth its name only where it beats this at the same cycle time.
+struct SlowedBaseline {
+  bool ok = false;
+  std::string note;          //!< why there is none
+  double feed_factor = 1;    //!< every G1/G2/G3 feed (G94 and G93) multiplied by this
+  double cycle_time = 0;     //!< [s] of the slowed program
+  ErrorStats contour;        //!< its contour error on cutting moves
+};
+
+/// Searches the feed factor (bisection on log f, to 2 % of `target_cycle_time` [s] or 8 runs).
+SlowedBaseline slowed_original(const Model& model, std::span<const ResolvedBlock> program, double target_cycle_time,
+                               const RunBounds& bounds);
 
 }  // namespace gcpipe::simulate
