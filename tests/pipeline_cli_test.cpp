@@ -126,4 +126,25 @@ TEST(OutputFolder, MissingCompensatedProgramIsAFailureWithItsReason) {
   EXPECT_TRUE(fs::exists(dir / "out" / "output.nc")) << "the streaming stages' output stays";
 }
 
+// Limits are errors, not flags: a move past an axis's travel is rejected at its line with the
+// axis, the position and the limit; nothing is compensated and the exit status says so.
+TEST(Limits, TravelViolationIsAnErrorAtItsLine) {
+  const fs::path dir = tmpdir("travel");
+  {
+    std::ofstream p(dir / "far.nc");
+    p << "G21 G90 G94\nG0 X0 Y0 Z0\nG1 X100 F2000\nG1 X500 F2000\nG0 X0\nM30\n";
+  }
+  Outcome r = gcpipe({"batch", (dir / "far.nc").string(), "-o", (dir / "out").string(), "--quiet"});
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_NE(r.err.find("far.nc:4:1: error: axis X goes to"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("outside its travel [-217.5, 217.5] mm"), std::string::npos) << r.err;
+  EXPECT_NE(slurp(dir / "out" / "diagnostics.txt").find("far.nc:4:1: error: axis X"), std::string::npos);
+  EXPECT_FALSE(fs::exists(dir / "out" / "compensated.nc"));
+  EXPECT_NE(read_json(dir / "out" / "summary.json").at("failure").get<std::string>().find("axis X"), std::string::npos);
+  Outcome s = gcpipe({"simulate", (dir / "far.nc").string(), "-o", (dir / "trace.csv").string()});
+  EXPECT_EQ(s.status, 1) << s.err;
+  EXPECT_NE(s.err.find("far.nc:4:1: error: axis X goes to"), std::string::npos) << s.err;
+  EXPECT_FALSE(fs::exists(dir / "trace.csv")) << "no trace for a program the machine cannot run";
+}
+
 }  // namespace

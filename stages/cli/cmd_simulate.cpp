@@ -112,11 +112,13 @@ int run_simulate(const SimulateArgs& a) {
   });
   const bool complete = run.run();
   if (pipeline::stop_requested()) return exit_status(complete, "", 0);
-  trace.write(buf, true);
-  trace.commit();
-  if (report) report->commit();
-  print_summary(run.input_name(), sim.model(), sim.run());
   const std::string failure = run.pipeline().failure();
+  if (failure.empty()) {  // a program the machine cannot run gets no trace that looks like one
+    trace.write(buf, true);
+    trace.commit();
+    if (report) report->commit();
+  }
+  print_summary(run.input_name(), sim.model(), sim.run());
   if (!complete) std::cerr << "gcpipe simulate: " << run.error() << "\n";
   else if (!failure.empty()) std::cerr << "gcpipe simulate: " << failure << "\n";
   return exit_status(complete, failure, run.pipeline().rejected());

@@ -222,7 +222,16 @@ void Interpolator::emit(const Axes& raw, SampleSink& sink) {
     // Joint limits are checked on every sample, so tool-centre-point and arc motion that leaves
     // the travel between programmed points is caught, not only the end points.
     if (y[i] < opt_.travel_min[i] || y[i] > opt_.travel_max[i]) {
-      if (stats_.first_violation_line == 0) stats_.first_violation_line = line_ ? line_ : 1;
+      if (stats_.first_violation_line == 0) {
+        stats_.first_violation_line = line_ ? line_ : 1;
+        stats_.first_violation_axis = static_cast<int>(i);
+        stats_.first_violation_position = y[i];
+      }
+      // The farthest the first axis to leave goes, so the message names the real excursion.
+      if (static_cast<int>(i) == stats_.first_violation_axis &&
+          std::max(y[i] - opt_.travel_max[i], opt_.travel_min[i] - y[i]) >
+              std::max(stats_.first_violation_position - opt_.travel_max[i], opt_.travel_min[i] - stats_.first_violation_position))
+        stats_.first_violation_position = y[i];
       ++stats_.travel_violations[i];
     }
     const double v = std::abs(y[i] - prev_[i]) * inv_T;

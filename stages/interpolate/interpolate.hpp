@@ -122,6 +122,8 @@ struct InterpolateStats {
   Axes peak_acceleration{};  //!< of the smoothed commands [mm/s^2, deg/s^2]
   std::array<std::uint64_t, kNumAxes> travel_violations{};  //!< samples outside travel per axis
   std::uint64_t first_violation_line = 0;  //!< source line of the first such sample (0: none)
+  int first_violation_axis = -1;           //!< its axis (index into X Y Z A C)
+  double first_violation_position = 0;     //!< the farthest that axis is commanded beyond its travel [mm, deg]
   std::uint64_t tcp_blocks = 0;            //!< blocks interpolated in tool-centre-point mode
   /// Raw TCP samples whose inverse kinematics failed: joints outside travel (the joints are still
   /// the continuous solution and are emitted) or no finite solution (the previous joints are

@@ -508,6 +508,19 @@ Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const Reso
 
 namespace gcpipe::simulate {
 
+std::string travel_error(const Model& model, const interpolate::InterpolateStats& s) {
+  if (s.first_violation_axis < 0) return {};
+  const auto i = static_cast<std::size_t>(s.first_violation_axis);
+  const char* unit = i >= static_cast<std::size_t>(kA) ? "deg" : "mm";
+  char msg[300];
+  std::snprintf(msg, sizeof msg,
+                "axis %c goes to %.3f %s, outside its travel [%g, %g] %s (%llu samples beyond it): the machine cannot "
+                "run this program; check the work offset, the tool length and the program's coordinates",
+                kAxisLetters[i], s.first_violation_position, unit, model.kin.travel[i].min, model.kin.travel[i].max, unit,
+                static_cast<unsigned long long>(s.travel_violations[i]));
+  return msg;
+}
+
 SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> program, const RunBounds& bounds,
                                const std::function<void(const Tick&)>& on_tick, const Progress& progress) {
   SimulationRun run;
@@ -524,6 +537,12 @@ SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> pr
   run.nominal = build_nominal(model, p, run.start, bounds.reference_smoothing, bounds.max_machine_time);
   if (!run.nominal->stats.ok) {
     run.note = "line " + std::to_string(run.nominal->stats.failed_line) + ": " + run.nominal->stats.message;
+    return run;
+  }
+  const std::string travel = travel_error(model, run.nominal->stats.interp);
+  if (!travel.empty()) {
+    run.note = travel;
+    run.travel_line = run.nominal->stats.interp.first_violation_line;
     return run;
   }
   run.before = evaluate(model, *run.nominal, p, p, run.start, [](std::uint32_t i) { return i; }, on_tick);

@@ -198,7 +198,12 @@ struct SimulationRun {
   std::optional<Nominal> nominal;      //!< set when the program moves
   std::optional<Evaluation> before;    //!< set when the nominal run completed
   std::string note;                    //!< why there is no nominal or no evaluation
+  std::uint64_t travel_line = 0;       //!< source line where an axis first leaves its travel (0: none)
 };
+
+/// Why a run cannot be machined because an axis leaves its travel (axis, position, limits), or
+/// empty. Limits are errors, not flags: such a program is neither evaluated nor compensated.
+std::string travel_error(const Model& model, const interpolate::InterpolateStats& stats);
 
 /// Bounds of a simulation run (from the `compensate` section, whose reference it builds).
 struct RunBounds {

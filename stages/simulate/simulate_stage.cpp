@@ -10,6 +10,8 @@ SimulateStage::SimulateStage(const pipeline::StageContext& c)
     : model_(compensate::load_model(*c.config)),
       bounds_(compensate::load_compensate_options(c.config->root.section("compensate"))),
       progress_(c.progress),
+      file_(c.file),
+      log_(*c.log),
       reports_(std::find(c.stages.begin(), c.stages.end(), "compensate") == c.stages.end()) {}
 
 bool SimulateStage::block(const ResolvedBlock& b, pipeline::Emitter& out) {
@@ -35,6 +37,16 @@ bool SimulateStage::finish(bool complete, pipeline::Emitter& out) {
   simulate::RunBounds bounds{bounds_.reference_smoothing, bounds_.max_machine_time};
   result_->run = simulate::simulate_program(model_, std::move(program_), bounds, tap_, progress_);
   if (!result_->run.before) failure_ = "not simulated: " + result_->run.note;
+  if (result_->run.travel_line != 0) {
+    // A travel violation is an error of the program at its line, like a parse error.
+    Diagnostic d;
+    d.file = file_;
+    d.line = result_->run.travel_line;
+    d.column = 1;
+    d.message = result_->run.note;
+    log_.report(d);
+    failure_ = format(d);
+  }
   out.product(result_);
   return true;
 }

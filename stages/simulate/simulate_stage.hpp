@@ -36,6 +36,8 @@ class SimulateStage final : public pipeline::Stage {
   compensate::Model model_;
   compensate::CompensateOptions bounds_;
   pipeline::Progress progress_;
+  std::string file_;
+  pipeline::DiagnosticLog& log_;
   bool reports_;  //!< no compensate stage follows, which would report the simulation
   std::vector<ResolvedBlock> program_;
   std::string skipped_, failure_;
