@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
@@ -72,14 +73,19 @@ struct Scenario {
   std::vector<ResolvedBlock> program;
 };
 
-/// Base parameters of the configured model off by +-20 % (Kpp, Kvp, C, K_FFP alternate signs).
+/// Base parameters of the configured model off by +-20 % (signs alternate between axes).
 inline void perturb(compensate::Model& m) {
   for (int a : {kX, kY, kC}) {
     auto& p = m.drives.axes[static_cast<std::size_t>(a)];
     const double s = a == kY ? -1 : 1;
     p.Kpp *= 1 + 0.2 * s;
-    p.Kvp *= 1 - 0.2 * s;
     p.K_FFP *= 1 - 0.15 * s;
+    p.Ta *= 1 + 0.2 * s;
+    // Inertia and gains together: a position trace sees them only as ratios (README).
+    p.J *= 1 + 0.2 * s;
+    p.J1 *= 1 + 0.2 * s;
+    p.Kvp *= 1 + 0.2 * s;
+    p.C *= 1 + 0.2 * s;
   }
 }
 
@@ -141,10 +147,50 @@ inline void print(const AxisIdentification& id) {
     std::cout << "  " << d.name << " config " << d.config << " fitted " << d.fitted << " +- " << d.sigma << (d.held ? " held: " + d.why : "") << "\n";
   for (const auto& c : id.candidates) {
     std::cout << "  round " << c.round << " " << c.effect << " BIC " << c.criterion_before << " -> " << c.criterion_after
-              << " heldout rms " << std::sqrt(c.heldout_before) << " -> " << std::sqrt(c.heldout_after) << " " << c.reason << ":";
+              << " heldout rms " << std::sqrt(c.heldout_before) << " -> " << std::sqrt(c.heldout_after) << " " << c.reason << " (" << c.seconds << " s):";
     for (const auto& p : c.params) std::cout << " " << p.name << "=" << p.value << "+-" << p.sigma;
     std::cout << "\n";
   }
+}
+
+}  // namespace gcpipe::calibrate::test
+
+namespace gcpipe::calibrate::test {
+
+/// Identification of every axis of a simulated trace.
+inline std::vector<AxisIdentification> identify_all(const Scenario& sc, std::uint64_t seed) {
+  const MeasuredTrace tr = trace_of(sc, seed);
+  std::vector<AxisIdentification> out;
+  for (int a = 0; a < kNumAxes; ++a)
+    out.push_back(identify_axis(series_of(tr, sc.config, a), sc.config.drives.axes[static_cast<std::size_t>(a)], IdentifyOptions{}));
+  return out;
+}
+
+/// rms of measured - calibrated prediction over the whole trace (fit and held-out parts).
+inline double calibrated_rms(const Scenario& sc, std::uint64_t seed, const AxisIdentification& id) {
+  const MeasuredTrace tr = trace_of(sc, seed);
+  return rms_error(series_of(tr, sc.config, id.axis), id.pred_calibrated);
+}
+
+/// Expects exactly `effects` named on `axis` (in any order) and nothing on the other axes.
+inline void expect_named(const std::vector<AxisIdentification>& ids, int axis, std::vector<std::string> effects) {
+  for (const auto& id : ids) {
+    std::vector<std::string> got;
+    for (const auto& n : id.named) got.push_back(n.effect);
+    std::sort(got.begin(), got.end());
+    std::vector<std::string> want = id.axis == axis ? effects : std::vector<std::string>{};
+    std::sort(want.begin(), want.end());
+    EXPECT_EQ(got, want) << "axis " << kAxisLetters[id.axis];
+    if (got != want) print(id);
+  }
+}
+
+inline double param(const AxisIdentification& id, const std::string& effect, const std::string& name) {
+  for (const auto& n : id.named)
+    if (n.effect == effect)
+      for (const auto& p : n.params)
+        if (p.name == name) return p.value;
+  return NAN;
 }
 
 }  // namespace gcpipe::calibrate::test

@@ -3,6 +3,7 @@
 #include <unsupported/Eigen/LevenbergMarquardt>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -57,7 +58,7 @@ Eigen::MatrixXd numeric_jacobian(const ResidualFn& r, const Eigen::VectorXd& x, 
 }
 
 LsqResult least_squares(const ResidualFn& r, const Eigen::VectorXd& x0, const Eigen::VectorXd& step,
-                        bool analytic, double tau) {
+                        bool analytic, double tau, int max_evaluations) {
   LsqResult out;
   out.x = x0;
   const Eigen::VectorXd f0 = r(x0, nullptr);
@@ -65,7 +66,7 @@ LsqResult least_squares(const ResidualFn& r, const Eigen::VectorXd& x0, const Ei
   int count = 1;
   LmFunctor fn(r, step, analytic, n, m, count);
   Eigen::LevenbergMarquardt<LmFunctor> lm(fn);
-  lm.setMaxfev(200);
+  lm.setMaxfev(max_evaluations);
   lm.setXtol(1e-8);
   lm.setFtol(1e-10);
   lm.minimize(out.x);
@@ -160,8 +161,15 @@ void refit_declared(const Ctx& c, AxisIdentification& id) {
   std::vector<int> free;
   for (std::size_t i = 0; i < slots.size(); ++i) {
     DeclaredParam d{slots[i].name, slots[i].unit, id.config.*(slots[i].field), id.config.*(slots[i].field), 0, false, ""};
+    const double vel_bw = (id.config.Kvp + id.config.C) / (id.config.J + id.config.J1);
     if (!(d.config > 0)) { d.held = true; d.why = "configured as 0 (feature off): not fitted"; }
-    else free.push_back(static_cast<int>(i));
+    else if ((d.name == "Kvp" || d.name == "C") && vel_bw > 5 * id.config.Kpp) {
+      // A velocity loop much faster than the position loop shows in the position only as a lag
+      // of about J/(Kvp + C): the same signature as a delay, so a position trace cannot tell a
+      // velocity gain from a delay (and sees J only through Kvp/J anyway).
+      d.held = true;
+      d.why = "velocity loop (" + std::to_string(vel_bw) + " rad/s) >> position loop: seen only as a lag J/(Kvp+C), not separable from delays without a torque signal; kept at the configured value";
+    } else free.push_back(static_cast<int>(i));
     id.declared.push_back(d);
   }
   const double tau = c.tau(id.pred_declared);
@@ -229,6 +237,7 @@ struct Trial {
   std::vector<FittedParam> params;
   bool significant = false;  //!< its size exceeds options.significance sigma
   std::vector<std::pair<double, double>> declared;  //!< free declared values, sigmas (joint fit)
+  double seconds = 0;
 };
 
 servo::EffectSettings settings(std::string type, std::vector<std::pair<std::string, double>> v) {
@@ -413,27 +422,6 @@ std::pair<double, double> parabola(const std::map<int, double>& v, int n, double
   return {n + 0.5 * (a - d) / curv, std::sqrt(s2tau / (curv / 2))};
 }
 
-Trial fit_feedback_delay(const Ctx& c, const servo::DriveParams& cur, double tau, int substeps) {
-  const std::size_t b = c.s.begin, e = c.dynamic_end();
-  const double h = c.s.period / substeps;
-  auto with = [&](double d) {
-    servo::DriveParams p = cur;
-    p.effects.insert(p.effects.begin(), settings("feedback_delay", {{"delay", d}}));
-    return p;
-  };
-  std::map<int, double> cache;
-  const int hi = static_cast<int>(std::floor(0.02 / h));  // up to 20 ms
-  auto sse = [&](int n) { return c.sse(c.predict(with(n * h), e), b, e); };
-  const int n = integer_argmin(sse, 1, hi, cache);
-  const double s2 = cache[n] / static_cast<double>(e - b);
-  const auto [frac, sig] = parabola(cache, n, s2 * tau);
-  Trial t;
-  t.effect = "feedback_delay";
-  t.model = with(n * h);  // the simulator holds whole sub-steps
-  t.params = {{"delay", "s", frac * h, sig * h}};
-  t.significant = frac * h > c.o.significance * sig * h;
-  return t;
-}
 
 /// Torque limit: golden-section search on the limit as a fraction of the model's peak torque
 /// (a limit above the peak changes nothing, so only 0.2 ... 1 of it is searched).
@@ -498,11 +486,12 @@ using Ref = std::pair<std::string, std::string>;
 /// the fit (x = declared values then effect values) and updates `model`; nullopt when LM found
 /// nothing better than the start.
 std::optional<LsqResult> joint_fit(const Ctx& c, servo::DriveParams& model, const std::vector<int>& free,
-                                   const std::vector<Ref>& refs, bool dynamic, double tau) {
+                                   const std::vector<Ref>& refs, bool dynamic, double tau,
+                                   int max_evaluations = 200, std::size_t end = 0) {
   const auto& slots = declared_slots();
   const std::size_t nd = free.size(), n = nd + refs.size();
   if (n == 0) return std::nullopt;
-  const std::size_t b = c.s.begin, e = dynamic ? c.dynamic_end() : c.s.split;
+  const std::size_t b = c.s.begin, e = end > 0 ? end : dynamic ? c.dynamic_end() : c.s.split;
   Eigen::VectorXd x0(static_cast<Eigen::Index>(n)), step(static_cast<Eigen::Index>(n));
   for (std::size_t i = 0; i < nd; ++i) x0[static_cast<Eigen::Index>(i)] = model.*(slots[static_cast<std::size_t>(free[i])].field);
   for (std::size_t i = 0; i < refs.size(); ++i) x0[static_cast<Eigen::Index>(nd + i)] = *effect_value(model, refs[i].first, refs[i].second);
@@ -514,20 +503,107 @@ std::optional<LsqResult> joint_fit(const Ctx& c, servo::DriveParams& model, cons
     return p;
   };
   ResidualFn r = [&](const Eigen::VectorXd& x, Eigen::MatrixXd*) { return c.residual(c.predict(build(x), e), b, e); };
-  LsqResult f = least_squares(r, x0, step, false, tau);
+  LsqResult f = least_squares(r, x0, step, false, tau, max_evaluations);
   if (!(f.sse < r(x0, nullptr).squaredNorm())) return std::nullopt;
   model = build(f.x);
   return f;
 }
 
+/// Coulomb friction jointly with the declared parameters through its sensitivity: with the
+/// velocity signs fixed, the loop is linear, so y(T) = y(0) + T S with S = (y(T1) - y(0)) / T1
+/// from two simulations. LM then runs on the exact (fast) path of the declared parameters plus
+/// T S, and S is taken again at the result (twice): a few RK4 runs instead of hundreds.
+std::optional<LsqResult> friction_polish(const Ctx& c, Trial& t, const std::vector<int>& free, double tau) {
+  const auto& slots = declared_slots();
+  const std::size_t nd = free.size(), b = c.s.begin, e = c.s.split;
+  std::optional<LsqResult> out;
+  for (int pass = 0; pass < 2; ++pass) {
+    double* Tp = effect_value(t.model, "coulomb_friction", "torque");
+    const double T1 = std::max(*Tp, 1e-3 * t.model.Kvp * t.model.Kpp / t.model.load_per_motor_rad());
+    servo::DriveParams bare = t.model, one = t.model;
+    std::erase_if(bare.effects, [](const auto& ef) { return ef.type == "coulomb_friction"; });
+    *effect_value(one, "coulomb_friction", "torque") = T1;
+    const std::vector<double> y0 = c.predict(bare, e), y1 = c.predict(one, e);
+    Eigen::VectorXd S(static_cast<Eigen::Index>(e - b));
+    for (std::size_t k = b; k < e; ++k) S[static_cast<Eigen::Index>(k - b)] = (y1[k] - y0[k]) / T1;
+    Eigen::VectorXd x0(static_cast<Eigen::Index>(nd + 1)), step(static_cast<Eigen::Index>(nd + 1));
+    for (std::size_t i = 0; i < nd; ++i) x0[static_cast<Eigen::Index>(i)] = bare.*(slots[static_cast<std::size_t>(free[i])].field);
+    x0[static_cast<Eigen::Index>(nd)] = *Tp;
+    for (Eigen::Index i = 0; i < x0.size(); ++i) step[i] = 1e-4 * std::max(std::abs(x0[i]), 1e-3);
+    auto declared_model = [&](const Eigen::VectorXd& x) {
+      servo::DriveParams p = bare;
+      for (std::size_t i = 0; i < nd; ++i) p.*(slots[static_cast<std::size_t>(free[i])].field) = std::max(x[static_cast<Eigen::Index>(i)], 1e-9);
+      return p;
+    };
+    ResidualFn r = [&](const Eigen::VectorXd& x, Eigen::MatrixXd*) {
+      return Eigen::VectorXd(c.residual(c.predict(declared_model(x), e), b, e) - x[static_cast<Eigen::Index>(nd)] * S);
+    };
+    LsqResult f = least_squares(r, x0, step, false, tau);
+    servo::DriveParams next = t.model;
+    for (std::size_t i = 0; i < nd; ++i) next.*(slots[static_cast<std::size_t>(free[i])].field) = std::max(f.x[static_cast<Eigen::Index>(i)], 1e-9);
+    *effect_value(next, "coulomb_friction", "torque") = std::max(f.x[static_cast<Eigen::Index>(nd)], 0.0);
+    if (!(c.sse(c.predict(next, e), b, e) < c.sse(c.predict(t.model, e), b, e))) break;
+    t.model = next;
+    out = f;
+  }
+  return out;
+}
+
+std::pair<double, double> parabola(const std::map<int, double>& v, int n, double s2tau);
+
+/// Feedback delay: a profile over whole sub-steps (the simulator's resolution). At each delay of
+/// a coarse grid the declared gains are refitted with it (a delay inside the loop and a lower
+/// Kpp or more averaging look alike at low frequency, so a delay scored on fixed gains is
+/// biased); the best grid point is refined by a scan of its neighbours with those gains and a
+/// parabola gives the fractional value and its sigma.
+Trial fit_feedback_delay(const Ctx& c, const servo::DriveParams& base, double tau, const std::vector<int>& free) {
+  const std::size_t b = c.s.begin, e = std::min(c.dynamic_end(), c.s.begin + 20000);
+  const double h = c.s.period / c.s.substeps;
+  auto with = [&](const servo::DriveParams& from, int n) {
+    servo::DriveParams p = from;
+    std::erase_if(p.effects, [](const auto& ef) { return ef.type == "feedback_delay"; });
+    p.effects.insert(p.effects.begin(), settings("feedback_delay", {{"delay", n * h}}));
+    return p;
+  };
+  const int per_ms = static_cast<int>(std::lround(1e-3 / h));
+  int best = -1;
+  servo::DriveParams best_model;
+  std::optional<LsqResult> best_fit;
+  double best_sse = std::numeric_limits<double>::infinity();
+  for (double ms : {0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0}) {
+    const int n = std::max(1, static_cast<int>(std::lround(ms * per_ms)));
+    servo::DriveParams m = with(base, n);
+    const auto f = joint_fit(c, m, free, {}, true, tau, 12, e);
+    const double sse = c.sse(c.predict(m, e), b, e);
+    if (sse < best_sse) { best_sse = sse; best = n; best_model = m; best_fit = f; }
+  }
+  std::map<int, double> v;
+  const int span = std::max(2, best / 3);
+  for (int n = std::max(1, best - span); n <= best + span; ++n) v[n] = c.sse(c.predict(with(best_model, n), e), b, e);
+  for (const auto& [n, sse] : v)
+    if (sse < v[best]) best = n;
+  const auto [frac, sig] = parabola(v, best, v[best] / static_cast<double>(e - b) * tau);
+  Trial t;
+  t.effect = "feedback_delay";
+  t.model = with(best_model, best);  // the simulator holds whole sub-steps
+  t.params = {{"delay", "s", frac * h, sig * h}};
+  t.significant = frac * h > c.o.significance * sig * h;
+  if (best_fit)
+    for (std::size_t i = 0; i < free.size(); ++i) t.declared.emplace_back(best_fit->x[static_cast<Eigen::Index>(i)], best_fit->sigma[static_cast<Eigen::Index>(i)]);
+  return t;
+}
+
 /// Joint LM over the free declared parameters and the trial effect's continuous numbers, from
 /// the trial's own fit: an effect fitted on a model whose gains were refitted without it is
 /// biased (the gains absorb part of it), so the two are refitted together before scoring.
+/// Output effects need only the drive's exact path per evaluation; friction goes through its
+/// sensitivity; feedback_delay and torque_limit keep the gains of the round's start.
 void joint_polish(const Ctx& c, Trial& t, const std::vector<int>& free, double tau) {
   std::vector<Ref> refs;
   for (const auto& k : continuous_keys(t.effect)) refs.emplace_back(t.effect, k);
-  const bool dyn = is_dynamic_effect(t.effect) || t.effect == "torque_limit";
-  const auto f = joint_fit(c, t.model, free, refs, dyn, tau);
+  if (t.effect == "feedback_delay") return;  // profiled with the gains in fit_feedback_delay
+  const auto f = t.effect == "coulomb_friction" ? friction_polish(c, t, free, tau)
+                                                : joint_fit(c, t.model, free, refs, t.effect == "torque_limit", tau);
   if (!f) return;
   const std::size_t nd = free.size();
   t.declared.clear();
@@ -536,7 +612,18 @@ void joint_polish(const Ctx& c, Trial& t, const std::vector<int>& free, double t
     for (auto& p : t.params)
       if (p.name == refs[i].second) { p.value = f->x[static_cast<Eigen::Index>(nd + i)]; p.sigma = f->sigma[static_cast<Eigen::Index>(nd + i)]; }
   const auto& size = t.params.front();
-  if (t.effect != "torque_limit") t.significant = std::abs(size.value) > c.o.significance * size.sigma;
+  if (t.effect == "torque_limit") {
+    // Significant when the limit lies clearly below the torque the model asks for without it.
+    std::vector<double> tq;
+    servo::DriveParams free_model = t.model;
+    free_model.torque_limit = 0;
+    simulate_motor(free_model, c.s.substeps, c.s.margin, c.s.period, std::span<const double>(c.s.command.data(), c.s.split), &tq);
+    double peak = 0;
+    for (double v : tq) peak = std::max(peak, std::abs(v));
+    t.significant = peak - size.value > c.o.significance * size.sigma && size.value < 0.98 * peak;
+  } else {
+    t.significant = std::abs(size.value) > c.o.significance * size.sigma;
+  }
 }
 
 int parameter_count(const Trial& t) {
@@ -547,17 +634,27 @@ int parameter_count(const Trial& t) {
 
 /// Fits every catalogue effect not yet named on the axis, on the current model.
 std::vector<Trial> fit_catalogue(const Ctx& c, const servo::DriveParams& cur, const std::vector<double>& y0,
-                                 double tau, const std::vector<std::string>& named) {
+                                 double tau, const std::vector<std::string>& named, const servo::DriveParams& config,
+                                 const std::vector<int>& free) {
+  // Re-simulated effects start from the configured gains, not the refitted ones: the refit, done
+  // without the effect, may have bent the gains to mimic it (a delay looks like a lower Kpp, a
+  // torque limit like less feed-forward); the joint polish then refits the gains with the effect.
+  servo::DriveParams base = cur;
+  for (const auto& slot : declared_slots()) base.*(slot.field) = config.*(slot.field);
+  const std::vector<double> ybase = c.predict(base, c.n());
   const bool drive = cur.model == servo::DriveModel::kDrive;
   auto open = [&](const char* e) { return std::find(named.begin(), named.end(), e) == named.end(); };
   std::vector<Trial> out;
-  if (open("backlash")) out.push_back(fit_backlash(c, cur, y0, tau));
-  if (open("lead_error")) out.push_back(fit_lead(c, cur, y0, tau));
-  if (open("scale_error")) out.push_back(fit_scale(c, cur, y0, tau));
-  if (open("measurement_delay")) out.push_back(fit_measurement_delay(c, cur, y0, tau));
-  if (drive && open("coulomb_friction")) out.push_back(fit_friction(c, cur, y0, tau));
-  if (drive && open("feedback_delay")) out.push_back(fit_feedback_delay(c, cur, tau, c.s.substeps));
-  if (drive && open("torque_limit") && cur.Kvp > 0) out.push_back(fit_torque_limit(c, cur, tau));
+  std::vector<double> secs;
+  auto clock = std::chrono::steady_clock::now();
+  auto lap = [&] { const auto now = std::chrono::steady_clock::now(); secs.push_back(std::chrono::duration<double>(now - clock).count()); clock = now; };
+  if (open("backlash")) { out.push_back(fit_backlash(c, cur, y0, tau)); lap(); out.back().seconds = secs.back(); }
+  if (open("lead_error")) { out.push_back(fit_lead(c, cur, y0, tau)); lap(); out.back().seconds = secs.back(); }
+  if (open("scale_error")) { out.push_back(fit_scale(c, cur, y0, tau)); lap(); out.back().seconds = secs.back(); }
+  if (open("measurement_delay")) { out.push_back(fit_measurement_delay(c, cur, y0, tau)); lap(); out.back().seconds = secs.back(); }
+  if (drive && open("coulomb_friction")) { out.push_back(fit_friction(c, cur, y0, tau)); lap(); out.back().seconds = secs.back(); }
+  if (drive && open("feedback_delay")) { out.push_back(fit_feedback_delay(c, base, tau, free)); lap(); out.back().seconds = secs.back(); }
+  if (drive && open("torque_limit") && cur.Kvp > 0) { out.push_back(fit_torque_limit(c, base, tau)); lap(); out.back().seconds = secs.back(); }
   return out;
 }
 
@@ -565,16 +662,20 @@ std::vector<Trial> fit_catalogue(const Ctx& c, const servo::DriveParams& cur, co
 /// `k` counts the parameters fitted so far (the BIC penalty of the current model).
 bool greedy_round(const Ctx& c, AxisIdentification& id, int round, int& k) {
   const std::vector<double> y0 = id.pred_calibrated;
+  // Nothing left to explain: when the residual is already at the measurement noise, no effect
+  // can lower the held-out mean square by heldout_gain, so the round is not run.
+  const double noise2 = c.s.noise * c.s.noise;
+  if (noise2 > 0 && c.fit_sse(y0) / static_cast<double>(c.nfit()) <= noise2 / (1 - c.o.heldout_gain)) return false;
   const double tau = c.tau(y0);
   std::vector<std::string> named;
   for (const auto& n : id.named) named.push_back(n.effect);
   const double b0 = bic(c.fit_sse(y0), c.nfit(), tau, k), h0 = c.heldout_mse(y0);
-  std::vector<Trial> trials = fit_catalogue(c, id.calibrated, y0, tau, named);
   std::vector<int> free;
   for (std::size_t i = 0; i < id.declared.size(); ++i)
     if (!id.declared[i].held) free.push_back(static_cast<int>(i));
-  // Joint polish (a dozen simulations per parameter) only for the two candidates that explain
-  // most on their own: the others cannot win the round.
+  std::vector<Trial> trials = fit_catalogue(c, id.calibrated, y0, tau, named, id.config, free);
+  // Joint polish: every output effect (cheap: the drive's exact path per evaluation) and the
+  // re-simulated effect that explains most on its own (a few RK4 runs per parameter).
   std::vector<std::pair<double, std::size_t>> order;
   for (std::size_t i = 0; i < trials.size(); ++i) {
     const bool dyn = is_dynamic_effect(trials[i].effect) || trials[i].effect == "torque_limit";
@@ -582,7 +683,15 @@ bool greedy_round(const Ctx& c, AxisIdentification& id, int round, int& k) {
                            static_cast<double>((dyn ? c.dynamic_end() : c.s.split) - c.s.begin), i);
   }
   std::sort(order.begin(), order.end());
-  for (std::size_t j = 0; j < std::min<std::size_t>(2, order.size()); ++j) joint_polish(c, trials[order[j].second], free, tau);
+  bool dynamic_done = false;
+  for (const auto& [mse, i] : order) {
+    const bool dyn = is_dynamic_effect(trials[i].effect) || trials[i].effect == "torque_limit";
+    if (dyn && dynamic_done) continue;
+    dynamic_done = dynamic_done || dyn;
+    const auto t0 = std::chrono::steady_clock::now();
+    joint_polish(c, trials[i], free, tau);
+    trials[i].seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
   int best = -1;
   std::vector<double> best_pred;
   const std::size_t start = id.candidates.size();
@@ -593,6 +702,7 @@ bool greedy_round(const Ctx& c, AxisIdentification& id, int round, int& k) {
     s.round = round;
     s.effect = t.effect;
     s.params = t.params;
+    s.seconds = t.seconds;
     s.criterion_before = b0;
     s.criterion_after = bic(c.fit_sse(y), c.nfit(), tau, k + parameter_count(t));
     s.heldout_before = h0;

@@ -62,6 +62,7 @@ struct CandidateScore {
   double heldout_before = 0, heldout_after = 0;        //!< mean square on held-out samples
   bool named = false;
   std::string reason;  //!< why named or not
+  double seconds = 0;  //!< CPU time of its fit (wall clock of one thread)
 };
 
 struct AxisIdentification {
@@ -98,7 +99,7 @@ using ResidualFn = std::function<Eigen::VectorXd(const Eigen::VectorXd& x, Eigen
 /// Levenberg-Marquardt (Eigen's unsupported module) from x0; tau is the residual's correlation
 /// time in samples (variance inflation of the covariance).
 LsqResult least_squares(const ResidualFn& r, const Eigen::VectorXd& x0, const Eigen::VectorXd& step,
-                        bool analytic, double tau);
+                        bool analytic, double tau, int max_evaluations = 200);
 /// Central-difference Jacobian of r at x.
 Eigen::MatrixXd numeric_jacobian(const ResidualFn& r, const Eigen::VectorXd& x, const Eigen::VectorXd& step);
 

@@ -71,7 +71,14 @@ class CoulombFriction final : public AxisEffect {
  public:
   CoulombFriction(double torque, double band) : torque_(torque), band_(band) {}
   std::string_view name() const override { return "coulomb_friction"; }
-  double load_torque(double, double w) const override { return torque_ * std::tanh(w / band_); }
+  double load_torque(double, double w) const override {
+    // tanh(x) rounds to +-1 in double beyond |x| = 19.06: skip the libm call at feed speeds
+    // (it dominated the calibration's friction fits), same result bit for bit.
+    const double x = w / band_;
+    if (x > 20) return torque_;
+    if (x < -20) return -torque_;
+    return torque_ * std::tanh(x);
+  }
 
  private:
   double torque_, band_;
