@@ -194,3 +194,47 @@ inline double param(const AxisIdentification& id, const std::string& effect, con
 }
 
 }  // namespace gcpipe::calibrate::test
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "calibrate.hpp"
+#include "trace.hpp"
+
+namespace gcpipe::calibrate::test {
+
+/// A fresh directory under the build tree for one test.
+inline std::filesystem::path scratch(const std::string& name) {
+  const auto d = std::filesystem::path(GCPIPE_BINARY_DIR) / "calibrate_tests" / name;
+  std::filesystem::remove_all(d);
+  std::filesystem::create_directories(d);
+  return d;
+}
+
+/// The trace as the shared CSV (stages/servo/trace.hpp).
+inline void write_csv(const MeasuredTrace& tr, const std::filesystem::path& path) {
+  std::ofstream out(path);
+  TraceWriter w(out);
+  for (std::size_t k = 0; k < tr.size(); ++k) {
+    TraceRow r;
+    r.t = tr.t[k];
+    for (std::size_t a = 0; a < kNumAxes; ++a) { r.command[a] = tr.command[a][k]; r.actual[a] = tr.actual[a][k]; }
+    w.row(r);
+  }
+}
+
+/// A pipeline config in `dir` for the drives `d` (circle_test.yaml otherwise).
+inline std::filesystem::path write_config(const servo::DriveSet& d, const std::filesystem::path& dir, const std::string& stem) {
+  const auto src = (std::filesystem::path(GCPIPE_SOURCE_DIR) / "pipeline_configs" / "circle_test.yaml").string();
+  std::ofstream(dir / (stem + "_drives.yaml")) << drives_text(d, "# test drives\n");
+  const auto cfg = dir / (stem + ".yaml");
+  std::ofstream(cfg) << pipeline_yaml(src, stem + "_drives.yaml");
+  return cfg;
+}
+
+inline nlohmann::json read_json(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  return nlohmann::json::parse(in);
+}
+
+}  // namespace gcpipe::calibrate::test

@@ -104,7 +104,14 @@ struct Ctx {
   /// truncated look-ahead does not reach the scored samples).
   std::vector<double> predict(const servo::DriveParams& p, std::size_t end) const {
     const std::size_t e = std::min(n(), end + 64);
-    return predict_axis(p, s.substeps, s.margin, s.period, std::span<const double>(s.command.data(), e));
+    std::vector<double> y;
+    y.reserve(e);
+    for (std::size_t i = 0; i < s.segments.size() && s.segments[i] < e; ++i) {
+      const std::size_t a = s.segments[i], z = i + 1 < s.segments.size() ? std::min(e, s.segments[i + 1]) : e;
+      const auto part = predict_axis(p, s.substeps, s.margin, s.period, std::span<const double>(s.command.data() + a, z - a));
+      y.insert(y.end(), part.begin(), part.end());
+    }
+    return y;
   }
   Eigen::VectorXd residual(const std::vector<double>& y, std::size_t b, std::size_t e) const {
     Eigen::VectorXd r(static_cast<Eigen::Index>(e - b));
@@ -764,8 +771,14 @@ AxisIdentification identify_axis(const AxisSeries& s, const servo::DriveParams& 
     id.refit_note = "the axis does not move in this trace: nothing to identify";
     return id;
   }
-  if (config.model == servo::DriveModel::kDrive) refit_declared(c, id);
-  else id.refit_note = "ideal axis (no drive parameters declared)";
+  if (config.model != servo::DriveModel::kDrive) {
+    // The simulator passes commands of an ideal axis straight through, effects included, so an
+    // effect found there could not be written back into a model: the residual is reported (and
+    // left to the NNOE fallback), nothing is named.
+    id.refit_note = "ideal axis in the config (no drive parameters): residual reported, no effect can be attached";
+    return id;
+  }
+  refit_declared(c, id);
   id.calibrated = id.refit;
   id.pred_calibrated = id.pred_refit;
   int k = 0;

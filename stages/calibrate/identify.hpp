@@ -28,6 +28,9 @@ struct AxisSeries {
   std::vector<double> command, actual;  //!< [mm or deg]
   std::size_t begin = 1;                //!< first sample scored (sample 0 is the rest state)
   std::size_t split = 0;                //!< [begin, split) fit, [split, N) held out
+  /// Starts of separately recorded traces joined in this series (first is 0): the drive is put
+  /// at rest at each start, so no transient is invented across the join.
+  std::vector<std::size_t> segments{0};
   double noise = 0;                     //!< measurement noise estimate [mm or deg]
 };
 
