@@ -1,6 +1,8 @@
 #include "calibrate.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <numbers>
 
@@ -88,9 +90,15 @@ void fit_fallback(Calibration& c, int a, std::vector<double>& corrected) {
   for (std::size_t k = c.split; k < c.rows; ++k) s += r[k] * r[k];
   const double rms = std::sqrt(s / static_cast<double>(std::max<std::size_t>(1, c.rows - c.split)));
   if (!(rms > 1.5 * c.noise[a])) return;
+  // Inputs: the commanded velocity and acceleration (the commands drive the machine; the
+  // prediction's own acceleration is filtered by the loop and misses what excites a mode).
   std::vector<double> v, acc;
-  differentiate(id.pred_calibrated, c.period, v, acc);
-  auto m = fit_nnoe(r, v, acc, 1, c.split);
+  differentiate(c.command[a], c.period, v, acc);
+  auto m = fit_nnoe(r, v, acc, 1, c.split, c.period);
+  if (std::getenv("GCPIPE_CALIBRATE_DEBUG") && m) {
+    std::fprintf(stderr, "nnoe axis %d: %s explained %.4f\n", a, m->structure.text().c_str(), m->explained_fraction);
+    for (const auto& [st, f] : m->candidates) std::fprintf(stderr, "  %s FPE %.5f\n", st.text().c_str(), f);
+  }
   if (!m || !(m->explained_fraction > 0)) return;
   const auto rh = m->simulate(v, acc);
   for (std::size_t k = 0; k < c.rows; ++k) corrected[k] += rh[k];

@@ -665,6 +665,38 @@ std::vector<Trial> fit_catalogue(const Ctx& c, const servo::DriveParams& cur, co
   return out;
 }
 
+/// After an effect is named: every named effect's numbers and the free declared parameters
+/// refitted together (an effect fitted before the next one was known carries part of it), and
+/// their sigmas taken from this fit with the correlation time of its own residual.
+void repolish(const Ctx& c, AxisIdentification& id, const std::vector<int>& free) {
+  std::vector<Ref> refs;
+  bool dynamic = false;
+  for (const auto& n : id.named) {
+    for (const auto& k : continuous_keys(n.effect)) refs.emplace_back(n.effect, k);
+    dynamic = dynamic || is_dynamic_effect(n.effect) || n.effect == "torque_limit";
+  }
+  if (id.named.size() < 2) return;  // the single effect was just fitted jointly
+  servo::DriveParams m = id.calibrated;
+  const double tau_old = c.tau(id.pred_calibrated);
+  const auto f = joint_fit(c, m, free, refs, dynamic, tau_old, dynamic ? 40 : 200);
+  if (!f) return;
+  const std::vector<double> y = c.predict(m, c.n());
+  if (!(c.fit_sse(y) < c.fit_sse(id.pred_calibrated))) return;
+  id.calibrated = m;
+  id.pred_calibrated = y;
+  // Sigmas with the new residual's correlation time (the fit was weighted with the old one).
+  const double scale = std::sqrt(c.tau(y) / tau_old);
+  for (std::size_t i = 0; i < free.size(); ++i) {
+    id.declared[static_cast<std::size_t>(free[i])].fitted = f->x[static_cast<Eigen::Index>(i)];
+    id.declared[static_cast<std::size_t>(free[i])].sigma = scale * f->sigma[static_cast<Eigen::Index>(i)];
+  }
+  for (std::size_t i = 0; i < refs.size(); ++i)
+    for (auto& n : id.named)
+      if (n.effect == refs[i].first)
+        for (auto& p : n.params)
+          if (p.name == refs[i].second) { p.value = f->x[static_cast<Eigen::Index>(free.size() + i)]; p.sigma = scale * f->sigma[static_cast<Eigen::Index>(free.size() + i)]; }
+}
+
 /// One greedy round: scores every candidate and names the best that passes; false when none.
 /// `k` counts the parameters fitted so far (the BIC penalty of the current model).
 bool greedy_round(const Ctx& c, AxisIdentification& id, int round, int& k) {
@@ -716,11 +748,14 @@ bool greedy_round(const Ctx& c, AxisIdentification& id, int round, int& k) {
     s.heldout_after = c.heldout_mse(y);
     const bool crit = s.criterion_after < b0 - c.o.bic_margin;
     const bool held = c.s.split >= c.n() || s.heldout_after < h0 * (1 - c.o.heldout_gain);
+    const double excess = h0 - noise2;
+    const bool bulk = c.s.split >= c.n() || !(excess > 0) || (h0 - s.heldout_after) >= c.o.excess_explained * excess;
     s.reason = !crit ? "BIC does not drop by the margin"
                : !held ? "does not hold on the held-out part"
                : !t.significant ? "size below the significance threshold"
+               : !bulk ? "explains too little of the residual above the noise"
                : "named";
-    s.named = crit && held && t.significant;
+    s.named = crit && held && t.significant && bulk;
     if (s.named && (best < 0 || s.criterion_after < id.candidates[start + static_cast<std::size_t>(best)].criterion_after)) {
       best = static_cast<int>(i);
       best_pred = std::move(y);
@@ -743,6 +778,7 @@ bool greedy_round(const Ctx& c, AxisIdentification& id, int round, int& k) {
   }
   id.pred_calibrated = std::move(best_pred);
   k += parameter_count(trials[static_cast<std::size_t>(best)]);
+  repolish(c, id, free);
   return true;
 }
 

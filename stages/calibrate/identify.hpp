@@ -40,6 +40,10 @@ struct IdentifyOptions {
   std::size_t max_dynamic_fit = 60000;  //!< samples used while fitting re-simulated effects
   int max_rounds = 3;            //!< greedy rounds per axis
   double significance = 3;       //!< a named effect's size must exceed this many sigma
+  /// A named effect must explain at least this fraction of the held-out mean square above the
+  /// noise: a physical effect accounts for the bulk of what it causes; one that only mops up
+  /// part of an unknown residual would be a misleading name (that part goes to the NNOE).
+  double excess_explained = 0.3;
 };
 
 /// One fitted number with its 1-sigma from the fit covariance.
