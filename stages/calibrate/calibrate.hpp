@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <span>
 #include <optional>
 #include <ostream>
 #include <string>
@@ -44,6 +45,19 @@ struct EvaluateRequest {
 int run_evaluate(const EvaluateRequest& request, std::ostream& out, std::ostream& err);
 
 // --- pieces, exposed for the tests and the benchmark ---
+
+/// Contour error of a measured run: distance of the measured tool tip (FK of the actual joints)
+/// to the program's nominal tool-tip path (FK of the raw interpolated joints), cutting moves
+/// (G1 G2 G3, TCP) and rapids (G0) apart. Units mm.
+struct ContourFigures {
+  double cutting_max = 0, cutting_rms = 0, rapid_max = 0, rapid_rms = 0;
+  double t_at_cutting_max = 0;       //!< [s] trace time
+  std::uint64_t line_at_cutting_max = 0;
+  std::size_t cutting_samples = 0, rapid_samples = 0, idle_samples = 0;
+};
+/// Throws std::runtime_error when the program cannot be run by the model.
+ContourFigures measured_contour_error(const compensate::Model& model, std::span<const ResolvedBlock> program,
+                                      const MeasuredTrace& trace);
 
 /// Radius at which rotary errors are stated in micrometres: 100 mm (a part's size on the
 /// MX-330 table); rms_deg is given beside it.

@@ -62,11 +62,6 @@ std::vector<double> simulate_range(const NnoeModel& m, std::span<const double> v
   return r;
 }
 
-double mse(std::span<const double> r, const std::vector<double>& rh, std::size_t b, std::size_t e) {
-  double s = 0;
-  for (std::size_t k = b; k < e; ++k) s += (r[k] - rh[k]) * (r[k] - rh[k]);
-  return s / static_cast<double>(std::max<std::size_t>(1, e - b));
-}
 
 /// Training set of samples [b, e): regressors built from `past` (measured residual for the
 /// series-parallel start, the model's own output for the output-error passes).
