@@ -69,17 +69,21 @@ void lead_error(double a, double p, double phase_deg, std::vector<double>& y,
 
 void measurement_delay(double delay, double period, std::vector<double>& y,
                        std::vector<std::vector<double>>* dydp) {
-  // out(t) = in(t - delay), linear interpolation between ticks, held before the start.
+  // out(t) = in(t - delay) between ticks by a Catmull-Rom cubic (the simulator interpolates
+  // linearly between 1/8-tick sub-steps; linear between whole ticks would be off by
+  // f(1-f)/2 T^2 a, 13 nm rms on the test circle, the cubic by O(T^4)). Held before the start.
   const std::vector<double> x = y;
   const double q = delay / period;
   const auto n = static_cast<std::ptrdiff_t>(std::floor(q));
-  const double f = q - std::floor(q);
+  const double s = 1 - (q - std::floor(q));  // position from x[k-n-1] towards x[k-n]
   if (dydp) dydp->assign(1, std::vector<double>(y.size(), 0.0));
   const auto at = [&](std::ptrdiff_t i) { return x[static_cast<std::size_t>(std::clamp<std::ptrdiff_t>(i, 0, static_cast<std::ptrdiff_t>(x.size()) - 1))]; };
   for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(x.size()); ++k) {
-    const double a = at(k - n), b = at(k - n - 1);
-    y[static_cast<std::size_t>(k)] = (1 - f) * a + f * b;
-    if (dydp) (*dydp)[0][static_cast<std::size_t>(k)] = (b - a) / period;
+    const double p0 = at(k - n - 2), p1 = at(k - n - 1), p2 = at(k - n), p3 = at(k - n + 1);
+    const double c1 = -p0 + p2, c2 = 2 * p0 - 5 * p1 + 4 * p2 - p3, c3 = -p0 + 3 * p1 - 3 * p2 + p3;
+    y[static_cast<std::size_t>(k)] = 0.5 * (2 * p1 + c1 * s + c2 * s * s + c3 * s * s * s);
+    // d out / d delay = d out / ds * ds / d delay, ds / d delay = -1 / period.
+    if (dydp) (*dydp)[0][static_cast<std::size_t>(k)] = -0.5 * (c1 + 2 * c2 * s + 3 * c3 * s * s) / period;
   }
 }
 

@@ -228,6 +228,13 @@ std::vector<double> expand(const std::vector<double>& y, int d, std::size_t n) {
 
 }  // namespace
 
+double nnoe_output_error(const NnoeModel& m, std::span<const double> r, std::span<const double> v,
+                         std::span<const double> a, std::size_t b, std::size_t e, const Eigen::VectorXd& theta,
+                         Eigen::MatrixXd* jtj, Eigen::VectorXd* jte) {
+  const OutputError oe{m, r, v, a, b, e};
+  return oe.run(theta, jtj, jte);
+}
+
 std::vector<double> NnoeModel::simulate(std::span<const double> velocity, std::span<const double> accel) const {
   const auto v = decimate(velocity, decimation), a = decimate(accel, decimation);
   return expand(simulate_range(*this, v, a, v.size()), decimation, velocity.size());

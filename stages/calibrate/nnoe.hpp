@@ -54,6 +54,14 @@ std::optional<NnoeModel> fit_nnoe(std::span<const double> residual, std::span<co
                                   std::span<const double> accel, std::size_t begin, std::size_t split,
                                   double period, const NnoeOptions& options = {});
 
+/// The output-error criterion S = sum (r/y_scale - r^)^2 / 2 over [b, e) of `m` at parameters
+/// `theta` (normalised units, the series already at the model's step), and when `jtj`/`jte` are
+/// given the Gauss-Newton terms of its recurrent Jacobian (exposed so the tests can check the
+/// Jacobian against finite differences).
+double nnoe_output_error(const NnoeModel& m, std::span<const double> r, std::span<const double> v,
+                         std::span<const double> a, std::size_t b, std::size_t e, const Eigen::VectorXd& theta,
+                         Eigen::MatrixXd* jtj, Eigen::VectorXd* jte);
+
 /// Velocity and acceleration of a position series by central differences [unit/s, unit/s^2].
 void differentiate(std::span<const double> y, double period, std::vector<double>& v, std::vector<double>& a);
 
