@@ -522,7 +522,7 @@ std::optional<LsqResult> joint_fit(const Ctx& c, servo::DriveParams& model, cons
 /// T S, and S is taken again at the result (twice): a few RK4 runs instead of hundreds.
 std::optional<LsqResult> friction_polish(const Ctx& c, Trial& t, const std::vector<int>& free, double tau) {
   const auto& slots = declared_slots();
-  const std::size_t nd = free.size(), b = c.s.begin, e = c.s.split;
+  const std::size_t nd = free.size(), b = c.s.begin, e = c.dynamic_end();
   std::optional<LsqResult> out;
   for (int pass = 0; pass < 2; ++pass) {
     double* Tp = effect_value(t.model, "coulomb_friction", "torque");
@@ -564,7 +564,7 @@ std::pair<double, double> parabola(const std::map<int, double>& v, int n, double
 /// biased); the best grid point is refined by a scan of its neighbours with those gains and a
 /// parabola gives the fractional value and its sigma.
 Trial fit_feedback_delay(const Ctx& c, const servo::DriveParams& base, double tau, const std::vector<int>& free) {
-  const std::size_t b = c.s.begin, e = std::min(c.dynamic_end(), c.s.begin + 20000);
+  const std::size_t b = c.s.begin, e = std::min(c.dynamic_end(), c.s.begin + 10000);
   const double h = c.s.period / c.s.substeps;
   auto with = [&](const servo::DriveParams& from, int n) {
     servo::DriveParams p = from;
@@ -572,31 +572,44 @@ Trial fit_feedback_delay(const Ctx& c, const servo::DriveParams& base, double ta
     p.effects.insert(p.effects.begin(), settings("feedback_delay", {{"delay", n * h}}));
     return p;
   };
-  const int per_ms = static_cast<int>(std::lround(1e-3 / h));
-  int best = -1;
-  servo::DriveParams best_model;
-  std::optional<LsqResult> best_fit;
-  double best_sse = std::numeric_limits<double>::infinity();
-  for (double ms : {0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0}) {
-    const int n = std::max(1, static_cast<int>(std::lround(ms * per_ms)));
+  // The profile P(n) = min over the free gains of the SSE at a delay of n sub-steps, each point
+  // a short LM from the configured gains; cached.
+  struct Point { double sse; servo::DriveParams model; std::optional<LsqResult> fit; };
+  std::map<int, Point> prof;
+  auto P = [&](int n) -> const Point& {
+    auto it = prof.find(n);
+    if (it != prof.end()) return it->second;
     servo::DriveParams m = with(base, n);
-    const auto f = joint_fit(c, m, free, {}, true, tau, 12, e);
+    auto f = joint_fit(c, m, free, {}, true, tau, 8, e);
     const double sse = c.sse(c.predict(m, e), b, e);
-    if (sse < best_sse) { best_sse = sse; best = n; best_model = m; best_fit = f; }
+    return prof.emplace(n, Point{sse, m, f}).first->second;
+  };
+  const int per_ms = static_cast<int>(std::lround(1e-3 / h));
+  const int grid[] = {per_ms / 2, per_ms, 2 * per_ms, 4 * per_ms, 8 * per_ms};
+  int gi = 0;
+  for (int i = 1; i < 5; ++i)
+    if (P(std::max(1, grid[i])).sse < P(std::max(1, grid[gi])).sse) gi = i;
+  // Golden-section search on whole sub-steps between the grid neighbours of the best point.
+  int lo = std::max(1, gi > 0 ? grid[gi - 1] : 1), hi = gi < 4 ? grid[gi + 1] : grid[4];
+  while (hi - lo > 2) {
+    const int m1 = lo + static_cast<int>(std::lround(0.382 * (hi - lo))), m2 = lo + static_cast<int>(std::lround(0.618 * (hi - lo)));
+    if (m1 == m2) break;
+    if (P(m1).sse <= P(m2).sse) hi = m2; else lo = m1;
   }
+  int best = lo;
+  for (int n = lo; n <= hi; ++n)
+    if (P(n).sse < P(best).sse) best = n;
   std::map<int, double> v;
-  const int span = std::max(2, best / 3);
-  for (int n = std::max(1, best - span); n <= best + span; ++n) v[n] = c.sse(c.predict(with(best_model, n), e), b, e);
-  for (const auto& [n, sse] : v)
-    if (sse < v[best]) best = n;
+  for (int n = std::max(1, best - 1); n <= best + 1; ++n) v[n] = P(n).sse;
   const auto [frac, sig] = parabola(v, best, v[best] / static_cast<double>(e - b) * tau);
+  const Point& pt = P(best);
   Trial t;
   t.effect = "feedback_delay";
-  t.model = with(best_model, best);  // the simulator holds whole sub-steps
+  t.model = pt.model;  // the simulator holds whole sub-steps
   t.params = {{"delay", "s", frac * h, sig * h}};
   t.significant = frac * h > c.o.significance * sig * h;
-  if (best_fit)
-    for (std::size_t i = 0; i < free.size(); ++i) t.declared.emplace_back(best_fit->x[static_cast<Eigen::Index>(i)], best_fit->sigma[static_cast<Eigen::Index>(i)]);
+  if (pt.fit)
+    for (std::size_t i = 0; i < free.size(); ++i) t.declared.emplace_back(pt.fit->x[static_cast<Eigen::Index>(i)], pt.fit->sigma[static_cast<Eigen::Index>(i)]);
   return t;
 }
 
@@ -736,6 +749,28 @@ bool greedy_round(const Ctx& c, AxisIdentification& id, int round, int& k) {
   const std::size_t start = id.candidates.size();
   for (std::size_t i = 0; i < trials.size(); ++i) {
     const Trial& t = trials[i];
+    // A re-simulated effect on a long trace is screened on the window it was fitted on first:
+    // its full-length RK4 run is only paid when it can win there.
+    const std::size_t we = c.dynamic_end();
+    if ((is_dynamic_effect(t.effect) || t.effect == "torque_limit") && we < c.s.split) {
+      const std::vector<double> yw = c.predict(t.model, we);
+      const double nw = static_cast<double>(we - c.s.begin);
+      const double bw0 = bic(c.sse(y0, c.s.begin, we), we - c.s.begin, tau, k);
+      const double bw1 = bic(c.sse(yw, c.s.begin, we), we - c.s.begin, tau, k + parameter_count(t));
+      if (!(bw1 < bw0 - c.o.bic_margin)) {
+        CandidateScore s;
+        s.round = round;
+        s.effect = t.effect;
+        s.params = t.params;
+        s.seconds = t.seconds;
+        s.criterion_before = bw0;
+        s.criterion_after = bw1;
+        s.heldout_before = s.heldout_after = h0;
+        s.reason = "BIC does not drop by the margin on the first " + std::to_string(static_cast<long>(nw)) + " samples (screened there)";
+        id.candidates.push_back(s);
+        continue;
+      }
+    }
     std::vector<double> y = c.predict(t.model, c.n());
     CandidateScore s;
     s.round = round;
