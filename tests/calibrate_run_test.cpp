@@ -55,6 +55,25 @@ TEST(CalibrateRun, CircleWithYBacklashWritesEveryOutput) {
     EXPECT_EQ(e.path().string().find(".part"), std::string::npos) << e.path();
 }
 
+TEST(CalibrateRun, CircleWithXFrictionShowsTheQuadrantGlitches) {
+  // The figures of stages/calibrate/README.md for friction come from this run.
+  test::Scenario sc = test::circle_scenario();
+  sc.machine.drives.axes[kX].effects.push_back(test::effect("coulomb_friction", {{"torque", 40}, {"velocity_band", 0.01}}));
+  const fs::path dir = test::scratch("run_friction");
+  test::write_csv(test::trace_of(sc, 8), dir / "trace.csv");
+  const fs::path cfg = test::write_config(sc.config.drives, dir, "config");
+  CalibrateRequest q{{(dir / "trace.csv").string()}, cfg.string(), (dir / "out").string(), std::nullopt, false, true};
+  std::ostringstream out, err;
+  ASSERT_EQ(run_calibrate(q, out, err), 0) << err.str();
+  const auto j = test::read_json(dir / "out" / "calibration.json");
+  ASSERT_EQ(j["effects"].size(), 1u) << j["effects"].dump(1);
+  EXPECT_EQ(j["effects"][0]["name"], "coulomb_friction");
+  // J is configured 20 % high: the torque comes back relative to it (README, "What a position
+  // trace cannot see").
+  EXPECT_NEAR(j["effects"][0]["parameters"]["torque"]["value"].get<double>(), 40 * 1.2, 4.8);
+  EXPECT_TRUE(fs::exists(dir / "out" / "plots" / "residual_velocity_X.png"));
+}
+
 TEST(CalibrateRun, UsageAndBadConfigAreReported) {
   std::ostringstream out, err;
   EXPECT_EQ(run_calibrate(CalibrateRequest{}, out, err), 2);

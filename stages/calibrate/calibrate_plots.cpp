@@ -36,9 +36,16 @@ void time_plot(const Calibration& c, int a, const fs::path& png) {
   f.xlabel("t [s]");
   f.ylabel(std::string("residual [") + unit_um(a) + "]");
   const auto r0 = residual(c, a, c.axes[a].pred_declared), r1 = residual(c, a, c.axes[a].pred_calibrated);
-  std::vector<double> t, y0, y1;
-  for (std::size_t k = 1; k < c.rows; k += stride(c.rows)) { t.push_back(c.t[k]); y0.push_back(r0[k]); y1.push_back(r1[k]); }
-  f.line(t, y0, kBefore, 1, "declared model");
+  const auto rr = residual(c, a, c.axes[a].pred_refit);
+  std::vector<double> t, y0, y1, yr;
+  for (std::size_t k = 1; k < c.rows; k += stride(c.rows)) { t.push_back(c.t[k]); y0.push_back(r0[k]); y1.push_back(r1[k]); yr.push_back(rr[k]); }
+  // The declared model's residual can be 1000x the calibrated one: it is drawn only when it
+  // stays within 20x the refitted one, so the effect's shape stays visible.
+  double m0 = 0, mr = 0;
+  for (std::size_t i = 0; i < y0.size(); ++i) { m0 = std::max(m0, std::abs(y0[i])); mr = std::max(mr, std::abs(yr[i])); }
+  if (m0 <= 20 * mr) f.line(t, y0, kBefore, 1, "declared model");
+  else f.note("declared model off the scale: max |residual| " + std::to_string(m0) + " " + unit_um(a));
+  f.line(t, yr, kRefit, 1, "refitted gains, no effects");
   f.line(t, y1, kAfter, 1, "calibrated model");
   f.note("held-out part from t = " + std::to_string(c.t[std::min(c.split, c.rows - 1)]) + " s");
   f.save_png(png);
