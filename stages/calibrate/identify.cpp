@@ -710,6 +710,93 @@ void repolish(const Ctx& c, AxisIdentification& id, const std::vector<int>& free
           if (p.name == refs[i].second) { p.value = f->x[static_cast<Eigen::Index>(free.size() + i)]; p.sigma = scale * f->sigma[static_cast<Eigen::Index>(free.size() + i)]; }
 }
 
+bool resimulated(const std::string& effect) { return is_dynamic_effect(effect) || effect == "torque_limit"; }
+
+/// Joint polish: every output effect (cheap: the drive's exact path per evaluation) and the
+/// re-simulated effect that explains most on its own (a few RK4 runs per parameter).
+void polish_trials(const Ctx& c, std::vector<Trial>& trials, const std::vector<int>& free, double tau) {
+  std::vector<std::pair<double, std::size_t>> order;
+  for (std::size_t i = 0; i < trials.size(); ++i) {
+    const std::size_t e = resimulated(trials[i].effect) ? c.dynamic_end() : c.s.split;
+    order.emplace_back(c.sse(c.predict(trials[i].model, c.s.split), c.s.begin, e) / static_cast<double>(e - c.s.begin), i);
+  }
+  std::sort(order.begin(), order.end());
+  bool dynamic_done = false;
+  for (const auto& [mse, i] : order) {
+    const bool dyn = resimulated(trials[i].effect);
+    if (dyn && dynamic_done) continue;
+    dynamic_done = dynamic_done || dyn;
+    const auto t0 = std::chrono::steady_clock::now();
+    joint_polish(c, trials[i], free, tau);
+    trials[i].seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+}
+
+/// What a round knows before scoring: the current prediction, its BIC and held-out mean square.
+struct RoundStart {
+  const std::vector<double>& y0;
+  double tau, b0, h0, noise2;
+  int k, round;
+};
+
+/// Scores one trial against the round's start; fills `y` with its full prediction when it was
+/// computed (re-simulated effects on long traces are screened on their fit window first).
+CandidateScore score_trial(const Ctx& c, const Trial& t, const RoundStart& r, std::vector<double>& y) {
+  CandidateScore s;
+  s.round = r.round;
+  s.effect = t.effect;
+  s.params = t.params;
+  s.seconds = t.seconds;
+  const std::size_t we = c.dynamic_end();
+  if (resimulated(t.effect) && we < c.s.split) {
+    const double bw0 = bic(c.sse(r.y0, c.s.begin, we), we - c.s.begin, r.tau, r.k);
+    const double bw1 = bic(c.sse(c.predict(t.model, we), c.s.begin, we), we - c.s.begin, r.tau, r.k + parameter_count(t));
+    if (!(bw1 < bw0 - c.o.bic_margin)) {
+      s.criterion_before = bw0;
+      s.criterion_after = bw1;
+      s.heldout_before = s.heldout_after = r.h0;
+      s.reason = "BIC does not drop by the margin on the first " + std::to_string(we - c.s.begin) + " samples (screened there)";
+      return s;
+    }
+  }
+  y = c.predict(t.model, c.n());
+  s.criterion_before = r.b0;
+  s.criterion_after = bic(c.fit_sse(y), c.nfit(), r.tau, r.k + parameter_count(t));
+  s.heldout_before = r.h0;
+  s.heldout_after = c.heldout_mse(y);
+  const bool crit = s.criterion_after < r.b0 - c.o.bic_margin;
+  const bool held = c.s.split >= c.n() || s.heldout_after < r.h0 * (1 - c.o.heldout_gain);
+  const double excess = r.h0 - r.noise2;
+  const bool bulk = c.s.split >= c.n() || !(excess > 0) || (r.h0 - s.heldout_after) >= c.o.excess_explained * excess;
+  s.reason = !crit ? "BIC does not drop by the margin"
+             : !held ? "does not hold on the held-out part"
+             : !t.significant ? "size below the significance threshold"
+             : !bulk ? "explains too little of the residual above the noise"
+             : "named";
+  s.named = crit && held && t.significant && bulk;
+  return s;
+}
+
+/// Names candidate `at` (its trial `t`, prediction `y`): the others of the round that passed
+/// are marked as beaten, the model and declared values move on, everything is refitted jointly.
+void accept(const Ctx& c, AxisIdentification& id, std::size_t start, std::size_t at, Trial& t,
+            std::vector<double>&& y, const std::vector<int>& free, int& k) {
+  for (std::size_t i = start; i < id.candidates.size(); ++i)
+    if (i != at && id.candidates[i].named) {
+      id.candidates[i].named = false;
+      id.candidates[i].reason = "passes, but " + id.candidates[at].effect + " scores better in this round";
+    }
+  id.named.push_back(id.candidates[at]);
+  id.calibrated = t.model;
+  for (std::size_t i = 0; i < t.declared.size() && i < free.size(); ++i) {
+    id.declared[static_cast<std::size_t>(free[i])].fitted = t.declared[i].first;
+    id.declared[static_cast<std::size_t>(free[i])].sigma = t.declared[i].second;
+  }
+  id.pred_calibrated = std::move(y);
+  k += parameter_count(t);
+  repolish(c, id, free);
+}
+
 /// One greedy round: scores every candidate and names the best that passes; false when none.
 /// `k` counts the parameters fitted so far (the BIC penalty of the current model).
 bool greedy_round(const Ctx& c, AxisIdentification& id, int round, int& k) {
@@ -719,101 +806,27 @@ bool greedy_round(const Ctx& c, AxisIdentification& id, int round, int& k) {
   const double noise2 = c.s.noise * c.s.noise;
   if (noise2 > 0 && c.fit_sse(y0) / static_cast<double>(c.nfit()) <= noise2 / (1 - c.o.heldout_gain)) return false;
   const double tau = c.tau(y0);
+  const RoundStart r{y0, tau, bic(c.fit_sse(y0), c.nfit(), tau, k), c.heldout_mse(y0), noise2, k, round};
   std::vector<std::string> named;
   for (const auto& n : id.named) named.push_back(n.effect);
-  const double b0 = bic(c.fit_sse(y0), c.nfit(), tau, k), h0 = c.heldout_mse(y0);
   std::vector<int> free;
   for (std::size_t i = 0; i < id.declared.size(); ++i)
     if (!id.declared[i].held) free.push_back(static_cast<int>(i));
   std::vector<Trial> trials = fit_catalogue(c, id.calibrated, y0, tau, named, id.config, free);
-  // Joint polish: every output effect (cheap: the drive's exact path per evaluation) and the
-  // re-simulated effect that explains most on its own (a few RK4 runs per parameter).
-  std::vector<std::pair<double, std::size_t>> order;
-  for (std::size_t i = 0; i < trials.size(); ++i) {
-    const bool dyn = is_dynamic_effect(trials[i].effect) || trials[i].effect == "torque_limit";
-    order.emplace_back(c.sse(c.predict(trials[i].model, c.s.split), c.s.begin, dyn ? c.dynamic_end() : c.s.split) /
-                           static_cast<double>((dyn ? c.dynamic_end() : c.s.split) - c.s.begin), i);
-  }
-  std::sort(order.begin(), order.end());
-  bool dynamic_done = false;
-  for (const auto& [mse, i] : order) {
-    const bool dyn = is_dynamic_effect(trials[i].effect) || trials[i].effect == "torque_limit";
-    if (dyn && dynamic_done) continue;
-    dynamic_done = dynamic_done || dyn;
-    const auto t0 = std::chrono::steady_clock::now();
-    joint_polish(c, trials[i], free, tau);
-    trials[i].seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  }
+  polish_trials(c, trials, free, tau);
   int best = -1;
-  std::vector<double> best_pred;
+  std::vector<double> best_pred, y;
   const std::size_t start = id.candidates.size();
   for (std::size_t i = 0; i < trials.size(); ++i) {
-    const Trial& t = trials[i];
-    // A re-simulated effect on a long trace is screened on the window it was fitted on first:
-    // its full-length RK4 run is only paid when it can win there.
-    const std::size_t we = c.dynamic_end();
-    if ((is_dynamic_effect(t.effect) || t.effect == "torque_limit") && we < c.s.split) {
-      const std::vector<double> yw = c.predict(t.model, we);
-      const double nw = static_cast<double>(we - c.s.begin);
-      const double bw0 = bic(c.sse(y0, c.s.begin, we), we - c.s.begin, tau, k);
-      const double bw1 = bic(c.sse(yw, c.s.begin, we), we - c.s.begin, tau, k + parameter_count(t));
-      if (!(bw1 < bw0 - c.o.bic_margin)) {
-        CandidateScore s;
-        s.round = round;
-        s.effect = t.effect;
-        s.params = t.params;
-        s.seconds = t.seconds;
-        s.criterion_before = bw0;
-        s.criterion_after = bw1;
-        s.heldout_before = s.heldout_after = h0;
-        s.reason = "BIC does not drop by the margin on the first " + std::to_string(static_cast<long>(nw)) + " samples (screened there)";
-        id.candidates.push_back(s);
-        continue;
-      }
-    }
-    std::vector<double> y = c.predict(t.model, c.n());
-    CandidateScore s;
-    s.round = round;
-    s.effect = t.effect;
-    s.params = t.params;
-    s.seconds = t.seconds;
-    s.criterion_before = b0;
-    s.criterion_after = bic(c.fit_sse(y), c.nfit(), tau, k + parameter_count(t));
-    s.heldout_before = h0;
-    s.heldout_after = c.heldout_mse(y);
-    const bool crit = s.criterion_after < b0 - c.o.bic_margin;
-    const bool held = c.s.split >= c.n() || s.heldout_after < h0 * (1 - c.o.heldout_gain);
-    const double excess = h0 - noise2;
-    const bool bulk = c.s.split >= c.n() || !(excess > 0) || (h0 - s.heldout_after) >= c.o.excess_explained * excess;
-    s.reason = !crit ? "BIC does not drop by the margin"
-               : !held ? "does not hold on the held-out part"
-               : !t.significant ? "size below the significance threshold"
-               : !bulk ? "explains too little of the residual above the noise"
-               : "named";
-    s.named = crit && held && t.significant && bulk;
+    CandidateScore s = score_trial(c, trials[i], r, y);
     if (s.named && (best < 0 || s.criterion_after < id.candidates[start + static_cast<std::size_t>(best)].criterion_after)) {
       best = static_cast<int>(i);
       best_pred = std::move(y);
     }
-    id.candidates.push_back(s);
+    id.candidates.push_back(std::move(s));
   }
   if (best < 0) return false;
-  const std::size_t at = start + static_cast<std::size_t>(best);
-  for (std::size_t i = start; i < id.candidates.size(); ++i)
-    if (i != at && id.candidates[i].named) {
-      id.candidates[i].named = false;
-      id.candidates[i].reason = "passes, but " + id.candidates[at].effect + " scores better in this round";
-    }
-  id.named.push_back(id.candidates[at]);
-  id.calibrated = trials[static_cast<std::size_t>(best)].model;
-  const auto& dec = trials[static_cast<std::size_t>(best)].declared;
-  for (std::size_t i = 0; i < dec.size() && i < free.size(); ++i) {
-    id.declared[static_cast<std::size_t>(free[i])].fitted = dec[i].first;
-    id.declared[static_cast<std::size_t>(free[i])].sigma = dec[i].second;
-  }
-  id.pred_calibrated = std::move(best_pred);
-  k += parameter_count(trials[static_cast<std::size_t>(best)]);
-  repolish(c, id, free);
+  accept(c, id, start, start + static_cast<std::size_t>(best), trials[static_cast<std::size_t>(best)], std::move(best_pred), free, k);
   return true;
 }
 
