@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <cstdlib>
+#include <fstream>
 #include <sstream>
 
 #include "calibrate_test_util.hpp"
@@ -53,6 +55,13 @@ TEST(CalibrateRun, CircleWithYBacklashWritesEveryOutput) {
     EXPECT_TRUE(fs::exists(dir / "out" / f)) << f;
   for (const auto& e : fs::recursive_directory_iterator(dir / "out"))
     EXPECT_EQ(e.path().string().find(".part"), std::string::npos) << e.path();
+
+  // And the executable's main job takes it as is.
+  std::ofstream(dir / "circle.nc") << test::circle_program();
+  const std::string cmd = std::string(GCPIPE_EXE) + " batch " + (dir / "circle.nc").string() + " -o " + (dir / "batch").string() +
+                          " --config " + (dir / "out" / "calibrated.yaml").string() + " > " + (dir / "batch.log").string() + " 2>&1";
+  EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  EXPECT_TRUE(fs::exists(dir / "batch" / "compensated.nc"));
 }
 
 TEST(CalibrateRun, CircleWithXFrictionShowsTheQuadrantGlitches) {
