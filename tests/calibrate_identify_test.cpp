@@ -160,5 +160,27 @@ TEST(CalibrateIdentify, StructuralModeIsUnidentifiedAndTheNnoeExplainsIt) {
   EXPECT_NE(json.find("\"model\": \"nnoe\""), std::string::npos);
 }
 
+TEST(CalibrateIdentify, ConstantOffsetIsAnOffsetNotAScaleError) {
+  check_single(test::circle_scenario(), kX, test::effect("offset", {{"value", 0.005}}));
+}
+
+TEST(CalibrateIdentify, TraceRecordedWhileMovingStillFindsTheEffect) {
+  // The recording starts 2 s into the circle, axes moving: the replay starts at rest, so the
+  // first 0.3 s are not scored (calibrate.cpp, settled_start); the backlash is still found.
+  Scenario sc = test::circle_scenario();
+  sc.machine.drives.axes[kY].effects.push_back(test::effect("backlash", {{"width", 0.010}}));
+  MeasuredTrace tr = test::trace_of(sc, 13);
+  auto cut = [](std::vector<double>& v) { v.erase(v.begin(), v.begin() + 2000); };
+  cut(tr.t);
+  for (int a = 0; a < kNumAxes; ++a) { cut(tr.command[static_cast<std::size_t>(a)]); cut(tr.actual[static_cast<std::size_t>(a)]); }
+  const Calibration c = calibrate_traces({tr}, sc.config);
+  ASSERT_EQ(c.axes[kY].named.size(), 1u);
+  EXPECT_EQ(c.axes[kY].named[0].effect, "backlash");
+  EXPECT_NEAR(c.axes[kY].named[0].params[0].value, 0.010, 0.001);
+  EXPECT_TRUE(c.axes[kX].named.empty());
+  EXPECT_GT(c.begin, 1u);
+  EXPECT_LE(c.calibrated.rms_um[kY], 2 * 0.2);
+}
+
 }  // namespace
 }  // namespace gcpipe::calibrate

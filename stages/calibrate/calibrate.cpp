@@ -43,6 +43,16 @@ double to_um(double v, int axis) {
   return rotary ? v * std::numbers::pi / 180 * kRotaryRadiusMm * 1000 : v * 1000;
 }
 
+/// First sample to score. The replay starts the drive at rest on the first command; a trace
+/// recorded while the axis was already moving (command changing, or actual away from command)
+/// has a start transient the model cannot know, so the first 0.3 s (about five closed-loop time
+/// constants at Kpp = 60 plus the acc/dec) are left out of every fit and score.
+std::size_t settled_start(const std::vector<double>& cmd, const std::vector<double>& act, double period, double noise) {
+  if (cmd.size() < 3) return 1;
+  const bool moving = std::abs(cmd[1] - cmd[0]) / period > 1e-3 || std::abs(act[0] - cmd[0]) > 10 * noise + 1e-4;
+  return moving ? std::min(cmd.size() / 4, static_cast<std::size_t>(std::lround(0.3 / period))) : 1;
+}
+
 }  // namespace
 
 PredictionError prediction_error(const Calibration& c, const compensate::Model& model,
@@ -51,7 +61,7 @@ PredictionError prediction_error(const Calibration& c, const compensate::Model& 
   const std::size_t n = c.rows;
   double tip2 = 0;
   std::size_t count = 0;
-  for (std::size_t k = 1; k < n; ++k) {
+  for (std::size_t k = c.begin; k < n; ++k) {
     Axes meas{}, mod{};
     for (int a = 0; a < kNumAxes; ++a) {
       meas[a] = c.actual[a][k];
@@ -124,6 +134,8 @@ Calibration calibrate_traces(const std::vector<MeasuredTrace>& traces, const com
     s.command = c.command[a];
     s.actual = c.actual[a];
     s.split = c.split;
+    s.begin = settled_start(c.command[a], c.actual[a], c.period, estimate_noise(c.actual[a]));
+    c.begin = std::max(c.begin, s.begin);
     s.segments = segments;
     s.noise = c.noise[a] = estimate_noise(c.actual[a]);
     c.axes[a] = identify_axis(s, model.drives.axes[a], options);

@@ -83,6 +83,7 @@ struct Calibration {
   std::vector<double> t;                           //!< joined time axis [s]
   std::array<std::vector<double>, kNumAxes> command, actual;
   std::size_t split = 0;                           //!< first held-out sample
+  std::size_t begin = 1;                           //!< first scored sample (start transient out)
   servo::DriveSet drives;                          //!< the calibrated drives
 };
 

@@ -82,6 +82,7 @@ std::string calibration_json(const Calibration& c) {
   j["rows_unused"] = c.rows_unused;
   j["period_s"] = c.period;
   j["heldout_from_row"] = c.split;
+  j["scored_from_row"] = c.begin;
   j["rotary_radius_mm"] = kRotaryRadiusMm;
   j["criterion"] = "BIC = N_eff ln(SSE/N) + k ln(N_eff), N_eff = N / correlation time of the residual";
   for (int a = 0; a < kNumAxes; ++a) j["noise_um"][axis(a)] = (a == kA || a == kC) ? c.noise[a] * M_PI / 180 * kRotaryRadiusMm * 1000 : c.noise[a] * 1000;
@@ -220,7 +221,8 @@ std::string report_text(const Calibration& c) {
   r << "gcpipe calibrate: " << c.rows << " rows at " << num(c.period) << " s";
   for (const auto& t : c.traces) r << ", " << t;
   r << "\nrows skipped (bad): " << c.rows_skipped << ", rows unused (outside the longest gap-free stretch): " << c.rows_unused
-    << "\nfit on rows [1, " << c.split << "), held out [" << c.split << ", " << c.rows << ")\n"
+    << "\nfit on rows [" << c.begin << ", " << c.split << "), held out [" << c.split << ", " << c.rows << ")"
+    << (c.begin > 1 ? " (the trace starts in motion: the first rows are a transient the replay from rest cannot know)" : "") << "\n"
     << "criterion: BIC on the fit rows with N_eff = N / correlation time; an effect is named when BIC drops by more than 10\n"
     << "and the held-out mean square falls by at least 2 % and its size exceeds 3 sigma.\n"
     << "noise estimate (um; A, C in um at " << kRotaryRadiusMm << " mm):";
