@@ -49,7 +49,13 @@ double to_um(double v, int axis) {
 /// constants at Kpp = 60 plus the acc/dec) are left out of every fit and score.
 std::size_t settled_start(const std::vector<double>& cmd, const std::vector<double>& act, double period, double noise) {
   if (cmd.size() < 3) return 1;
-  const bool moving = std::abs(cmd[1] - cmd[0]) / period > 1e-3 || std::abs(act[0] - cmd[0]) > 10 * noise + 1e-4;
+  // A trace that starts at rest may start moving at once: the control's acc/dec makes its first
+  // command step a small fraction of the speed that follows. Moving means a first step above 5 %
+  // of the trace's top speed (and above 1 mm/s), or an actual already away from the command.
+  double vmax = 0;
+  for (std::size_t k = 1; k < cmd.size(); ++k) vmax = std::max(vmax, std::abs(cmd[k] - cmd[k - 1]) / period);
+  const double v0 = std::abs(cmd[1] - cmd[0]) / period;
+  const bool moving = (v0 > 0.05 * vmax && v0 > 1.0) || std::abs(act[0] - cmd[0]) > 10 * noise + 1e-3;
   return moving ? std::min(cmd.size() / 4, static_cast<std::size_t>(std::lround(0.3 / period))) : 1;
 }
 
