@@ -13,7 +13,7 @@ case "$what" in sample|test|build) ;; *) echo "usage: bash .ci/setup.sh sample|t
 
 packages=(
   build-essential cmake ninja-build ccache clang libclang-rt-14-dev
-  libeigen3-dev libyaml-cpp-dev libopencv-dev
+  libeigen3-dev libyaml-cpp-dev libopencv-dev nlohmann-json3-dev
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev libpng-dev

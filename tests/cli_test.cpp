@@ -33,7 +33,7 @@ TEST(Cli, HelpListsCommandsAndEachCommandHasUsage) {
   EXPECT_EQ(o.status, 2);
   EXPECT_NE(o.err.find("--bogus"), std::string::npos) << o.err;
   // Usage comes from the option declarations (CLI11), so every accepted option is documented.
-  for (const char* c : {"batch", "parse", "trochoid", "ik", "simulate", "stages", "train-ik", "synth"}) {
+  for (const char* c : {"batch", "parse", "trochoid", "ik", "simulate", "stages", "calibrate", "evaluate", "train-ik", "synth"}) {
     Outcome h = gcpipe({c, "--help"});
     EXPECT_EQ(h.status, 0) << c;
     EXPECT_NE(h.out.find(std::string("Usage: gcpipe ") + c), std::string::npos) << c << ": " << h.out;

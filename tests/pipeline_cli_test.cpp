@@ -147,4 +147,23 @@ TEST(Limits, TravelViolationIsAnErrorAtItsLine) {
   EXPECT_FALSE(fs::exists(dir / "trace.csv")) << "no trace for a program the machine cannot run";
 }
 
+// gcpipe evaluate on the simulate stage's own trace of a program measures the same rapid error as
+// batch's report: a cross-check of the measured-data contour error against the simulation's
+// (cutting moves are classified differently: evaluate by the nearest point of the path, since a
+// measured run has no tick to match, the simulation by the block being run).
+TEST(Evaluate, SimulatedTraceGivesBatchsRapidError) {
+  const fs::path dir = tmpdir("evaluate");
+  const std::string program = kSamples + "five_axis_demo.nc";
+  ASSERT_EQ(gcpipe({"batch", program, "-o", (dir / "batch").string(), "--quiet"}).status, 0);
+  ASSERT_EQ(gcpipe({"simulate", program, "-o", (dir / "trace.csv").string()}).status, 0);
+  Outcome e = gcpipe({"evaluate", "--trace", (dir / "trace.csv").string(), "--program", program, "--json",
+                      (dir / "evaluate.json").string()});
+  ASSERT_EQ(e.status, 0) << e.err;
+  const auto measured = read_json(dir / "evaluate.json");
+  const auto report = read_json(dir / "batch" / "report.json");
+  const double batch_rapid_um = report.at("simulation").at("contour_error_before").at("rapid").at("max_mm").get<double>() * 1e3;
+  EXPECT_NEAR(measured.at("rapid").at("max_um").get<double>(), batch_rapid_um, 1e-3 * batch_rapid_um);
+  EXPECT_GT(measured.at("cutting").at("samples").get<int>(), 10000);
+}
+
 }  // namespace

@@ -69,6 +69,19 @@ struct TrainIkArgs {
 };
 int run_train_ik(const TrainIkArgs& args);
 
+struct CalibrateArgs {
+  std::vector<std::string> traces;
+  std::string config, outdir, format;
+  bool skip_bad_rows = false, no_plots = false;
+};
+int run_calibrate(const CalibrateArgs& args);
+
+struct EvaluateArgs {
+  std::string trace, program, config, format, json;
+  bool skip_bad_rows = false;
+};
+int run_evaluate(const EvaluateArgs& args);
+
 /// `gcpipe stages`: the registered stages, their edges and ports.
 int run_stages();
 

@@ -113,6 +113,33 @@ void add_train_ik(CLI::App& app, TrainIkArgs& a) {
   s->add_flag("--quiet", a.quiet, "no progress");
 }
 
+void add_calibrate(CLI::App& app, CalibrateArgs& a) {
+  auto* s = app.add_subcommand("calibrate", "find where the machine differs from its model in measured traces");
+  s->add_option("traces", a.traces, "measured traces of one machine (shared trace CSV, or UMich CSV)")->required()->check(CLI::ExistingFile);
+  s->add_option("--config", a.config, "pipeline config of the model (default: pipeline_configs/default.yaml)");
+  s->add_option("-o,--output-dir", a.outdir, "output folder: calibration.json, calibrated.yaml, report.txt, plots/")
+      ->required()->check(kNonEmpty);
+  s->add_option("--format", a.format, "csv or umich (default: detected from the header)")->check(CLI::IsMember({"csv", "umich"}));
+  s->add_flag("--skip-bad-rows", a.skip_bad_rows, "use the usable rest of a trace with bad rows, and count what was dropped");
+  s->add_flag("--no-plots", a.no_plots, "write no figures");
+  s->footer("Replays the traces' commands through the model, refits the declared drive parameters, names\n"
+            "catalogued effects (backlash, coulomb_friction, feedback_delay, measurement_delay, lead_error,\n"
+            "scale_error, torque_limit) by BIC with a held-out check, and fits seed 003's NNOE to what no\n"
+            "effect explains (stages/calibrate/README.md). calibrated.yaml is a pipeline config for gcpipe batch.\n\n"
+            "Exit status: 0 done, 3 done with rows skipped, 1 stopped (bad input or config), 2 usage.");
+}
+
+void add_evaluate(CLI::App& app, EvaluateArgs& a) {
+  auto* s = app.add_subcommand("evaluate", "measured tool-tip contour error of a real run against its program");
+  s->add_option("--trace", a.trace, "the measured trace of a run of the program")->required()->check(CLI::ExistingFile);
+  s->add_option("--program", a.program, "the G-code that was run")->required()->check(CLI::ExistingFile);
+  s->add_option("--config", a.config, "pipeline config (machine kinematics; default: pipeline_configs/default.yaml)");
+  s->add_option("--format", a.format, "csv or umich (default: detected from the header)")->check(CLI::IsMember({"csv", "umich"}));
+  s->add_flag("--skip-bad-rows", a.skip_bad_rows, "use the usable rest of a trace with bad rows");
+  s->add_option("--json", a.json, "also write the figures as JSON to this file")->check(kNonEmpty);
+  s->footer("Cutting moves and rapids apart. Exit status: 0 done, 3 rows skipped, 1 stopped, 2 usage.");
+}
+
 #ifdef GCPIPE_WITH_DDS
 void add_dds_options(CLI::App& s, DdsArgs& a) {
   s.add_option("--domain", a.domain, "DDS domain id (default $GCPIPE_DDS_DOMAIN, else 0)")->check(CLI::Range(0, 232));
@@ -185,6 +212,10 @@ int main(int argc, char** argv) {
   add_ik(app, ik);
   add_simulate(app, simulate);
   auto* stages = app.add_subcommand("stages", "list the registered stages, their edges and ports");
+  CalibrateArgs calibrate;
+  EvaluateArgs evaluate;
+  add_calibrate(app, calibrate);
+  add_evaluate(app, evaluate);
   add_train_ik(app, train_ik);
   add_synth(app, synth);
 #ifdef GCPIPE_WITH_DDS
@@ -211,6 +242,8 @@ int main(int argc, char** argv) {
     if (name == "ik") return run_ik(ik);
     if (name == "simulate") return run_simulate(simulate);
     if (name == "stages") return (void)stages, run_stages();
+    if (name == "calibrate") return run_calibrate(calibrate);
+    if (name == "evaluate") return run_evaluate(evaluate);
     if (name == "train-ik") return run_train_ik(train_ik);
     if (name == "synth") return run_synth(synth);
 #ifdef GCPIPE_WITH_DDS

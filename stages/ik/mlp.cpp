@@ -322,30 +322,21 @@ double half_sse(const Mlp& net, const Dataset& data) {
 
 }  // namespace
 
-TrainingResult train_levenberg_marquardt(Mlp& net, const Dataset& training,
-                                         const Dataset& validation,
-                                         const LevenbergMarquardtOptions& options,
-                                         const ProgressCallback& progress) {
-  check_dataset(net, training, "training");
-  check_dataset(net, validation, "validation");
-  if (training.size() == 0) throw std::invalid_argument("training: empty training set");
-  const bool use_validation = validation.size() > 0;
-
+TrainingResult levenberg_marquardt(Eigen::VectorXd& theta, const LevenbergMarquardtProblem& problem,
+                                   const LevenbergMarquardtOptions& options, const ProgressCallback& progress) {
   Eigen::MatrixXd jtj;
   Eigen::VectorXd g;
-  double s = accumulate_normal_equations(net, training, options.block_size, jtj, g);
+  double s = problem.normal_equations(theta, jtj, g);
   double lambda = options.initial_damping * jtj.diagonal().maxCoeff();
   if (!(lambda > 0)) lambda = options.initial_damping;
 
   TrainingResult result;
-  Eigen::VectorXd best = net.parameters();
-  double best_validation = use_validation ? mean_squared_error(net, validation)
-                                          : s * 2 / static_cast<double>(training.targets.size());
+  Eigen::VectorXd best = theta;
+  double best_validation = problem.validation_mse ? problem.validation_mse(theta) : s * 2 / problem.count;
   int fails = 0;
   result.stop_reason = "max iterations";
   Eigen::MatrixXd damped;
   Eigen::LLT<Eigen::MatrixXd, Eigen::Lower> cholesky;
-  Mlp trial = net;
 
   int iteration = 0;
   while (iteration < options.max_iterations) {
@@ -362,13 +353,13 @@ TrainingResult train_levenberg_marquardt(Mlp& net, const Dataset& training,
       const Eigen::VectorXd step = cholesky.solve(g);
       const double predicted =
           step.dot(g) - 0.5 * step.dot(jtj.selfadjointView<Eigen::Lower>() * step);
-      trial.set_parameters(net.parameters() + step);
-      const double s_new = half_sse(trial, training);
+      const Eigen::VectorXd trial = theta + step;
+      const double s_new = problem.half_sse(trial);
       const double rho = predicted > 0 ? (s - s_new) / predicted : -1.0;
       if (rho > 0.75) lambda *= 0.5;
       if (rho < 0.25) lambda *= 2.0;
       if (rho > 1e-4 && std::isfinite(s_new)) {
-        net.set_parameters(trial.parameters());
+        theta = trial;
         accepted = true;
       }
     }
@@ -377,12 +368,12 @@ TrainingResult train_levenberg_marquardt(Mlp& net, const Dataset& training,
       break;
     }
     ++iteration;
-    s = accumulate_normal_equations(net, training, options.block_size, jtj, g);
-    const double training_mse = 2 * s / static_cast<double>(training.targets.size());
-    const double validation_mse = use_validation ? mean_squared_error(net, validation) : training_mse;
+    s = problem.normal_equations(theta, jtj, g);
+    const double training_mse = 2 * s / problem.count;
+    const double validation_mse = problem.validation_mse ? problem.validation_mse(theta) : training_mse;
     if (validation_mse < best_validation * (1 - options.min_relative_improvement)) {
       best_validation = validation_mse;
-      best = net.parameters();
+      best = theta;
       result.best_iteration = iteration;
       fails = 0;
     } else {
@@ -395,9 +386,39 @@ TrainingResult train_levenberg_marquardt(Mlp& net, const Dataset& training,
     }
   }
   result.iterations = iteration;
-  net.set_parameters(best);
+  theta = best;
+  return result;
+}
+
+TrainingResult train_levenberg_marquardt(Mlp& net, const Dataset& training,
+                                         const Dataset& validation,
+                                         const LevenbergMarquardtOptions& options,
+                                         const ProgressCallback& progress) {
+  check_dataset(net, training, "training");
+  check_dataset(net, validation, "validation");
+  if (training.size() == 0) throw std::invalid_argument("training: empty training set");
+  // The static network as an LM problem: J from back-propagation, block by block.
+  Mlp trial = net;
+  LevenbergMarquardtProblem problem;
+  problem.count = static_cast<double>(training.targets.size());
+  problem.normal_equations = [&](const Eigen::VectorXd& theta, Eigen::MatrixXd& jtj, Eigen::VectorXd& jte) {
+    trial.set_parameters(theta);
+    return accumulate_normal_equations(trial, training, options.block_size, jtj, jte);
+  };
+  problem.half_sse = [&](const Eigen::VectorXd& theta) {
+    trial.set_parameters(theta);
+    return half_sse(trial, training);
+  };
+  if (validation.size() > 0)
+    problem.validation_mse = [&](const Eigen::VectorXd& theta) {
+      trial.set_parameters(theta);
+      return mean_squared_error(trial, validation);
+    };
+  Eigen::VectorXd theta = net.parameters();
+  TrainingResult result = levenberg_marquardt(theta, problem, options, progress);
+  net.set_parameters(theta);
   result.training_mse = mean_squared_error(net, training);
-  result.validation_mse = use_validation ? mean_squared_error(net, validation) : result.training_mse;
+  result.validation_mse = validation.size() > 0 ? mean_squared_error(net, validation) : result.training_mse;
   return result;
 }
 

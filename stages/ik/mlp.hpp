@@ -174,6 +174,24 @@ struct LevenbergMarquardtOptions {
   Eigen::Index block_size = 256;       //!< samples per Jacobian block
 };
 
+/// The same Levenberg-Marquardt on any least-squares problem, for models whose Jacobian is not
+/// the static network's (the NNOE of stages/calibrate differentiates through its recurrence).
+/// S = sum e^2 / 2 over `count` residuals; normal_equations fills the lower triangle of J'J and
+/// J'e (e = target - output) at theta and returns S; half_sse returns S at a trial theta;
+/// validation_mse (optional) decides which iterate is kept, as for the network.
+struct LevenbergMarquardtProblem {
+  double count = 1;
+  std::function<double(const Eigen::VectorXd&, Eigen::MatrixXd&, Eigen::VectorXd&)> normal_equations;
+  std::function<double(const Eigen::VectorXd&)> half_sse;
+  std::function<double(const Eigen::VectorXd&)> validation_mse;
+};
+
+/// Runs the LM above on `problem` from `theta`; theta ends at the kept iterate. The result's
+/// training/validation MSE fields are left for the caller.
+TrainingResult levenberg_marquardt(Eigen::VectorXd& theta, const LevenbergMarquardtProblem& problem,
+                                   const LevenbergMarquardtOptions& options,
+                                   const ProgressCallback& progress = {});
+
 TrainingResult train_levenberg_marquardt(Mlp& net, const Dataset& training,
                                          const Dataset& validation,
                                          const LevenbergMarquardtOptions& options,

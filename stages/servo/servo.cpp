@@ -71,7 +71,14 @@ class CoulombFriction final : public AxisEffect {
  public:
   CoulombFriction(double torque, double band) : torque_(torque), band_(band) {}
   std::string_view name() const override { return "coulomb_friction"; }
-  double load_torque(double, double w) const override { return torque_ * std::tanh(w / band_); }
+  double load_torque(double, double w) const override {
+    // tanh(x) rounds to +-1 in double beyond |x| = 19.06: skip the libm call at feed speeds
+    // (it dominated the calibration's friction fits), same result bit for bit.
+    const double x = w / band_;
+    if (x > 20) return torque_;
+    if (x < -20) return -torque_;
+    return torque_ * std::tanh(x);
+  }
 
  private:
   double torque_, band_;
@@ -117,6 +124,51 @@ class Offset final : public AxisEffect {
   double v_;
 };
 
+/// Scale (pitch) error of the screw or encoder in ppm, about the machine zero: x (1 + s 1e-6).
+class ScaleError final : public AxisEffect {
+ public:
+  explicit ScaleError(double ppm) : f_(1 + ppm * 1e-6) {}
+  std::string_view name() const override { return "scale_error"; }
+  double transmit(double x) override { return x * f_; }
+
+ private:
+  double f_;
+};
+
+/// The logged actual channel lags the motion by `delay` (sampling of the drive's position
+/// register against the command): out(t) = in(t - delay), linear interpolation between the
+/// sub-step samples. It changes what is recorded, not what the loop sees, so it sits in the
+/// position chain (put it last) and never in feedback().
+class MeasurementDelay final : public AxisEffect {
+ public:
+  explicit MeasurementDelay(double substeps_delay)
+      : n_(static_cast<std::size_t>(std::floor(substeps_delay))),
+        frac_(substeps_delay - std::floor(substeps_delay)),
+        buf_(static_cast<std::size_t>(std::floor(substeps_delay)) + 2, 0.0) {}
+  std::string_view name() const override { return "measurement_delay"; }
+  double transmit(double x) override {
+    head_ = (head_ + 1) % buf_.size();
+    buf_[head_] = x;
+    const std::size_t sz = buf_.size();
+    const double a = buf_[(head_ + sz - n_) % sz];      // n_ sub-steps ago
+    const double b = buf_[(head_ + sz - n_ - 1) % sz];  // n_ + 1 sub-steps ago
+    return (1 - frac_) * a + frac_ * b;
+  }
+  void reset(double theta) override { std::fill(buf_.begin(), buf_.end(), theta); }
+
+ private:
+  std::size_t n_;
+  double frac_;
+  std::vector<double> buf_;
+  std::size_t head_ = 0;
+};
+
+std::unique_ptr<AxisEffect> make_scale_error(const EffectSettings& s, const EffectContext&) {
+  return std::make_unique<ScaleError>(s.get("ppm", 0));
+}
+std::unique_ptr<AxisEffect> make_measurement_delay(const EffectSettings& s, const EffectContext& c) {
+  return std::make_unique<MeasurementDelay>(std::max(0.0, s.get("delay", 0) / c.substep));
+}
 std::unique_ptr<AxisEffect> make_backlash(const EffectSettings& s, const EffectContext& c) {
   return std::make_unique<Backlash>(0.5 * s.get("width", 0) / c.load_per_motor_rad);
 }
@@ -156,6 +208,10 @@ const std::vector<EffectType>& effect_types() {
        &make_lead_error},
       {"offset", "constant geometric offset of the axis",
        {{"value", "mm|deg", 0.0, -100.0, 100.0}}, &make_offset},
+      {"scale_error", "scale (pitch) error x*(1 + ppm*1e-6) about machine zero",
+       {{"ppm", "ppm", 0.0, -1e4, 1e4}}, &make_scale_error},
+      {"measurement_delay", "the logged actual position lags the motion (not in the loop)",
+       {{"delay", "s", 0.0, 0.0, 0.1}}, &make_measurement_delay},
   };
   return types;
 }

@@ -139,7 +139,8 @@ struct EffectType {
   EffectFactory create;
 };
 
-/// Registry of effect types (backlash, coulomb_friction, feedback_delay, lead_error, offset).
+/// Registry of effect types (backlash, coulomb_friction, feedback_delay, lead_error, offset,
+/// scale_error, measurement_delay).
 const std::vector<EffectType>& effect_types();
 /// Builds an effect from its settings; throws ConfigError for an unknown type.
 std::unique_ptr<AxisEffect> make_effect(const EffectSettings& s, const EffectContext& ctx);

@@ -1,0 +1,120 @@
+// Stage `calibrate` (issue #13): measured traces -> residual against the configured model ->
+// refitted declared parameters and named effects (BIC, held-out check) -> NNOE for what is left
+// -> calibration.json, calibrated.yaml (+ calibrated_drives.yaml), report.txt, plots/*.png.
+// And `evaluate`: the measured tool-tip contour error of a real run against a program's nominal
+// path. Both are library entry points the CLI calls (stages/cli is not touched here).
+// Method and derivations: README.md beside this file.
+#pragma once
+
+#include <array>
+#include <span>
+#include <optional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "compensate.hpp"
+#include "identify.hpp"
+#include "measured_trace.hpp"
+#include "nnoe.hpp"
+
+namespace gcpipe::calibrate {
+
+/// Exit status of both commands, as the rest of gcpipe: 0 done, 3 done with rejected rows
+/// skipped (--skip-bad-rows), 1 stopped (bad input, bad config, cannot write), 2 usage error.
+struct CalibrateRequest {
+  std::vector<std::string> traces;    //!< one or more traces of the same machine
+  std::string config;                 //!< pipeline config (machine, interpolate, servo.drives)
+  std::string outdir;                 //!< created if missing; files written as NAME.part, renamed
+  std::optional<std::string> format;  //!< "csv" | "umich"; detected from the header when absent
+  bool skip_bad_rows = false;         //!< use the usable rest of a trace and count what was dropped
+  bool plots = true;                  //!< write plots/*.png
+};
+
+int run_calibrate(const CalibrateRequest& request, std::ostream& out, std::ostream& err);
+
+struct EvaluateRequest {
+  std::string trace;                  //!< measured trace of a run of `program`
+  std::string program;                //!< the G-code that was run
+  std::string config;                 //!< pipeline config (machine kinematics, parse options)
+  std::optional<std::string> format;
+  bool skip_bad_rows = false;
+  std::optional<std::string> json;    //!< also write the figures as JSON here
+};
+
+int run_evaluate(const EvaluateRequest& request, std::ostream& out, std::ostream& err);
+
+// --- pieces, exposed for the tests and the benchmark ---
+
+/// Contour error of a measured run: distance of the measured tool tip (FK of the actual joints)
+/// to the program's nominal tool-tip path (FK of the raw interpolated joints), cutting moves
+/// (G1 G2 G3, TCP) and rapids (G0) apart. Units mm.
+struct ContourFigures {
+  double cutting_max = 0, cutting_rms = 0, rapid_max = 0, rapid_rms = 0;
+  double t_at_cutting_max = 0;       //!< [s] trace time
+  std::uint64_t line_at_cutting_max = 0;
+  std::size_t cutting_samples = 0, rapid_samples = 0, idle_samples = 0;
+};
+/// Throws std::runtime_error when the program cannot be run by the model.
+ContourFigures measured_contour_error(const compensate::Model& model, std::span<const ResolvedBlock> program,
+                                      const MeasuredTrace& trace);
+
+/// Radius at which rotary errors are stated in micrometres: 100 mm (a part's size on the
+/// MX-330 table); rms_deg is given beside it.
+inline constexpr double kRotaryRadiusMm = 100.0;
+
+/// Prediction error figures of one model over a trace.
+struct PredictionError {
+  Axes rms_um{}, max_um{};   //!< linear axes in um; A, C in um at kRotaryRadiusMm
+  Axes rms_deg{};            //!< A, C only (0 for X Y Z)
+  double tip_rms_um = 0, tip_max_um = 0;  //!< tool tip through the kinematics, workpiece frame
+};
+
+/// Everything the calibration found, before it is written out.
+struct Calibration {
+  std::vector<std::string> traces;
+  std::size_t rows = 0;
+  std::uint64_t rows_skipped = 0, rows_unused = 0;
+  double period = 0;
+  Axes noise{};  //!< [mm, deg]
+  std::array<AxisIdentification, kNumAxes> axes;
+  std::array<std::optional<NnoeModel>, kNumAxes> nnoe;
+  PredictionError declared, refit, calibrated, with_nnoe;
+  std::vector<double> t;                           //!< joined time axis [s]
+  std::array<std::vector<double>, kNumAxes> command, actual;
+  std::size_t split = 0;                           //!< first held-out sample
+  std::size_t begin = 1;                           //!< first scored sample (start transient out)
+  servo::DriveSet drives;                          //!< the calibrated drives
+};
+
+/// Runs the identification on traces already read (the tests use this with simulated traces).
+Calibration calibrate_traces(const std::vector<MeasuredTrace>& traces, const compensate::Model& model,
+                             const IdentifyOptions& options = {});
+
+/// Prediction error of the per-axis predictions `pred` against the measured actual positions.
+PredictionError prediction_error(const Calibration& c, const compensate::Model& model,
+                                 const std::array<const std::vector<double>*, kNumAxes>& pred);
+
+/// Writes calibration.json, calibrated.yaml, calibrated_drives.yaml, report.txt (and plots/ when
+/// `plots`) into outdir, each as NAME.part renamed when complete. Throws std::runtime_error
+/// naming the file that could not be written.
+void write_outputs(const Calibration& c, const compensate::Model& model, const std::string& config_path,
+                   const std::string& outdir, bool plots);
+
+/// calibration.json text (the schema of issue #13 plus the scores of every candidate).
+std::string calibration_json(const Calibration& c);
+/// report.txt text.
+std::string report_text(const Calibration& c);
+
+/// The figures of plots/ (residual vs time, velocity, position, hysteresis, criterion bars).
+std::vector<std::string> write_plots(const Calibration& c, const std::string& outdir);
+
+/// The calibrated drives file text (YAML, every axis, effects under `effects:`).
+std::string drives_yaml(const Calibration& c, const servo::DriveSet& configured);
+/// A drives file (pipeline_configs/drives/*.yaml layout) for `d`, after a comment `header`.
+std::string drives_text(const servo::DriveSet& d, const std::string& header);
+/// The pipeline config at `config_path` with servo.drives = `drives_file` (relative to where the
+/// result is written) and its other relative paths made absolute.
+std::string pipeline_yaml(const std::string& config_path, const std::string& drives_file);
+
+}  // namespace gcpipe::calibrate

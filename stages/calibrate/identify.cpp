@@ -1,0 +1,887 @@
+#include "identify.hpp"
+
+#include <unsupported/Eigen/LevenbergMarquardt>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <optional>
+
+#include "axis_model.hpp"
+
+namespace gcpipe::calibrate {
+
+// ---------------------------------------------------------------------------------------------
+// Least squares
+
+namespace {
+
+struct LmFunctor : Eigen::DenseFunctor<double> {
+  LmFunctor(const ResidualFn& r, const Eigen::VectorXd& step, bool analytic, int n, int m, int& count)
+      : DenseFunctor<double>(n, m), r_(r), step_(step), analytic_(analytic), count_(count) {}
+  int operator()(const InputType& x, ValueType& f) const {
+    f = r_(x, nullptr);
+    ++count_;
+    return 0;
+  }
+  int df(const InputType& x, JacobianType& j) const {
+    if (analytic_) {
+      (void)r_(x, &j);
+      ++count_;
+    } else {
+      j = numeric_jacobian(r_, x, step_);
+      count_ += 2 * static_cast<int>(x.size());
+    }
+    return 0;
+  }
+  const ResidualFn& r_;
+  Eigen::VectorXd step_;
+  bool analytic_;
+  int& count_;
+};
+
+}  // namespace
+
+Eigen::MatrixXd numeric_jacobian(const ResidualFn& r, const Eigen::VectorXd& x, const Eigen::VectorXd& step) {
+  Eigen::MatrixXd j;
+  for (Eigen::Index i = 0; i < x.size(); ++i) {
+    Eigen::VectorXd a = x, b = x;
+    a[i] += step[i];
+    b[i] -= step[i];
+    const Eigen::VectorXd col = (r(a, nullptr) - r(b, nullptr)) / (2 * step[i]);
+    if (j.size() == 0) j.resize(col.size(), x.size());
+    j.col(i) = col;
+  }
+  return j;
+}
+
+LsqResult least_squares(const ResidualFn& r, const Eigen::VectorXd& x0, const Eigen::VectorXd& step,
+                        bool analytic, double tau, int max_evaluations) {
+  LsqResult out;
+  out.x = x0;
+  const Eigen::VectorXd f0 = r(x0, nullptr);
+  const int m = static_cast<int>(f0.size()), n = static_cast<int>(x0.size());
+  int count = 1;
+  LmFunctor fn(r, step, analytic, n, m, count);
+  Eigen::LevenbergMarquardt<LmFunctor> lm(fn);
+  lm.setMaxfev(max_evaluations);
+  lm.setXtol(1e-8);
+  lm.setFtol(1e-10);
+  lm.minimize(out.x);
+  const Eigen::VectorXd f = r(out.x, nullptr);
+  out.sse = f.squaredNorm();
+  // Covariance of the estimate: s^2 (J'J)^-1, s^2 = SSE/(m - n), inflated by the correlation
+  // time because neighbouring residual samples are not independent.
+  Eigen::MatrixXd j;
+  if (analytic) (void)r(out.x, &j);
+  else j = numeric_jacobian(r, out.x, step);
+  const double s2 = out.sse / std::max(1, m - n);
+  out.jtj_inv = (j.transpose() * j).ldlt().solve(Eigen::MatrixXd::Identity(n, n));
+  const Eigen::MatrixXd cov = out.jtj_inv * s2 * tau;
+  out.sigma = cov.diagonal().cwiseMax(0).cwiseSqrt();
+  out.evaluations = count;
+  return out;
+}
+
+double bic(double sse, std::size_t n, double tau, int k) {
+  const double ne = static_cast<double>(n) / tau;
+  return ne * std::log(std::max(sse, 1e-300) / static_cast<double>(n)) + k * std::log(ne);
+}
+
+// ---------------------------------------------------------------------------------------------
+// One axis
+
+namespace {
+
+struct Ctx {
+  const AxisSeries& s;
+  const IdentifyOptions& o;
+  std::size_t n() const { return s.command.size(); }
+
+  /// Prediction of the first `end` samples (plus a margin so the held last command of the
+  /// truncated look-ahead does not reach the scored samples).
+  std::vector<double> predict(const servo::DriveParams& p, std::size_t end) const {
+    const std::size_t e = std::min(n(), end + 64);
+    std::vector<double> y;
+    y.reserve(e);
+    for (std::size_t i = 0; i < s.segments.size() && s.segments[i] < e; ++i) {
+      const std::size_t a = s.segments[i], z = i + 1 < s.segments.size() ? std::min(e, s.segments[i + 1]) : e;
+      const auto part = predict_axis(p, s.substeps, s.margin, s.period, std::span<const double>(s.command.data() + a, z - a));
+      y.insert(y.end(), part.begin(), part.end());
+    }
+    return y;
+  }
+  Eigen::VectorXd residual(const std::vector<double>& y, std::size_t b, std::size_t e) const {
+    Eigen::VectorXd r(static_cast<Eigen::Index>(e - b));
+    for (std::size_t k = b; k < e; ++k) r[static_cast<Eigen::Index>(k - b)] = s.actual[k] - y[k];
+    return r;
+  }
+  double sse(const std::vector<double>& y, std::size_t b, std::size_t e) const { return residual(y, b, e).squaredNorm(); }
+  double fit_sse(const std::vector<double>& y) const { return sse(y, s.begin, s.split); }
+  double heldout_mse(const std::vector<double>& y) const {
+    return s.split < n() ? sse(y, s.split, n()) / static_cast<double>(n() - s.split) : 0;
+  }
+  double tau(const std::vector<double>& y) const {
+    const Eigen::VectorXd r = residual(y, s.begin, s.split);
+    return correlation_time(std::span<const double>(r.data(), static_cast<std::size_t>(r.size())));
+  }
+  std::size_t nfit() const { return s.split - s.begin; }
+  std::size_t dynamic_end() const { return std::min(s.split, s.begin + o.max_dynamic_fit); }
+};
+
+// --- declared parameters ---------------------------------------------------------------------
+
+struct DeclaredSlot {
+  const char* name;
+  const char* unit;
+  double servo::DriveParams::*field;
+};
+const std::vector<DeclaredSlot>& declared_slots() {
+  // J and Kvi are not here: without a torque signal the positions see J only through the ratios
+  // Kvp/J, C/J, Kvi/J (so J stays configured and the others are fitted relative to it), and Kvi
+  // has a corner of 1e-3 rad/s (seed 002 Table 1): no trace of seconds can see it.
+  static const std::vector<DeclaredSlot> s = {{"Kpp", "1/s", &servo::DriveParams::Kpp},
+                                              {"Kvp", "N*m*s/rad", &servo::DriveParams::Kvp},
+                                              {"C", "N*m*s/rad", &servo::DriveParams::C},
+                                              {"K_FFP", "%", &servo::DriveParams::K_FFP},
+                                              {"Ta", "s", &servo::DriveParams::Ta}};
+  return s;
+}
+
+/// Fits multipliers of the free declared parameters; returns the parameters and sigmas.
+LsqResult fit_declared(const Ctx& c, const servo::DriveParams& cfg, const std::vector<int>& free, double tau) {
+  const auto& slots = declared_slots();
+  const std::size_t end = c.dynamic_end();
+  ResidualFn r = [&](const Eigen::VectorXd& x, Eigen::MatrixXd*) {
+    servo::DriveParams p = cfg;
+    for (std::size_t i = 0; i < free.size(); ++i) p.*(slots[static_cast<std::size_t>(free[i])].field) *= std::max(x[static_cast<Eigen::Index>(i)], 1e-3);
+    return c.residual(c.predict(p, end), c.s.begin, end);
+  };
+  const auto n = static_cast<Eigen::Index>(free.size());
+  return least_squares(r, Eigen::VectorXd::Ones(n), Eigen::VectorXd::Constant(n, 1e-4), false, tau);
+}
+
+void refit_declared(const Ctx& c, AxisIdentification& id) {
+  const auto& slots = declared_slots();
+  std::vector<int> free;
+  for (std::size_t i = 0; i < slots.size(); ++i) {
+    DeclaredParam d{slots[i].name, slots[i].unit, id.config.*(slots[i].field), id.config.*(slots[i].field), 0, false, ""};
+    const double vel_bw = (id.config.Kvp + id.config.C) / (id.config.J + id.config.J1);
+    if (!(d.config > 0)) { d.held = true; d.why = "configured as 0 (feature off): not fitted"; }
+    else if ((d.name == "Kvp" || d.name == "C") && vel_bw > 5 * id.config.Kpp) {
+      // A velocity loop much faster than the position loop shows in the position only as a lag
+      // of about J/(Kvp + C): the same signature as a delay, so a position trace cannot tell a
+      // velocity gain from a delay (and sees J only through Kvp/J anyway).
+      d.held = true;
+      d.why = "velocity loop (" + std::to_string(vel_bw) + " rad/s) >> position loop: seen only as a lag J/(Kvp+C), not separable from delays without a torque signal; kept at the configured value";
+    } else free.push_back(static_cast<int>(i));
+    id.declared.push_back(d);
+  }
+  const double tau = c.tau(id.pred_declared);
+  LsqResult fit;
+  // Fit, then hold every parameter the trace cannot pin down and fit the rest again: a poorly
+  // determined parameter would otherwise wander along a valley. "Cannot pin down" is judged by
+  // what the measurement noise allows, sigma_noise = noise sqrt((J'J)^-1_ii) on the multiplier,
+  // above 25 %: that is a property of the trace's excitation, not of how wrong the start was
+  // (the tau-inflated sigma of a badly fitting start would hold everything).
+  const double noise = std::max(c.s.noise, 1e-9);
+  for (int pass = 0; pass < 4 && !free.empty(); ++pass) {
+    fit = fit_declared(c, id.config, free, tau);
+    std::vector<int> keep;
+    int worst = -1;
+    double worst_rel = 0.25;
+    for (std::size_t i = 0; i < free.size(); ++i) {
+      const auto ii = static_cast<Eigen::Index>(i);
+      const double xi = fit.x[ii], rel = noise * std::sqrt(std::max(fit.jtj_inv(ii, ii), 0.0)) / std::max(xi, 1e-9);
+      if (!(xi > 0.05) || !std::isfinite(rel) || rel > worst_rel) { worst = static_cast<int>(i); worst_rel = std::isfinite(rel) ? std::max(rel, worst_rel) : 1e300; }
+    }
+    if (worst < 0) break;
+    // Hold only the worst one per pass: once it is fixed the others may separate well.
+    DeclaredParam& d = id.declared[static_cast<std::size_t>(free[static_cast<std::size_t>(worst)])];
+    d.held = true;
+    d.why = "not separable in this trace (noise-limited relative sigma " + std::to_string(worst_rel) + "): kept at the configured value";
+    for (std::size_t i = 0; i < free.size(); ++i)
+      if (static_cast<int>(i) != worst) keep.push_back(free[i]);
+    free = keep;
+    if (free.empty()) fit = LsqResult{};
+  }
+  id.refit = id.config;
+  for (std::size_t i = 0; i < free.size(); ++i) {
+    DeclaredParam& d = id.declared[static_cast<std::size_t>(free[i])];
+    d.fitted = d.config * fit.x[static_cast<Eigen::Index>(i)];
+    d.sigma = d.config * fit.sigma[static_cast<Eigen::Index>(i)];
+    id.refit.*(slots[static_cast<std::size_t>(free[i])].field) = d.fitted;
+  }
+  id.pred_refit = c.predict(id.refit, c.n());
+  const double b0 = bic(c.fit_sse(id.pred_declared), c.nfit(), tau, 0);
+  const double b1 = bic(c.fit_sse(id.pred_refit), c.nfit(), tau, static_cast<int>(free.size()));
+  const double h0 = c.heldout_mse(id.pred_declared), h1 = c.heldout_mse(id.pred_refit);
+  id.refit_kept = !free.empty() && b1 < b0 - c.o.bic_margin && (c.s.split >= c.n() || h1 < h0 * (1 - c.o.heldout_gain));
+  id.refit_note = "BIC " + std::to_string(b0) + " -> " + std::to_string(b1) + ", held-out rms " +
+                  std::to_string(std::sqrt(h0)) + " -> " + std::to_string(std::sqrt(h1));
+  if (!id.refit_kept) {
+    id.refit = id.config;
+    id.pred_refit = id.pred_declared;
+    for (auto& d : id.declared)
+      if (!d.held) { d.held = true; d.fitted = d.config; d.why = "refit did not pay (" + id.refit_note + ")"; }
+  }
+}
+
+}  // namespace
+}  // namespace gcpipe::calibrate
+
+namespace gcpipe::calibrate {
+namespace {
+
+// --- the catalogue --------------------------------------------------------------------------
+
+/// A fitted candidate before scoring: the model with the effect and its parameters.
+struct Trial {
+  std::string effect;
+  servo::DriveParams model;
+  std::vector<FittedParam> params;
+  bool significant = false;  //!< its size exceeds options.significance sigma
+  std::vector<std::pair<double, double>> declared;  //!< free declared values, sigmas (joint fit)
+  double seconds = 0;
+};
+
+servo::EffectSettings settings(std::string type, std::vector<std::pair<std::string, double>> v) {
+  servo::EffectSettings e;
+  e.type = std::move(type);
+  e.values = std::move(v);
+  return e;
+}
+
+const char* lin(bool rotary) { return rotary ? "deg" : "mm"; }
+
+/// An effect acting on the position chain: fitted on the current prediction with the analytic
+/// derivatives of apply_output_effect.
+Trial fit_output(const Ctx& c, const servo::DriveParams& cur, const std::vector<double>& y0, double tau,
+                 const std::string& type, const std::vector<std::string>& names, const Eigen::VectorXd& x0) {
+  const std::size_t b = c.s.begin, e = c.s.split;
+  auto make = [&](const Eigen::VectorXd& x) {
+    std::vector<std::pair<std::string, double>> v;
+    for (std::size_t i = 0; i < names.size(); ++i) v.emplace_back(names[i], x[static_cast<Eigen::Index>(i)]);
+    return settings(type, v);
+  };
+  ResidualFn r = [&](const Eigen::VectorXd& x, Eigen::MatrixXd* jac) {
+    std::vector<double> y(y0.begin(), y0.begin() + static_cast<std::ptrdiff_t>(e));
+    std::vector<std::vector<double>> d;
+    apply_output_effect(make(x), c.s.period, y, jac ? &d : nullptr);
+    if (jac) {
+      jac->resize(static_cast<Eigen::Index>(e - b), x.size());
+      for (Eigen::Index i = 0; i < x.size(); ++i)
+        for (std::size_t k = b; k < e; ++k) (*jac)(static_cast<Eigen::Index>(k - b), i) = -d[static_cast<std::size_t>(i)][k];
+    }
+    return c.residual(y, b, e);
+  };
+  const LsqResult f = least_squares(r, x0, Eigen::VectorXd::Constant(x0.size(), 1e-7), true, tau);
+  Trial t;
+  t.effect = type;
+  t.model = cur;
+  t.model.effects.push_back(make(f.x));
+  for (std::size_t i = 0; i < names.size(); ++i)
+    t.params.push_back({names[i], "", f.x[static_cast<Eigen::Index>(i)], f.sigma[static_cast<Eigen::Index>(i)]});
+  t.significant = std::abs(f.x[0]) > c.o.significance * f.sigma[0];
+  return t;
+}
+
+/// Best value of a scalar on a grid by the fit SSE of the output effect (start of the LM).
+double grid_start(const Ctx& c, const std::vector<double>& y0, const std::string& type, const std::string& name,
+                  const std::vector<double>& grid) {
+  double best = grid.front(), best_sse = std::numeric_limits<double>::infinity();
+  for (double g : grid) {
+    std::vector<double> y(y0.begin(), y0.begin() + static_cast<std::ptrdiff_t>(c.s.split));
+    apply_output_effect(settings(type, {{name, g}}), c.s.period, y);
+    const double s = c.fit_sse(y);
+    if (s < best_sse) { best_sse = s; best = g; }
+  }
+  return best;
+}
+
+std::vector<double> geometric(double lo, double hi, int n) {
+  std::vector<double> g;
+  for (int i = 0; i < n; ++i) g.push_back(lo * std::pow(hi / lo, i / double(n - 1)));
+  return g;
+}
+
+Trial fit_backlash(const Ctx& c, const servo::DriveParams& cur, const std::vector<double>& y0, double tau) {
+  const bool rot = cur.rotary;
+  const double w0 = grid_start(c, y0, "backlash", "width", geometric(rot ? 2e-4 : 2e-4, rot ? 0.2 : 0.2, 40));
+  Trial t = fit_output(c, cur, y0, tau, "backlash", {"width"}, Eigen::VectorXd::Constant(1, w0));
+  t.params[0].unit = lin(rot);
+  return t;
+}
+
+/// A constant offset between the logged actual and the model (a misplaced reference mark or an
+/// encoder offset): not in the list, but without it such an offset would be pushed onto
+/// scale_error or a gain. Linear; LM from the mean residual.
+Trial fit_offset(const Ctx& c, const servo::DriveParams& cur, const std::vector<double>& y0, double tau) {
+  const Eigen::VectorXd r = c.residual(y0, c.s.begin, c.s.split);
+  Trial t = fit_output(c, cur, y0, tau, "offset", {"value"}, Eigen::VectorXd::Constant(1, r.mean()));
+  t.params[0].unit = lin(cur.rotary);
+  return t;
+}
+
+Trial fit_scale(const Ctx& c, const servo::DriveParams& cur, const std::vector<double>& y0, double tau) {
+  Trial t = fit_output(c, cur, y0, tau, "scale_error", {"ppm"}, Eigen::VectorXd::Zero(1));
+  t.params[0].unit = "ppm";
+  return t;
+}
+
+Trial fit_measurement_delay(const Ctx& c, const servo::DriveParams& cur, const std::vector<double>& y0, double tau) {
+  std::vector<double> grid;
+  for (double d = 0.25e-3; d <= 0.02 + 1e-12; d += 0.25e-3) grid.push_back(d);
+  const double d0 = grid_start(c, y0, "measurement_delay", "delay", grid);
+  Trial t = fit_output(c, cur, y0, tau, "measurement_delay", {"delay"}, Eigen::VectorXd::Constant(1, d0));
+  t.params[0].unit = "s";
+  return t;
+}
+
+/// Lead error: for each pitch of a grid the amplitude and phase are linear (a sin, a cos), so
+/// the start is the pitch with the best linear fit; LM then refines all three.
+Trial fit_lead(const Ctx& c, const servo::DriveParams& cur, const std::vector<double>& y0, double tau) {
+  const std::size_t b = c.s.begin, e = c.s.split;
+  const auto [lo, hi] = std::minmax_element(y0.begin() + static_cast<std::ptrdiff_t>(b), y0.begin() + static_cast<std::ptrdiff_t>(e));
+  const double range = *hi - *lo;
+  const double pmax = std::min(cur.rotary ? 360.0 : 100.0, range / 1.5);
+  const double pmin = cur.rotary ? 0.5 : 0.5;
+  double best_sse = std::numeric_limits<double>::infinity();
+  Eigen::Vector3d x0(0, pmax, 0);
+  const Eigen::VectorXd r = c.residual(y0, b, e);
+  for (double p : geometric(pmin, std::max(pmax, pmin * 1.01), 300)) {
+    Eigen::MatrixXd A(r.size(), 2);
+    for (std::size_t k = b; k < e; ++k) {
+      const double arg = 2 * M_PI * y0[k] / p;
+      A(static_cast<Eigen::Index>(k - b), 0) = std::sin(arg);
+      A(static_cast<Eigen::Index>(k - b), 1) = std::cos(arg);
+    }
+    const Eigen::Vector2d q = (A.transpose() * A).ldlt().solve(A.transpose() * r);
+    const double s = (r - A * q).squaredNorm();
+    if (s < best_sse) { best_sse = s; x0 = {std::hypot(q[0], q[1]), p, std::atan2(q[1], q[0]) * 180 / M_PI}; }
+  }
+  Trial t = fit_output(c, cur, y0, tau, "lead_error", {"amplitude", "period", "phase"}, x0);
+  t.params[0].unit = lin(cur.rotary);
+  t.params[1].unit = lin(cur.rotary);
+  t.params[2].unit = "deg";
+  // One sign and phase convention for the report: amplitude >= 0, phase in (-180, 180].
+  auto& ef = t.model.effects.back();
+  double a = ef.values[0].second, ph = ef.values[2].second;
+  if (a < 0) { a = -a; ph += 180; }
+  ph = std::remainder(ph, 360.0);
+  ef.values[0].second = a; ef.values[2].second = ph;
+  t.params[0].value = a; t.params[2].value = ph;
+  return t;
+}
+
+}  // namespace
+}  // namespace gcpipe::calibrate
+
+namespace gcpipe::calibrate {
+namespace {
+
+/// Coulomb friction T tanh(w/band) with the registry's band (0.01 rad/s: a sign function at
+/// feed speeds; the band is not identifiable from positions at 1 ms). The start comes from the
+/// linear sensitivity of the prediction to a small torque; LM (central differences through a
+/// new simulation each) refines it.
+Trial fit_friction(const Ctx& c, const servo::DriveParams& cur, const std::vector<double>& y0, double tau) {
+  const std::size_t b = c.s.begin, e = c.dynamic_end();
+  auto with = [&](double T) {
+    servo::DriveParams p = cur;
+    p.effects.insert(p.effects.begin(), settings("coulomb_friction", {{"torque", std::max(T, 0.0)}, {"velocity_band", 0.01}}));
+    return p;
+  };
+  // Torque giving a 1 um (1e-3 deg) steady lag: T / (Kvp Kpp) * load_per_rad = 1e-3.
+  const double T0 = 1e-3 * cur.Kvp * cur.Kpp / cur.load_per_motor_rad();
+  const Eigen::VectorXd s = (c.residual(y0, b, e) - c.residual(c.predict(with(T0), e), b, e)) / T0;
+  const double Tinit = std::max(s.dot(c.residual(y0, b, e)) / std::max(s.squaredNorm(), 1e-300), 0.0);
+  ResidualFn r = [&](const Eigen::VectorXd& x, Eigen::MatrixXd*) { return c.residual(c.predict(with(x[0]), e), b, e); };
+  const LsqResult f = least_squares(r, Eigen::VectorXd::Constant(1, Tinit), Eigen::VectorXd::Constant(1, 0.02 * std::max(Tinit, T0)), false, tau);
+  Trial t;
+  t.effect = "coulomb_friction";
+  t.model = with(f.x[0]);
+  t.params = {{"torque", "N*m", std::max(f.x[0], 0.0), f.sigma[0]}, {"velocity_band", "rad/s", 0.01, 0}};
+  t.significant = f.x[0] > c.o.significance * f.sigma[0];
+  return t;
+}
+
+/// Minimum of a function over integers in [lo, hi] assumed unimodal near the coarse optimum:
+/// a doubling scan, then a ternary search; returns the argmin and the values around it.
+template <class F>
+int integer_argmin(F&& f, int lo, int hi, std::map<int, double>& cache) {
+  auto val = [&](int n) {
+    auto it = cache.find(n);
+    if (it != cache.end()) return it->second;
+    return cache[n] = f(n);
+  };
+  int best = lo;
+  for (int n = lo; n <= hi; n *= 2)
+    if (val(n) < val(best)) best = n;
+  int a = std::max(lo, best / 2), z = std::min(hi, best * 2);
+  while (z - a > 2) {
+    const int m1 = a + (z - a) / 3, m2 = z - (z - a) / 3;
+    if (val(m1) <= val(m2)) z = m2; else a = m1;
+  }
+  for (int n = a; n <= z; ++n)
+    if (val(n) < val(best)) best = n;
+  return best;
+}
+
+/// A parabola through (n-1, n, n+1) of a SSE curve: the fractional minimum and its sigma
+/// (SSE ~ SSE_min + (x - x0)^2 J'J, cov = tau s^2 / J'J).
+std::pair<double, double> parabola(const std::map<int, double>& v, int n, double s2tau) {
+  if (!v.count(n - 1) || !v.count(n + 1)) return {double(n), 0.5};
+  const double a = v.at(n - 1), b = v.at(n), d = v.at(n + 1);
+  const double curv = a - 2 * b + d;  // second difference = 2 J'J
+  if (!(curv > 0)) return {double(n), 0.5};
+  return {n + 0.5 * (a - d) / curv, std::sqrt(s2tau / (curv / 2))};
+}
+
+
+/// Torque limit: golden-section search on the limit as a fraction of the model's peak torque
+/// (a limit above the peak changes nothing, so only 0.2 ... 1 of it is searched).
+Trial fit_torque_limit(const Ctx& c, const servo::DriveParams& cur, double tau) {
+  const std::size_t b = c.s.begin, e = c.dynamic_end();
+  std::vector<double> tq;
+  simulate_motor(cur, c.s.substeps, c.s.margin, c.s.period, std::span<const double>(c.s.command.data(), std::min(c.n(), e + 64)), &tq);
+  double peak = 0;
+  for (double v : tq) peak = std::max(peak, std::abs(v));
+  auto with = [&](double L) { servo::DriveParams p = cur; p.torque_limit = L; return p; };
+  auto f = [&](double q) { return c.sse(c.predict(with(q * peak), e), b, e); };
+  double lo = 0.2, hi = 1.0;
+  const double g = (std::sqrt(5.0) - 1) / 2;
+  double x1 = hi - g * (hi - lo), x2 = lo + g * (hi - lo), f1 = f(x1), f2 = f(x2);
+  for (int i = 0; i < 18; ++i) {
+    if (f1 <= f2) { hi = x2; x2 = x1; f2 = f1; x1 = hi - g * (hi - lo); f1 = f(x1); }
+    else { lo = x1; x1 = x2; f1 = f2; x2 = lo + g * (hi - lo); f2 = f(x2); }
+  }
+  const double q = 0.5 * (lo + hi), dq = 0.01;
+  const double fa = f(q - dq), fb = f(q), fc = f(q + dq);
+  const double curv = (fa - 2 * fb + fc) / (dq * dq);
+  const double sig = curv > 0 ? std::sqrt(fb / static_cast<double>(e - b) * tau / (curv / 2)) * peak : peak;
+  Trial t;
+  t.effect = "torque_limit";
+  t.model = with(q * peak);
+  t.params = {{"torque_limit", "N*m", q * peak, sig}};
+  t.significant = q < 0.98 && (1 - q) * peak > c.o.significance * sig;
+  return t;
+}
+
+}  // namespace
+}  // namespace gcpipe::calibrate
+
+namespace gcpipe::calibrate {
+namespace {
+
+/// Which continuous numbers of a trial's effect the joint fit moves (feedback_delay is held on
+/// its sub-step grid; the friction band is fixed).
+std::vector<std::string> continuous_keys(const std::string& effect) {
+  if (effect == "backlash") return {"width"};
+  if (effect == "lead_error") return {"amplitude", "period", "phase"};
+  if (effect == "scale_error") return {"ppm"};
+  if (effect == "offset") return {"value"};
+  if (effect == "measurement_delay" || effect == "feedback_delay") return effect == "feedback_delay" ? std::vector<std::string>{} : std::vector<std::string>{"delay"};
+  if (effect == "coulomb_friction") return {"torque"};
+  if (effect == "torque_limit") return {"torque_limit"};
+  return {};
+}
+
+double* effect_value(servo::DriveParams& p, const std::string& effect, const std::string& key) {
+  if (effect == "torque_limit") return &p.torque_limit;
+  for (auto& e : p.effects)
+    if (e.type == effect)
+      for (auto& [k, v] : e.values)
+        if (k == key) return &v;
+  return nullptr;
+}
+
+/// One continuous number of a model's effect: (effect type, key).
+using Ref = std::pair<std::string, std::string>;
+
+/// Joint LM over the free declared parameters and the given effect numbers of `model`; returns
+/// the fit (x = declared values then effect values) and updates `model`; nullopt when LM found
+/// nothing better than the start.
+std::optional<LsqResult> joint_fit(const Ctx& c, servo::DriveParams& model, const std::vector<int>& free,
+                                   const std::vector<Ref>& refs, bool dynamic, double tau,
+                                   int max_evaluations = 200, std::size_t end = 0) {
+  const auto& slots = declared_slots();
+  const std::size_t nd = free.size(), n = nd + refs.size();
+  if (n == 0) return std::nullopt;
+  const std::size_t b = c.s.begin, e = end > 0 ? end : dynamic ? c.dynamic_end() : c.s.split;
+  Eigen::VectorXd x0(static_cast<Eigen::Index>(n)), step(static_cast<Eigen::Index>(n));
+  for (std::size_t i = 0; i < nd; ++i) x0[static_cast<Eigen::Index>(i)] = model.*(slots[static_cast<std::size_t>(free[i])].field);
+  for (std::size_t i = 0; i < refs.size(); ++i) x0[static_cast<Eigen::Index>(nd + i)] = *effect_value(model, refs[i].first, refs[i].second);
+  for (Eigen::Index i = 0; i < x0.size(); ++i) step[i] = 1e-4 * std::max(std::abs(x0[i]), 1e-3);
+  auto build = [&](const Eigen::VectorXd& x) {
+    servo::DriveParams p = model;
+    for (std::size_t i = 0; i < nd; ++i) p.*(slots[static_cast<std::size_t>(free[i])].field) = std::max(x[static_cast<Eigen::Index>(i)], 1e-9);
+    for (std::size_t i = 0; i < refs.size(); ++i) *effect_value(p, refs[i].first, refs[i].second) = x[static_cast<Eigen::Index>(nd + i)];
+    return p;
+  };
+  ResidualFn r = [&](const Eigen::VectorXd& x, Eigen::MatrixXd*) { return c.residual(c.predict(build(x), e), b, e); };
+  LsqResult f = least_squares(r, x0, step, false, tau, max_evaluations);
+  if (!(f.sse < r(x0, nullptr).squaredNorm())) return std::nullopt;
+  model = build(f.x);
+  return f;
+}
+
+/// Coulomb friction jointly with the declared parameters through its sensitivity: with the
+/// velocity signs fixed, the loop is linear, so y(T) = y(0) + T S with S = (y(T1) - y(0)) / T1
+/// from two simulations. LM then runs on the exact (fast) path of the declared parameters plus
+/// T S, and S is taken again at the result (twice): a few RK4 runs instead of hundreds.
+std::optional<LsqResult> friction_polish(const Ctx& c, Trial& t, const std::vector<int>& free, double tau) {
+  const auto& slots = declared_slots();
+  const std::size_t nd = free.size(), b = c.s.begin, e = c.dynamic_end();
+  std::optional<LsqResult> out;
+  for (int pass = 0; pass < 2; ++pass) {
+    double* Tp = effect_value(t.model, "coulomb_friction", "torque");
+    const double T1 = std::max(*Tp, 1e-3 * t.model.Kvp * t.model.Kpp / t.model.load_per_motor_rad());
+    servo::DriveParams bare = t.model, one = t.model;
+    std::erase_if(bare.effects, [](const auto& ef) { return ef.type == "coulomb_friction"; });
+    *effect_value(one, "coulomb_friction", "torque") = T1;
+    const std::vector<double> y0 = c.predict(bare, e), y1 = c.predict(one, e);
+    Eigen::VectorXd S(static_cast<Eigen::Index>(e - b));
+    for (std::size_t k = b; k < e; ++k) S[static_cast<Eigen::Index>(k - b)] = (y1[k] - y0[k]) / T1;
+    Eigen::VectorXd x0(static_cast<Eigen::Index>(nd + 1)), step(static_cast<Eigen::Index>(nd + 1));
+    for (std::size_t i = 0; i < nd; ++i) x0[static_cast<Eigen::Index>(i)] = bare.*(slots[static_cast<std::size_t>(free[i])].field);
+    x0[static_cast<Eigen::Index>(nd)] = *Tp;
+    for (Eigen::Index i = 0; i < x0.size(); ++i) step[i] = 1e-4 * std::max(std::abs(x0[i]), 1e-3);
+    auto declared_model = [&](const Eigen::VectorXd& x) {
+      servo::DriveParams p = bare;
+      for (std::size_t i = 0; i < nd; ++i) p.*(slots[static_cast<std::size_t>(free[i])].field) = std::max(x[static_cast<Eigen::Index>(i)], 1e-9);
+      return p;
+    };
+    ResidualFn r = [&](const Eigen::VectorXd& x, Eigen::MatrixXd*) {
+      return Eigen::VectorXd(c.residual(c.predict(declared_model(x), e), b, e) - x[static_cast<Eigen::Index>(nd)] * S);
+    };
+    LsqResult f = least_squares(r, x0, step, false, tau);
+    servo::DriveParams next = t.model;
+    for (std::size_t i = 0; i < nd; ++i) next.*(slots[static_cast<std::size_t>(free[i])].field) = std::max(f.x[static_cast<Eigen::Index>(i)], 1e-9);
+    *effect_value(next, "coulomb_friction", "torque") = std::max(f.x[static_cast<Eigen::Index>(nd)], 0.0);
+    if (!(c.sse(c.predict(next, e), b, e) < c.sse(c.predict(t.model, e), b, e))) break;
+    t.model = next;
+    out = f;
+  }
+  return out;
+}
+
+std::pair<double, double> parabola(const std::map<int, double>& v, int n, double s2tau);
+
+/// Feedback delay: a profile over whole sub-steps (the simulator's resolution). At each delay of
+/// a coarse grid the declared gains are refitted with it (a delay inside the loop and a lower
+/// Kpp or more averaging look alike at low frequency, so a delay scored on fixed gains is
+/// biased); the best grid point is refined by a scan of its neighbours with those gains and a
+/// parabola gives the fractional value and its sigma.
+Trial fit_feedback_delay(const Ctx& c, const servo::DriveParams& base, double tau, const std::vector<int>& free) {
+  const std::size_t b = c.s.begin, e = std::min(c.dynamic_end(), c.s.begin + 10000);
+  const double h = c.s.period / c.s.substeps;
+  auto with = [&](const servo::DriveParams& from, int n) {
+    servo::DriveParams p = from;
+    std::erase_if(p.effects, [](const auto& ef) { return ef.type == "feedback_delay"; });
+    p.effects.insert(p.effects.begin(), settings("feedback_delay", {{"delay", n * h}}));
+    return p;
+  };
+  // The profile P(n) = min over the free gains of the SSE at a delay of n sub-steps, each point
+  // a short LM from the configured gains; cached.
+  struct Point { double sse; servo::DriveParams model; std::optional<LsqResult> fit; };
+  std::map<int, Point> prof;
+  auto P = [&](int n) -> const Point& {
+    auto it = prof.find(n);
+    if (it != prof.end()) return it->second;
+    servo::DriveParams m = with(base, n);
+    auto f = joint_fit(c, m, free, {}, true, tau, 8, e);
+    const double sse = c.sse(c.predict(m, e), b, e);
+    return prof.emplace(n, Point{sse, m, f}).first->second;
+  };
+  const int per_ms = static_cast<int>(std::lround(1e-3 / h));
+  const int grid[] = {per_ms / 2, per_ms, 2 * per_ms, 4 * per_ms, 8 * per_ms};
+  int gi = 0;
+  for (int i = 1; i < 5; ++i)
+    if (P(std::max(1, grid[i])).sse < P(std::max(1, grid[gi])).sse) gi = i;
+  // Golden-section search on whole sub-steps between the grid neighbours of the best point.
+  int lo = std::max(1, gi > 0 ? grid[gi - 1] : 1), hi = gi < 4 ? grid[gi + 1] : grid[4];
+  while (hi - lo > 2) {
+    const int m1 = lo + static_cast<int>(std::lround(0.382 * (hi - lo))), m2 = lo + static_cast<int>(std::lround(0.618 * (hi - lo)));
+    if (m1 == m2) break;
+    if (P(m1).sse <= P(m2).sse) hi = m2; else lo = m1;
+  }
+  int best = lo;
+  for (int n = lo; n <= hi; ++n)
+    if (P(n).sse < P(best).sse) best = n;
+  std::map<int, double> v;
+  for (int n = std::max(1, best - 1); n <= best + 1; ++n) v[n] = P(n).sse;
+  const auto [frac, sig] = parabola(v, best, v[best] / static_cast<double>(e - b) * tau);
+  const Point& pt = P(best);
+  Trial t;
+  t.effect = "feedback_delay";
+  t.model = pt.model;  // the simulator holds whole sub-steps
+  t.params = {{"delay", "s", frac * h, sig * h}};
+  t.significant = frac * h > c.o.significance * sig * h;
+  if (pt.fit)
+    for (std::size_t i = 0; i < free.size(); ++i) t.declared.emplace_back(pt.fit->x[static_cast<Eigen::Index>(i)], pt.fit->sigma[static_cast<Eigen::Index>(i)]);
+  return t;
+}
+
+/// Joint LM over the free declared parameters and the trial effect's continuous numbers, from
+/// the trial's own fit: an effect fitted on a model whose gains were refitted without it is
+/// biased (the gains absorb part of it), so the two are refitted together before scoring.
+/// Output effects need only the drive's exact path per evaluation; friction goes through its
+/// sensitivity; feedback_delay and torque_limit keep the gains of the round's start.
+void joint_polish(const Ctx& c, Trial& t, const std::vector<int>& free, double tau) {
+  std::vector<Ref> refs;
+  for (const auto& k : continuous_keys(t.effect)) refs.emplace_back(t.effect, k);
+  if (t.effect == "feedback_delay") return;  // profiled with the gains in fit_feedback_delay
+  const auto f = t.effect == "coulomb_friction" ? friction_polish(c, t, free, tau)
+                                                : joint_fit(c, t.model, free, refs, t.effect == "torque_limit", tau);
+  if (!f) return;
+  const std::size_t nd = free.size();
+  t.declared.clear();
+  for (std::size_t i = 0; i < nd; ++i) t.declared.emplace_back(f->x[static_cast<Eigen::Index>(i)], f->sigma[static_cast<Eigen::Index>(i)]);
+  for (std::size_t i = 0; i < refs.size(); ++i)
+    for (auto& p : t.params)
+      if (p.name == refs[i].second) { p.value = f->x[static_cast<Eigen::Index>(nd + i)]; p.sigma = f->sigma[static_cast<Eigen::Index>(nd + i)]; }
+  const auto& size = t.params.front();
+  if (t.effect == "torque_limit") {
+    // Significant when the limit lies clearly below the torque the model asks for without it.
+    std::vector<double> tq;
+    servo::DriveParams free_model = t.model;
+    free_model.torque_limit = 0;
+    simulate_motor(free_model, c.s.substeps, c.s.margin, c.s.period, std::span<const double>(c.s.command.data(), c.s.split), &tq);
+    double peak = 0;
+    for (double v : tq) peak = std::max(peak, std::abs(v));
+    t.significant = peak - size.value > c.o.significance * size.sigma && size.value < 0.98 * peak;
+  } else {
+    t.significant = std::abs(size.value) > c.o.significance * size.sigma;
+  }
+}
+
+int parameter_count(const Trial& t) {
+  int k = 0;
+  for (const auto& p : t.params) k += p.sigma > 0 || p.name != "velocity_band";
+  return k;
+}
+
+/// Fits every catalogue effect not yet named on the axis, on the current model.
+std::vector<Trial> fit_catalogue(const Ctx& c, const servo::DriveParams& cur, const std::vector<double>& y0,
+                                 double tau, const std::vector<std::string>& named, const servo::DriveParams& config,
+                                 const std::vector<int>& free) {
+  // Re-simulated effects start from the configured gains, not the refitted ones: the refit, done
+  // without the effect, may have bent the gains to mimic it (a delay looks like a lower Kpp, a
+  // torque limit like less feed-forward); the joint polish then refits the gains with the effect.
+  servo::DriveParams base = cur;
+  for (const auto& slot : declared_slots()) base.*(slot.field) = config.*(slot.field);
+  const std::vector<double> ybase = c.predict(base, c.n());
+  const bool drive = cur.model == servo::DriveModel::kDrive;
+  auto open = [&](const char* e) { return std::find(named.begin(), named.end(), e) == named.end(); };
+  std::vector<Trial> out;
+  std::vector<double> secs;
+  auto clock = std::chrono::steady_clock::now();
+  auto lap = [&] { const auto now = std::chrono::steady_clock::now(); secs.push_back(std::chrono::duration<double>(now - clock).count()); clock = now; };
+  if (open("backlash")) { out.push_back(fit_backlash(c, cur, y0, tau)); lap(); out.back().seconds = secs.back(); }
+  if (open("lead_error")) { out.push_back(fit_lead(c, cur, y0, tau)); lap(); out.back().seconds = secs.back(); }
+  if (open("scale_error")) { out.push_back(fit_scale(c, cur, y0, tau)); lap(); out.back().seconds = secs.back(); }
+  if (open("offset")) { out.push_back(fit_offset(c, cur, y0, tau)); lap(); out.back().seconds = secs.back(); }
+  if (open("measurement_delay")) { out.push_back(fit_measurement_delay(c, cur, y0, tau)); lap(); out.back().seconds = secs.back(); }
+  if (drive && open("coulomb_friction")) { out.push_back(fit_friction(c, cur, y0, tau)); lap(); out.back().seconds = secs.back(); }
+  if (drive && open("feedback_delay")) { out.push_back(fit_feedback_delay(c, base, tau, free)); lap(); out.back().seconds = secs.back(); }
+  if (drive && open("torque_limit") && cur.Kvp > 0) { out.push_back(fit_torque_limit(c, base, tau)); lap(); out.back().seconds = secs.back(); }
+  return out;
+}
+
+/// After an effect is named: every named effect's numbers and the free declared parameters
+/// refitted together (an effect fitted before the next one was known carries part of it), and
+/// their sigmas taken from this fit with the correlation time of its own residual.
+void repolish(const Ctx& c, AxisIdentification& id, const std::vector<int>& free) {
+  std::vector<Ref> refs;
+  bool dynamic = false;
+  for (const auto& n : id.named) {
+    for (const auto& k : continuous_keys(n.effect)) refs.emplace_back(n.effect, k);
+    dynamic = dynamic || is_dynamic_effect(n.effect) || n.effect == "torque_limit";
+  }
+  if (id.named.size() < 2) return;  // the single effect was just fitted jointly
+  servo::DriveParams m = id.calibrated;
+  const double tau_old = c.tau(id.pred_calibrated);
+  const auto f = joint_fit(c, m, free, refs, dynamic, tau_old, dynamic ? 40 : 200);
+  if (!f) return;
+  const std::vector<double> y = c.predict(m, c.n());
+  if (!(c.fit_sse(y) < c.fit_sse(id.pred_calibrated))) return;
+  id.calibrated = m;
+  id.pred_calibrated = y;
+  // Sigmas with the new residual's correlation time (the fit was weighted with the old one).
+  const double scale = std::sqrt(c.tau(y) / tau_old);
+  for (std::size_t i = 0; i < free.size(); ++i) {
+    id.declared[static_cast<std::size_t>(free[i])].fitted = f->x[static_cast<Eigen::Index>(i)];
+    id.declared[static_cast<std::size_t>(free[i])].sigma = scale * f->sigma[static_cast<Eigen::Index>(i)];
+  }
+  for (std::size_t i = 0; i < refs.size(); ++i)
+    for (auto& n : id.named)
+      if (n.effect == refs[i].first)
+        for (auto& p : n.params)
+          if (p.name == refs[i].second) { p.value = f->x[static_cast<Eigen::Index>(free.size() + i)]; p.sigma = scale * f->sigma[static_cast<Eigen::Index>(free.size() + i)]; }
+}
+
+bool resimulated(const std::string& effect) { return is_dynamic_effect(effect) || effect == "torque_limit"; }
+
+/// Joint polish: every output effect (cheap: the drive's exact path per evaluation) and the
+/// re-simulated effect that explains most on its own (a few RK4 runs per parameter).
+void polish_trials(const Ctx& c, std::vector<Trial>& trials, const std::vector<int>& free, double tau) {
+  std::vector<std::pair<double, std::size_t>> order;
+  for (std::size_t i = 0; i < trials.size(); ++i) {
+    const std::size_t e = resimulated(trials[i].effect) ? c.dynamic_end() : c.s.split;
+    order.emplace_back(c.sse(c.predict(trials[i].model, c.s.split), c.s.begin, e) / static_cast<double>(e - c.s.begin), i);
+  }
+  std::sort(order.begin(), order.end());
+  bool dynamic_done = false;
+  for (const auto& [mse, i] : order) {
+    const bool dyn = resimulated(trials[i].effect);
+    if (dyn && dynamic_done) continue;
+    dynamic_done = dynamic_done || dyn;
+    const auto t0 = std::chrono::steady_clock::now();
+    joint_polish(c, trials[i], free, tau);
+    trials[i].seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+}
+
+/// What a round knows before scoring: the current prediction, its BIC and held-out mean square.
+struct RoundStart {
+  const std::vector<double>& y0;
+  double tau, b0, h0, noise2;
+  int k, round;
+};
+
+/// Scores one trial against the round's start; fills `y` with its full prediction when it was
+/// computed (re-simulated effects on long traces are screened on their fit window first).
+CandidateScore score_trial(const Ctx& c, const Trial& t, const RoundStart& r, std::vector<double>& y) {
+  CandidateScore s;
+  s.round = r.round;
+  s.effect = t.effect;
+  s.params = t.params;
+  s.seconds = t.seconds;
+  const std::size_t we = c.dynamic_end();
+  if (resimulated(t.effect) && we < c.s.split) {
+    const double bw0 = bic(c.sse(r.y0, c.s.begin, we), we - c.s.begin, r.tau, r.k);
+    const double bw1 = bic(c.sse(c.predict(t.model, we), c.s.begin, we), we - c.s.begin, r.tau, r.k + parameter_count(t));
+    if (!(bw1 < bw0 - c.o.bic_margin)) {
+      s.criterion_before = bw0;
+      s.criterion_after = bw1;
+      s.heldout_before = s.heldout_after = r.h0;
+      s.reason = "BIC does not drop by the margin on the first " + std::to_string(we - c.s.begin) + " samples (screened there)";
+      return s;
+    }
+  }
+  y = c.predict(t.model, c.n());
+  s.criterion_before = r.b0;
+  s.criterion_after = bic(c.fit_sse(y), c.nfit(), r.tau, r.k + parameter_count(t));
+  s.heldout_before = r.h0;
+  s.heldout_after = c.heldout_mse(y);
+  const bool crit = s.criterion_after < r.b0 - c.o.bic_margin;
+  const bool held = c.s.split >= c.n() || s.heldout_after < r.h0 * (1 - c.o.heldout_gain);
+  const double excess = r.h0 - r.noise2;
+  const bool bulk = c.s.split >= c.n() || !(excess > 0) || (r.h0 - s.heldout_after) >= c.o.excess_explained * excess;
+  s.reason = !crit ? "BIC does not drop by the margin"
+             : !held ? "does not hold on the held-out part"
+             : !t.significant ? "size below the significance threshold"
+             : !bulk ? "explains too little of the residual above the noise"
+             : "named";
+  s.named = crit && held && t.significant && bulk;
+  return s;
+}
+
+/// Names candidate `at` (its trial `t`, prediction `y`): the others of the round that passed
+/// are marked as beaten, the model and declared values move on, everything is refitted jointly.
+void accept(const Ctx& c, AxisIdentification& id, std::size_t start, std::size_t at, Trial& t,
+            std::vector<double>&& y, const std::vector<int>& free, int& k) {
+  for (std::size_t i = start; i < id.candidates.size(); ++i)
+    if (i != at && id.candidates[i].named) {
+      id.candidates[i].named = false;
+      id.candidates[i].reason = "passes, but " + id.candidates[at].effect + " scores better in this round";
+    }
+  id.named.push_back(id.candidates[at]);
+  id.calibrated = t.model;
+  for (std::size_t i = 0; i < t.declared.size() && i < free.size(); ++i) {
+    id.declared[static_cast<std::size_t>(free[i])].fitted = t.declared[i].first;
+    id.declared[static_cast<std::size_t>(free[i])].sigma = t.declared[i].second;
+  }
+  id.pred_calibrated = std::move(y);
+  k += parameter_count(t);
+  repolish(c, id, free);
+}
+
+/// One greedy round: scores every candidate and names the best that passes; false when none.
+/// `k` counts the parameters fitted so far (the BIC penalty of the current model).
+bool greedy_round(const Ctx& c, AxisIdentification& id, int round, int& k) {
+  const std::vector<double> y0 = id.pred_calibrated;
+  // Nothing left to explain: when the residual is already at the measurement noise, no effect
+  // can lower the held-out mean square by heldout_gain, so the round is not run.
+  const double noise2 = c.s.noise * c.s.noise;
+  if (noise2 > 0 && c.fit_sse(y0) / static_cast<double>(c.nfit()) <= noise2 / (1 - c.o.heldout_gain)) return false;
+  const double tau = c.tau(y0);
+  const RoundStart r{y0, tau, bic(c.fit_sse(y0), c.nfit(), tau, k), c.heldout_mse(y0), noise2, k, round};
+  std::vector<std::string> named;
+  for (const auto& n : id.named) named.push_back(n.effect);
+  std::vector<int> free;
+  for (std::size_t i = 0; i < id.declared.size(); ++i)
+    if (!id.declared[i].held) free.push_back(static_cast<int>(i));
+  std::vector<Trial> trials = fit_catalogue(c, id.calibrated, y0, tau, named, id.config, free);
+  polish_trials(c, trials, free, tau);
+  int best = -1;
+  std::vector<double> best_pred, y;
+  const std::size_t start = id.candidates.size();
+  for (std::size_t i = 0; i < trials.size(); ++i) {
+    CandidateScore s = score_trial(c, trials[i], r, y);
+    if (s.named && (best < 0 || s.criterion_after < id.candidates[start + static_cast<std::size_t>(best)].criterion_after)) {
+      best = static_cast<int>(i);
+      best_pred = std::move(y);
+    }
+    id.candidates.push_back(std::move(s));
+  }
+  if (best < 0) return false;
+  accept(c, id, start, start + static_cast<std::size_t>(best), trials[static_cast<std::size_t>(best)], std::move(best_pred), free, k);
+  return true;
+}
+
+bool moves(const std::vector<double>& c) {
+  if (c.empty()) return false;
+  const auto [lo, hi] = std::minmax_element(c.begin(), c.end());
+  return *hi - *lo > 1e-6;
+}
+
+}  // namespace
+}  // namespace gcpipe::calibrate
+
+namespace gcpipe::calibrate {
+
+AxisIdentification identify_axis(const AxisSeries& s, const servo::DriveParams& config,
+                                 const IdentifyOptions& options) {
+  const Ctx c{s, options};
+  AxisIdentification id;
+  id.axis = s.axis;
+  id.config = id.refit = id.calibrated = config;
+  id.noise = s.noise;
+  id.pred_declared = c.predict(config, c.n());
+  id.pred_refit = id.pred_calibrated = id.pred_declared;
+  id.moving = moves(s.command) && s.split > s.begin + 100;
+  if (!id.moving) {
+    id.refit_note = "the axis does not move in this trace: nothing to identify";
+    return id;
+  }
+  if (config.model != servo::DriveModel::kDrive) {
+    // The simulator passes commands of an ideal axis straight through, effects included, so an
+    // effect found there could not be written back into a model: the residual is reported (and
+    // left to the NNOE fallback), nothing is named.
+    id.refit_note = "ideal axis in the config (no drive parameters): residual reported, no effect can be attached";
+    return id;
+  }
+  refit_declared(c, id);
+  id.calibrated = id.refit;
+  id.pred_calibrated = id.pred_refit;
+  int k = 0;
+  for (const auto& d : id.declared) k += !d.held;
+  for (int round = 1; round <= options.max_rounds; ++round)
+    if (!greedy_round(c, id, round, k)) break;
+  return id;
+}
+
+}  // namespace gcpipe::calibrate

@@ -1,0 +1,76 @@
+// The closed loop of issue #13 as a test: a "machine" with a hidden effect records a trace; the
+// calibration finds it; a program compensated with calibrated.yaml's model runs on that machine
+// with a lower contour error than the same program compensated with the uncalibrated config.
+// And gcpipe evaluate's measured contour error against compensate's own evaluation.
+#include <gtest/gtest.h>
+
+#include <sstream>
+
+#include "calibrate_test_util.hpp"
+#include "compensate_program.hpp"
+#include "write.hpp"
+
+namespace gcpipe::calibrate {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// Compensates `program` against `model`, runs the written program on `machine` and measures
+/// its contour error against the original's nominal path with gcpipe evaluate's code.
+ContourFigures compensated_on_machine(const compensate::Model& model, const compensate::Model& machine,
+                                      const test::Scenario& sc) {
+  const compensate::CompensateOptions options;
+  const auto simulated = simulate::simulate_program(model, sc.program, {options.reference_smoothing, options.max_machine_time});
+  const auto pcomp = compensate::compensate_program(model, options, WriteOptions{}, simulated, {});
+  EXPECT_FALSE(pcomp.text.empty()) << pcomp.note;
+  const auto blocks = test::parse_text(pcomp.text, sc.pc);
+  SimulateTraceOptions o;  // noise-free: the comparison is about the models
+  const MeasuredTrace run = simulate_trace(machine, blocks, o, "compensated run");
+  return measured_contour_error(machine, sc.program, run);
+}
+
+TEST(CalibrateLoop, CalibratedCompensationBeatsTheUncalibratedOneOnTheMachine) {
+  test::Scenario sc = test::circle_scenario();
+  sc.machine.drives.axes[kY].effects.push_back(test::effect("backlash", {{"width", 0.015}}));
+  sc.machine.drives.axes[kX].effects.push_back(test::effect("coulomb_friction", {{"torque", 25}, {"velocity_band", 0.01}}));
+  const Calibration c = calibrate_traces({test::trace_of(sc, 21)}, sc.config);
+  compensate::Model calibrated = sc.config;
+  calibrated.drives = c.drives;
+  const ContourFigures before = measured_contour_error(sc.machine, sc.program, simulate_trace(sc.machine, sc.program, {}, "original run"));
+  const ContourFigures uncal = compensated_on_machine(sc.config, sc.machine, sc);
+  const ContourFigures cal = compensated_on_machine(calibrated, sc.machine, sc);
+  std::cout << "contour error on the machine (max / rms, um): original " << before.cutting_max * 1000 << " / " << before.cutting_rms * 1000
+            << ", compensated with the config " << uncal.cutting_max * 1000 << " / " << uncal.cutting_rms * 1000
+            << ", compensated with calibrated.yaml " << cal.cutting_max * 1000 << " / " << cal.cutting_rms * 1000 << "\n";
+  EXPECT_LT(cal.cutting_max, uncal.cutting_max);
+  EXPECT_LT(cal.cutting_rms, 0.5 * uncal.cutting_rms);
+}
+
+TEST(CalibrateLoop, EvaluateAgreesWithTheSimulatorsOwnContourError) {
+  // The measured contour error of a noise-free simulated run against compensate::evaluate's
+  // contour error of the same run (a second formulation: its own nominal polyline and tracker).
+  test::Scenario sc = test::circle_scenario();
+  const fs::path dir = test::scratch("evaluate");
+  test::write_csv(simulate_trace(sc.machine, sc.program, {}, "run"), dir / "run.csv");
+  std::ofstream(dir / "circle.nc") << test::circle_program();
+  std::ofstream(dir / "machine_drives.yaml") << drives_text(sc.machine.drives, "# the machine\n");
+  const auto cfg = test::write_config(sc.machine.drives, dir, "machine");
+  std::ostringstream out, err;
+  EvaluateRequest q{(dir / "run.csv").string(), (dir / "circle.nc").string(), cfg.string(), std::nullopt, false, (dir / "e.json").string()};
+  ASSERT_EQ(run_evaluate(q, out, err), 0) << err.str();
+  std::cout << out.str();
+  const auto j = test::read_json(dir / "e.json");
+  const auto& prog = sc.program;
+  std::size_t first = 0;
+  while (prog[first].motion == Motion::kNone) ++first;
+  const Axes start = compensate::machine_start(sc.machine.kin, prog[first], compensate::tool_length_of(sc.machine, prog[first]));
+  const auto nom = compensate::build_nominal(sc.machine, prog, start);
+  const auto ev = compensate::evaluate(sc.machine, nom, prog, prog, start, [](std::uint32_t i) { return i; });
+  EXPECT_NEAR(j["cutting"]["max_um"].get<double>(), ev.contour.max * 1000, 0.02 * ev.contour.max * 1000 + 0.5);
+  EXPECT_GT(j["cutting"]["samples"].get<int>(), 1000);
+  std::ostringstream e2;
+  EXPECT_EQ(run_evaluate(EvaluateRequest{}, out, e2), 2);
+}
+
+}  // namespace
+}  // namespace gcpipe::calibrate

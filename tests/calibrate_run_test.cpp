@@ -1,0 +1,99 @@
+// gcpipe calibrate end to end through its library entry point: a simulated trace written as the
+// shared CSV, a config whose gains are 20 % off, OUTDIR with calibration.json (schema of issue
+// #13), calibrated.yaml that loads as a pipeline config, report.txt and the PNG figures.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include "calibrate_test_util.hpp"
+#include "gcpipe/pipeline_config.hpp"
+
+namespace gcpipe::calibrate {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(CalibrateRun, CircleWithYBacklashWritesEveryOutput) {
+  test::Scenario sc = test::circle_scenario();
+  sc.machine.drives.axes[kY].effects.push_back(test::effect("backlash", {{"width", 0.012}}));
+  const fs::path dir = test::scratch("run_backlash");
+  test::write_csv(test::trace_of(sc, 3), dir / "trace.csv");
+  const fs::path cfg = test::write_config(sc.config.drives, dir, "config");
+  CalibrateRequest q{{(dir / "trace.csv").string()}, cfg.string(), (dir / "out").string(), std::nullopt, false, true};
+  std::ostringstream out, err;
+  ASSERT_EQ(run_calibrate(q, out, err), 0) << err.str();
+  std::cout << out.str();
+
+  const auto j = test::read_json(dir / "out" / "calibration.json");
+  for (const char* k : {"trace", "rows", "period_s", "noise_um", "declared", "effects", "unidentified", "prediction_error", "config"})
+    EXPECT_TRUE(j.contains(k)) << k;
+  ASSERT_EQ(j["effects"].size(), 1u) << j["effects"].dump(1);
+  EXPECT_EQ(j["effects"][0]["axis"], "Y");
+  EXPECT_EQ(j["effects"][0]["name"], "backlash");
+  EXPECT_NEAR(j["effects"][0]["parameters"]["width"]["value"].get<double>(), 0.012, 0.0012);
+  EXPECT_GT(j["effects"][0]["parameters"]["width"]["sigma"].get<double>(), 0);
+  EXPECT_LT(j["effects"][0]["criterion_after"].get<double>(), j["effects"][0]["criterion_before"].get<double>() - 10);
+  const auto& pe = j["prediction_error"];
+  for (const char* m : {"declared", "refit", "calibrated"})
+    for (const char* k : {"rms_um", "max_um", "tip_rms_um", "tip_max_um"}) EXPECT_TRUE(pe[m].contains(k)) << m << "." << k;
+  EXPECT_LE(pe["calibrated"]["rms_um"]["Y"].get<double>(), 2 * 0.2);
+  EXPECT_LE(pe["calibrated"]["rms_um"]["X"].get<double>(), 2 * 0.2);
+  EXPECT_GT(pe["declared"]["tip_rms_um"].get<double>(), 10 * pe["calibrated"]["tip_rms_um"].get<double>());
+  EXPECT_TRUE(j["declared"]["X"]["Kpp"].contains("held"));
+
+  // calibrated.yaml is a pipeline config that loads as is, with the effect under Y's effects.
+  const auto model = compensate::load_model(load_pipeline_config(dir / "out" / "calibrated.yaml"));
+  ASSERT_EQ(model.drives.axes[kY].effects.size(), 1u);
+  EXPECT_EQ(model.drives.axes[kY].effects[0].type, "backlash");
+  EXPECT_NEAR(model.drives.axes[kY].effects[0].get("width", 0), 0.012, 0.0012);
+  EXPECT_NEAR(model.drives.axes[kX].Kpp, sc.machine.drives.axes[kX].Kpp, 0.1 * sc.machine.drives.axes[kX].Kpp);
+  for (const char* f : {"report.txt", "calibrated_drives.yaml", "plots/criterion.png", "plots/residual_time_Y.png",
+                        "plots/residual_velocity_X.png", "plots/residual_position_X.png", "plots/hysteresis_Y.png"})
+    EXPECT_TRUE(fs::exists(dir / "out" / f)) << f;
+  for (const auto& e : fs::recursive_directory_iterator(dir / "out"))
+    EXPECT_EQ(e.path().string().find(".part"), std::string::npos) << e.path();
+
+  // And the executable's main job takes it as is.
+  std::ofstream(dir / "circle.nc") << test::circle_program();
+  const std::string cmd = std::string(GCPIPE_EXE) + " batch " + (dir / "circle.nc").string() + " -o " + (dir / "batch").string() +
+                          " --config " + (dir / "out" / "calibrated.yaml").string() + " > " + (dir / "batch.log").string() + " 2>&1";
+  EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  EXPECT_TRUE(fs::exists(dir / "batch" / "compensated.nc"));
+}
+
+TEST(CalibrateRun, CircleWithXFrictionShowsTheQuadrantGlitches) {
+  // The figures of stages/calibrate/README.md for friction come from this run.
+  test::Scenario sc = test::circle_scenario();
+  sc.machine.drives.axes[kX].effects.push_back(test::effect("coulomb_friction", {{"torque", 40}, {"velocity_band", 0.01}}));
+  const fs::path dir = test::scratch("run_friction");
+  test::write_csv(test::trace_of(sc, 8), dir / "trace.csv");
+  const fs::path cfg = test::write_config(sc.config.drives, dir, "config");
+  CalibrateRequest q{{(dir / "trace.csv").string()}, cfg.string(), (dir / "out").string(), std::nullopt, false, true};
+  std::ostringstream out, err;
+  ASSERT_EQ(run_calibrate(q, out, err), 0) << err.str();
+  const auto j = test::read_json(dir / "out" / "calibration.json");
+  ASSERT_EQ(j["effects"].size(), 1u) << j["effects"].dump(1);
+  EXPECT_EQ(j["effects"][0]["name"], "coulomb_friction");
+  // J is configured 20 % high: the torque comes back relative to it (README, "What a position
+  // trace cannot see").
+  EXPECT_NEAR(j["effects"][0]["parameters"]["torque"]["value"].get<double>(), 40 * 1.2, 4.8);
+  EXPECT_TRUE(fs::exists(dir / "out" / "plots" / "residual_velocity_X.png"));
+}
+
+TEST(CalibrateRun, UsageAndBadConfigAreReported) {
+  std::ostringstream out, err;
+  EXPECT_EQ(run_calibrate(CalibrateRequest{}, out, err), 2);
+  EXPECT_NE(err.str().find("usage: gcpipe calibrate"), std::string::npos);
+  const fs::path dir = test::scratch("bad_config");
+  std::ofstream(dir / "bad.yaml") << "machine: nowhere.yaml\n";
+  std::ostringstream e2;
+  CalibrateRequest q{{"x.csv"}, (dir / "bad.yaml").string(), (dir / "out").string(), std::nullopt, false, false};
+  EXPECT_EQ(run_calibrate(q, out, e2), 1);
+  EXPECT_FALSE(e2.str().empty());
+}
+
+}  // namespace
+}  // namespace gcpipe::calibrate
