@@ -47,8 +47,15 @@ bool stream_program(InputFile& in, Parser& parser, const LineSink& sink, bool pr
                     std::string& error) {
   const std::size_t max_line = parser.options().max_line_length;
   LineReader reader(in.fd(), max_line);
-  ResolvedBlock block;
-  Diagnostic diag;
+  // Strict mode stops at the first error; the parser's sink says so by returning false.
+  bool strict_stop = false;
+  const ParseSink parse_sink{
+      [&](const ResolvedBlock& b) { return sink.block(b); },
+      [&](const Diagnostic& d) {
+        if (!sink.diagnostic(d)) return false;
+        if (d.severity == Severity::kError && parser.options().strict) strict_stop = true;
+        return !strict_stop;
+      }};
   std::string_view line;
   bool overlong = false;
   std::size_t full = 0;
@@ -57,18 +64,10 @@ bool stream_program(InputFile& in, Parser& parser, const LineSink& sink, bool pr
   const auto t0 = clock::now();
   bool shown = false;
   while (reader.next(line, overlong, full)) {
-    const LineStatus st = parser.parse_line(line, block, diag, overlong ? full : 0);
-    bool go = true;
-    if (st == LineStatus::kBlock) {
-      go = sink.block(block);
-    } else {
-      go = sink.diagnostic(diag);
-      if (st == LineStatus::kRejected && parser.options().strict) {
-        error = "stopped at the first error (parse.strict is on)";
-        go = false;
-      }
+    if (!parser.feed(line, parse_sink, overlong ? full : 0)) {
+      if (strict_stop) error = "stopped at the first error (parse.strict is on)";
+      return false;
     }
-    if (!go) return false;
     if (progress && (parser.summary().lines_read & 0xfff) == 0 && clock::now() > next_report) {
       next_report += std::chrono::seconds(1);
       const double s = std::chrono::duration<double>(clock::now() - t0).count();
@@ -86,6 +85,11 @@ bool stream_program(InputFile& in, Parser& parser, const LineSink& sink, bool pr
   if (shown) std::fprintf(stderr, "\n");
   if (!reader.error().empty()) {
     error = in.name() + ": read error: " + reader.error();
+    return false;
+  }
+  // What waited for more input (a call to a subroutine never defined, an unclosed loop).
+  if (!parser.finish(parse_sink)) {
+    if (strict_stop) error = "stopped at the first error (parse.strict is on)";
     return false;
   }
   return true;

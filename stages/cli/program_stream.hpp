@@ -31,7 +31,8 @@ class InputFile {
   std::string name_;
 };
 
-/// Called for each line: a block, or a diagnostic (rejected / deleted). Return false to stop.
+/// Called for what the parser makes: blocks (a line may yield several: a canned cycle, a
+/// subroutine call) and diagnostics (rejected / skipped lines). Return false to stop.
 struct LineSink {
   std::function<bool(const ResolvedBlock&)> block;
   std::function<bool(const Diagnostic&)> diagnostic;

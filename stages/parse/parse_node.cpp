@@ -65,9 +65,27 @@ struct ParseNode::Impl {
               << "\n";
   }
 
+  // What the parser makes goes into the batch; a line may make several blocks (a canned cycle,
+  // a subroutine call), or make them later (a loop runs when its end arrives).
+  ParseSink batch_sink(Program& prog) {
+    return ParseSink{[this, &prog](const ResolvedBlock& block) {
+                       msg::Block& m = prog.batch.blocks().emplace_back();
+                       dds::to_msg(block, m);
+                       prog.batch_size += msg::Block::getCdrSerializedSize(m);
+                       return true;
+                     },
+                     [this, &prog](const Diagnostic& diag) {
+                       const LineStatus st = status_of(diag);
+                       msg::LineDiagnostic& m = prog.batch.diagnostics().emplace_back();
+                       dds::to_msg(diag, dds::kind_of(st), m);
+                       prog.batch_size += msg::LineDiagnostic::getCdrSerializedSize(m);
+                       if (st == LineStatus::kRejected && parse_options.strict) prog.stopped = true;
+                       return !prog.stopped;
+                     }};
+  }
+
   void parse_lines(Program& prog, std::uint64_t id, const msg::ProgramChunk& chunk) {
-    ResolvedBlock block;
-    Diagnostic diag;
+    const ParseSink sink = batch_sink(prog);
     const std::size_t max_line = parse_options.max_line_length;
     for (std::size_t k = 0; k < chunk.lines().size(); ++k) {
       const std::uint64_t number = chunk.first_line() + k;
@@ -87,17 +105,7 @@ struct ParseNode::Impl {
         if (overlong == 0) overlong = text.size();
         text = text.substr(0, max_line);
       }
-      const LineStatus st = prog.parser->parse_line(text, block, diag, overlong);
-      if (st == LineStatus::kBlock) {
-        msg::Block& m = prog.batch.blocks().emplace_back();
-        dds::to_msg(block, m);
-        prog.batch_size += msg::Block::getCdrSerializedSize(m);
-      } else {
-        msg::LineDiagnostic& m = prog.batch.diagnostics().emplace_back();
-        dds::to_msg(diag, dds::kind_of(st), m);
-        prog.batch_size += msg::LineDiagnostic::getCdrSerializedSize(m);
-        if (st == LineStatus::kRejected && parse_options.strict) prog.stopped = true;
-      }
+      prog.parser->feed(text, sink, overlong);
       if (prog.batch_size >= options.batch_bytes && !publish(id, prog)) return;
     }
   }
@@ -137,6 +145,7 @@ struct ParseNode::Impl {
     if (prog.error.empty() && chunk.line_count() != prog.lines_seen)
       fail(prog, id, "the feeder sent " + std::to_string(chunk.line_count()) +
                          " lines but " + std::to_string(prog.lines_seen) + " arrived");
+    if (!prog.stopped && prog.error.empty()) prog.parser->finish(batch_sink(prog));
     prog.batch.end_of_program(true);
     dds::BatchTotals totals;
     totals.summary = prog.parser->summary();

@@ -71,20 +71,24 @@ void run(benchmark::State& state, const std::string& text, Dialect dialect, bool
     Parser p(o, m, "bench.nc");
     Writer w;
     std::string out;
-    ResolvedBlock b;
-    Diagnostic d;
+    const ParseSink sink{[&](const ResolvedBlock& b) {
+                           if (write) {
+                             w.write(b, out);
+                             if (out.size() > (1u << 16)) out.clear();
+                           }
+                           return true;
+                         },
+                         [](const Diagnostic&) { return true; }};
     const char* s = text.data();
     const char* end = s + text.size();
     while (s < end) {
       const char* nl = static_cast<const char*>(std::memchr(s, '\n', static_cast<std::size_t>(end - s)));
       if (nl == nullptr) nl = end;
-      if (p.parse_line(std::string_view(s, static_cast<std::size_t>(nl - s)), b, d) == LineStatus::kBlock && write) {
-        w.write(b, out);
-        if (out.size() > (1u << 16)) out.clear();
-      }
+      p.feed(std::string_view(s, static_cast<std::size_t>(nl - s)), sink);
       s = nl + 1;
     }
-    blocks = p.summary().blocks_emitted;
+    p.finish(sink);
+    blocks = p.summary().blocks_out;
     if (p.summary().lines_rejected != 0) state.SkipWithError("benchmark input has rejected lines");
     benchmark::DoNotOptimize(out.data());
   }

@@ -1,0 +1,604 @@
+// LinuxCNC o-word subroutines and flow control: sub/endsub/call/return, if/elseif/else/endif,
+// while/endwhile, do/while, repeat/endrepeat, break, continue; numbered (o100) and named
+// (o<name>) labels.
+//
+// How lines are kept (the only buffering in the parser):
+//  - A plain program never stores a line: while no structure is open the line runs at once.
+//  - Subroutine definitions are collected as their lines arrive (so a call may come before the
+//    definition, as in LinuxCNC), and the main program passes over them without running them.
+//  - Main-program lines are kept in `window` from the oldest open loop (to run again) or from a
+//    call that waits for a definition further down; lines before that are dropped.
+//  - All of it is bounded by parse.max_buffered_lines (an error past it), each loop by
+//    parse.max_loop_passes, the lines run on behalf of one source line by 1000 times that, and
+//    the call depth by max_call_depth: no input can hang or exhaust memory.
+//
+// Counting: each line is counted once, when the main program first runs it or passes over it.
+// The newest line the main program has run is the "owner": the blocks and the first error of
+// everything run on its behalf (a call's body, a loop's later passes) are its own. An error inside
+// an expansion abandons that expansion (the call returns, the loop ends), as LinuxCNC would stop
+// the program, and rejects the owner with the failing line's place in the diagnostic.
+#include <cmath>
+
+#include "parse_internal.hpp"
+
+namespace gcpipe {
+
+using namespace parse_detail;
+
+namespace parse_detail {
+
+bool read_statement(std::string_view line, Statement& s) {
+  std::size_t p = 0;
+  skip_blanks(line, p);
+  if (p >= line.size() || (line[p] | 0x20) != 'o') return false;
+  s.col = static_cast<std::uint32_t>(p + 1);
+  ++p;
+  skip_blanks(line, p);
+  s.label.clear();
+  if (p < line.size() && line[p] == '<') {
+    const std::size_t close = line.find('>', p);
+    if (close == std::string_view::npos) return false;
+    s.label = "<" + normalise_parameter_name(line.substr(p + 1, close - p - 1)) + ">";
+    p = close + 1;
+  } else {
+    while (p < line.size() && ((line[p] >= '0' && line[p] <= '9') || line[p] == ' ' || line[p] == '\t'))
+      if (line[p++] != ' ' && line[p - 1] != '\t') s.label.push_back(line[p - 1]);
+    if (s.label.empty()) return false;
+    s.label.erase(0, std::min(s.label.find_first_not_of('0'), s.label.size() - 1));  // o010 = o10
+  }
+  skip_blanks(line, p);
+  s.keyword.clear();
+  while (p < line.size() && (line[p] | 0x20) >= 'a' && (line[p] | 0x20) <= 'z')
+    s.keyword.push_back(static_cast<char>(line[p++] | 0x20));
+  s.rest = p;
+  static const char* const words[] = {"sub", "endsub", "call", "return", "if", "elseif", "else", "endif",
+                                      "while", "endwhile", "do", "repeat", "endrepeat", "break", "continue"};
+  for (const char* w : words)
+    if (s.keyword == w) return true;
+  return false;
+}
+
+}  // namespace parse_detail
+
+namespace {
+
+std::string olabel(const std::string& label) { return "o" + label; }
+
+bool is_loop(Control::Kind k) { return k != Control::kIf; }
+
+}  // namespace
+
+bool Parser::Impl::idle() const {
+  const Frame& f = frames[0];
+  return frames.size() == 1 && f.controls.empty() && f.skip == Skip::kNone && window.empty() &&
+         defining.empty() && owner.line == 0;
+}
+
+const SourceLine* Parser::Impl::line_at(const Frame& f, std::uint64_t pc) const {
+  if (f.sub != nullptr) return pc < f.sub->body.size() ? &f.sub->body[pc] : nullptr;
+  if (pc < window_first || pc - window_first >= window.size()) return nullptr;
+  return &window[pc - window_first];
+}
+
+bool Parser::Impl::feed(std::string_view line, std::size_t overlong) {
+  ++summary.lines_read;
+  summary.bytes_read += (overlong ? overlong : line.size()) + 1;
+  const std::uint64_t n = summary.lines_read;
+  if (n == 1 && line.substr(0, 3) == "\xEF\xBB\xBF") line.remove_prefix(3);  // UTF-8 byte-order mark
+  Statement s;
+  if (idle() && frames[0].pc == n && !read_statement(line, s)) {
+    // The hot path: nothing open, the line runs at once and is counted.
+    open_owner(n);
+    std::string why;
+    std::uint32_t col = 0;
+    const Outcome o = run_line(line, n, overlong, why, col);
+    if (o == Outcome::kDeleted) {
+      owner.line = 0;
+      ++summary.lines_deleted;
+      classified = n;
+      frames[0].pc = n + 1;
+      return emit_diagnostic(n, col, Severity::kNote, why);
+    }
+    if (o == Outcome::kRejected) {
+      owner.error = true;
+      emit_diagnostic(n, col, Severity::kError, why);
+    }
+    frames[0].pc = n + 1;
+    return close_owner();
+  }
+  SourceLine l{std::string(line), n, overlong};
+  collect_definition(l);
+  if (window.empty()) window_first = n;
+  window.push_back(std::move(l));
+  if (!run_ready()) return false;
+  trim_window();
+  return !stopped;
+}
+
+// Subroutine definitions are taken as their lines arrive, before the main program reaches them.
+void Parser::Impl::collect_definition(const SourceLine& l) {
+  Statement s;
+  const bool stmt = read_statement(l.text, s);
+  if (!defining.empty()) {
+    Subroutine& sub = subs[defining];
+    if (stmt && s.keyword == "endsub" && s.label == defining) {
+      sub.end_line = l.number;
+      defining.clear();
+    } else if (sub.body.size() < opt.max_buffered_lines) {
+      sub.body.push_back(l);
+    }
+    return;
+  }
+  if (stmt && s.keyword == "sub" && subs.count(s.label) == 0) {
+    defining = s.label;
+    subs[s.label].line = l.number;
+  }
+}
+
+void Parser::Impl::open_owner(std::uint64_t line) {
+  owner = Owner{};
+  owner.line = line;
+}
+
+// Counts the owner line once: rejected if anything on its behalf failed, else emitted.
+bool Parser::Impl::close_owner() {
+  if (owner.line == 0) return !stopped;
+  if (owner.error) ++summary.lines_rejected;
+  else ++summary.blocks_emitted;
+  classified = owner.line;
+  owner = Owner{};
+  return !stopped;
+}
+
+bool Parser::Impl::note_skipped(const SourceLine& l, const Frame& f) {
+  ++summary.lines_deleted;
+  ++summary.lines_not_run;
+  classified = l.number;
+  std::string why;
+  switch (f.skip) {
+    case Skip::kSubDefinition:
+      why = "not run here: part of the definition of subroutine " + olabel(f.skip_label) + " (it runs where it is called)";
+      break;
+    case Skip::kBranch: case Skip::kToEndif:
+      why = "not run: in a branch of " + olabel(f.skip_label) + " if (line " + std::to_string(f.skip_from) + ") not taken";
+      break;
+    default:
+      why = "not run: after the end of loop " + olabel(f.skip_label) + " (line " + std::to_string(f.skip_from) + ")";
+      break;
+  }
+  return emit_diagnostic(l.number, 1, Severity::kNote, why);
+}
+
+// Runs what can run: stops at the end of the input read so far, or at a call that waits for its
+// definition.
+bool Parser::Impl::run_ready() {
+  while (!stopped) {
+    Frame& f = frames.back();
+    const SourceLine* l = line_at(f, f.pc);
+    if (l == nullptr) {
+      if (f.sub == nullptr) {
+        close_owner();  // everything on the newest line's behalf has run
+        break;          // wait for the next line
+      }
+      do_return(frames.size() - 1);  // the body ran off its end: endsub is implied
+      continue;
+    }
+    if (f.sub == nullptr && l->number != owner.line && l->number > classified && !close_owner()) return false;
+    if (!step(f, *l)) break;  // waiting
+  }
+  return !stopped;
+}
+
+// One line of a frame. Returns false when the frame must wait for more input.
+bool Parser::Impl::step(Frame& f, const SourceLine& l) {
+  const bool first = f.sub == nullptr && l.number > classified && l.number != owner.line;
+  Statement s;
+  const bool stmt = read_statement(l.text, s);
+  if (f.skip != Skip::kNone) {
+    bool consumed = false;
+    if (stmt && s.label == f.skip_label && !statement_skipping(f, l, s, consumed)) return true;
+    if (!consumed) {
+      if (first && !note_skipped(l, f)) return true;
+      ++f.pc;
+      return true;
+    }
+  }
+  if (first) open_owner(l.number);
+  if (++owner.steps > opt.max_loop_passes * 1000) {
+    flow_error(l, 1, "more than " + std::to_string(opt.max_loop_passes * 1000) +
+                         " lines run for one source line (nested loops or recursion): the expansion was stopped; "
+                         "check the loop conditions or raise parse.max_loop_passes");
+    return true;
+  }
+  if (!stmt) return run_plain(l, first);
+  if (s.keyword == "sub" && f.sub == nullptr) {
+    // A definition met where it stands: passed over, it ran when collected.
+    owner = Owner{};
+    f.skip = Skip::kSubDefinition;
+    f.skip_label = s.label;
+    f.skip_from = l.number;
+    if (first && !note_skipped(l, f)) return true;
+    ++f.pc;
+    return true;
+  }
+  return statement(f, l, s);
+}
+
+// A line that is not a statement: scanned and resolved as usual.
+bool Parser::Impl::run_plain(const SourceLine& l, bool first) {
+  std::string why;
+  std::uint32_t col = 0;
+  const Outcome o = run_line(l.text, l.number, l.overlong, why, col);
+  ++frames.back().pc;
+  if (o == Outcome::kDeleted) {
+    if (first) {
+      owner = Owner{};
+      ++summary.lines_deleted;
+      classified = l.number;
+      return emit_diagnostic(l.number, col, Severity::kNote, why);
+    }
+    return true;
+  }
+  if (o == Outcome::kRejected) {
+    if (first) {
+      owner.error = true;
+      emit_diagnostic(l.number, col, Severity::kError, why);
+    } else {
+      flow_error(l, col, why);
+    }
+  }
+  return true;
+}
+
+// An error while running on the owner's behalf: reported with the failing line's place, the
+// owner rejected, the expansion abandoned. On the owner's own first run it is a plain rejection.
+bool Parser::Impl::flow_error(const SourceLine& l, std::uint32_t col, std::string msg) {
+  const bool expansion = frames.size() > 1 || l.number != owner.line;
+  if (owner.error) {
+    abort_expansion();
+    return false;
+  }
+  owner.error = true;
+  if (expansion)
+    msg += frames.size() > 1 ? " (in subroutine " + olabel(frames.back().label) + " called at line " +
+                                   std::to_string(frames[1].call_line) + "; the call was abandoned)"
+                             : " (on a later pass of the loop ending at line " + std::to_string(owner.line) +
+                                   "; the loop was stopped)";
+  emit_diagnostic(l.number, col, Severity::kError, msg);
+  if (expansion) abort_expansion();
+  return false;
+}
+
+// Unwinds every call, and stops the main-program loop whose end line is the owner.
+bool Parser::Impl::abort_expansion() {
+  while (frames.size() > 1) do_return(frames.size() - 1);
+  Frame& m = frames[0];
+  const SourceLine* end = line_at(m, owner.line);
+  Statement s;
+  if (end == nullptr || !read_statement(end->text, s)) return false;
+  for (std::size_t i = m.controls.size(); i-- > 0;) {
+    if (m.controls[i].label != s.label || !is_loop(m.controls[i].kind)) continue;
+    m.controls.resize(i);
+    m.skip = Skip::kNone;
+    m.pc = owner.line + 1;
+    return true;
+  }
+  return false;
+}
+
+bool Parser::Impl::condition(const SourceLine& l, const Statement& s, double& v) {
+  std::string_view text = l.text;
+  std::size_t p = s.rest;
+  skip_blanks(text, p);
+  if (p >= text.size() || text[p] != '[')
+    return flow_error(l, static_cast<std::uint32_t>(p + 1), olabel(s.label) + " " + s.keyword + " needs a condition in brackets: [expression]");
+  refresh_system_parameters();
+  ExpressionReader er(params);
+  if (!er.read_value(text, p, v)) return flow_error(l, static_cast<std::uint32_t>(er.error_pos() + 1), er.error());
+  return true;
+}
+
+// A statement met while lines are being passed over; `consumed` when it ends the skip.
+bool Parser::Impl::statement_skipping(Frame& f, const SourceLine& l, const Statement& s, bool& consumed) {
+  const std::string& k = s.keyword;
+  consumed = false;
+  switch (f.skip) {
+    case Skip::kBranch:
+      if (k == "elseif" || k == "else" || k == "endif") consumed = true;
+      break;
+    case Skip::kToEndif: consumed = k == "endif"; break;
+    case Skip::kToLoopEnd: consumed = k == "endwhile" || k == "endrepeat" || k == "while"; break;
+    case Skip::kSubDefinition:
+      if (k == "endsub") {
+        const bool first = l.number > classified;
+        if (first && !note_skipped(l, f)) return false;
+        f.skip = Skip::kNone;
+        ++f.pc;
+        return false;
+      }
+      break;
+    default: break;
+  }
+  return true;
+}
+
+bool Parser::Impl::statement(Frame& f, const SourceLine& l, const Statement& s) {
+  const bool first = f.sub == nullptr && owner.line == l.number && !owner.blocks && !owner.error;
+  const Skip was = f.skip;
+  f.skip = Skip::kNone;
+  const std::string& k = s.keyword;
+  const std::uint64_t here = f.pc;
+  bool ok = true;
+  auto top = [&]() -> Control* { return f.controls.empty() ? nullptr : &f.controls.back(); };
+  if (k == "if") {
+    double v = 0;
+    if (!condition(l, s, v)) v = 0;
+    f.controls.push_back({Control::kIf, s.label, here, v != 0});
+    if (v == 0) {
+      f.skip = Skip::kBranch;
+      f.skip_label = s.label;
+      f.skip_from = l.number;
+    }
+    ++f.pc;
+  } else if (k == "elseif" || k == "else") {
+    Control* c = top();
+    if (c == nullptr || c->kind != Control::kIf || c->label != s.label) {
+      ok = flow_error(l, s.col, olabel(s.label) + " " + k + " without an open " + olabel(s.label) + " if");
+      ++f.pc;
+    } else if (was == Skip::kBranch && !c->taken) {
+      double v = 1;
+      if (k == "elseif" && !condition(l, s, v)) v = 0;
+      c->taken = v != 0;
+      if (v == 0) {
+        f.skip = Skip::kBranch;
+        f.skip_label = s.label;
+      }
+      ++f.pc;
+    } else {
+      f.skip = Skip::kToEndif;  // the branch that ran ends here
+      f.skip_label = s.label;
+      ++f.pc;
+    }
+  } else if (k == "endif") {
+    Control* c = top();
+    if (c == nullptr || c->kind != Control::kIf || c->label != s.label)
+      ok = flow_error(l, s.col, olabel(s.label) + " endif without an open " + olabel(s.label) + " if");
+    else
+      f.controls.pop_back();
+    ++f.pc;
+  } else if (k == "while" || k == "endwhile" || k == "do" || k == "repeat" || k == "endrepeat" ||
+             k == "break" || k == "continue") {
+    if (was == Skip::kToLoopEnd) ++f.pc;  // the end of a loop that was left: go on after it
+    else ok = loop_end(f, l, s);
+  } else if (k == "call") {
+    bool waiting = false;
+    ok = call(f, l, s, waiting);
+    if (waiting) return false;
+  } else if (k == "return" || k == "endsub") {
+    if (f.sub == nullptr) {
+      ok = flow_error(l, s.col, olabel(s.label) + " " + k + " outside a subroutine");
+      ++f.pc;
+    } else {
+      do_return(frames.size() - 1);
+      return true;
+    }
+  } else {  // "sub" inside a subroutine body
+    ok = flow_error(l, s.col, olabel(s.label) + " sub inside subroutine " + olabel(f.label) + ": definitions cannot nest");
+    ++f.pc;
+  }
+  if (first && ok && !owner.error) {
+    // The statement line itself: a block that moves nothing, so the output keeps the line.
+    reset_block(l.text, l.number);
+    publish(block);
+    emit(block);
+  }
+  return true;
+}
+
+// while / endwhile / do / repeat / endrepeat / break / continue (and the `while` closing a do).
+bool Parser::Impl::loop_end(Frame& f, const SourceLine& l, const Statement& s) {
+  const std::string& k = s.keyword;
+  const std::uint64_t here = f.pc;
+  Control* c = f.controls.empty() ? nullptr : &f.controls.back();
+  auto skip_to_end = [&](std::uint64_t from) {
+    f.skip = Skip::kToLoopEnd;
+    f.skip_label = s.label;
+    f.skip_from = from;
+  };
+  auto next_pass = [&](Control& ctl) {
+    if (++ctl.passes >= opt.max_loop_passes) {
+      const std::uint64_t start = ctl.start;
+      f.controls.pop_back();
+      ++f.pc;
+      return flow_error(l, s.col, "loop " + olabel(s.label) + " (from line " + std::to_string(start) + ") ran " +
+                                      std::to_string(opt.max_loop_passes) +
+                                      " passes and was stopped: check its condition, or raise parse.max_loop_passes");
+    }
+    return true;
+  };
+  if (k == "do") {
+    f.controls.push_back({Control::kDo, s.label, here});
+    ++f.pc;
+    return true;
+  }
+  if (k == "repeat") {
+    double v = 0;
+    if (!condition(l, s, v)) v = 0;
+    f.controls.push_back({Control::kRepeat, s.label, here, false, 0, static_cast<std::int64_t>(std::floor(v))});
+    if (f.controls.back().remaining <= 0) {
+      f.controls.pop_back();
+      skip_to_end(l.number);
+    }
+    ++f.pc;
+    return true;
+  }
+  if (k == "while" && c != nullptr && c->kind == Control::kDo && c->label == s.label) {
+    double v = 0;
+    if (!condition(l, s, v)) v = 0;
+    if (v != 0 && next_pass(*c)) {
+      f.pc = c->start + 1;
+      return true;
+    }
+    if (!f.controls.empty() && &f.controls.back() == c) f.controls.pop_back();
+    f.pc = here + 1;
+    return true;
+  }
+  if (k == "while") {
+    const bool again = c != nullptr && c->kind == Control::kWhile && c->label == s.label && c->start == here;
+    if (!again) f.controls.push_back({Control::kWhile, s.label, here});
+    Control& ctl = f.controls.back();
+    double v = 0;
+    if (!condition(l, s, v)) v = 0;
+    if (v != 0) {
+      ++f.pc;
+      return true;
+    }
+    f.controls.pop_back();
+    skip_to_end(l.number);
+    ++f.pc;
+    (void)ctl;
+    return true;
+  }
+  // endwhile, endrepeat, break, continue: the innermost loop of that label.
+  std::size_t i = f.controls.size();
+  while (i-- > 0)
+    if (f.controls[i].label == s.label && is_loop(f.controls[i].kind)) break;
+  if (i == static_cast<std::size_t>(-1)) {
+    ++f.pc;
+    return flow_error(l, s.col, olabel(s.label) + " " + k + " without an open " + olabel(s.label) + " loop");
+  }
+  f.controls.resize(i + 1);
+  Control& ctl = f.controls.back();
+  if (k == "break") {
+    f.controls.pop_back();
+    skip_to_end(l.number);
+    ++f.pc;
+    return true;
+  }
+  if (k == "endwhile" || (k == "continue" && ctl.kind == Control::kWhile)) {
+    if (ctl.kind != Control::kWhile) {
+      ++f.pc;
+      return flow_error(l, s.col, olabel(s.label) + " endwhile closes a " + (ctl.kind == Control::kDo ? "do" : "repeat") + " loop");
+    }
+    if (next_pass(ctl)) f.pc = ctl.start;  // the while line tests the condition again
+    return true;
+  }
+  // endrepeat, or continue in a do / repeat loop.
+  if (ctl.kind == Control::kRepeat && --ctl.remaining <= 0) {
+    f.controls.pop_back();
+    if (k == "continue") skip_to_end(l.number);
+    ++f.pc;
+    return true;
+  }
+  if (next_pass(ctl)) f.pc = ctl.start + 1;
+  return true;
+}
+
+// o<name> call [arg] ...: #1..#30 take the arguments in the subroutine and are restored after,
+// as in LinuxCNC. A call to a subroutine defined further down waits for its definition.
+bool Parser::Impl::call(Frame& f, const SourceLine& l, const Statement& s, bool& waiting) {
+  auto it = subs.find(s.label);
+  if (it == subs.end() || it->second.end_line == 0) {
+    if (!input_done && f.sub == nullptr && window.size() < opt.max_buffered_lines) {
+      waiting = true;
+      return true;
+    }
+    ++f.pc;
+    return flow_error(l, s.col, olabel(s.label) + " call: no subroutine " + olabel(s.label) +
+                                    (input_done ? " is defined in this file"
+                                                : " is defined within parse.max_buffered_lines lines after the call") +
+                                    " (gcpipe does not search subroutine files): define it in the program");
+  }
+  if (frames.size() > static_cast<std::size_t>(opt.max_call_depth)) {
+    ++f.pc;
+    return flow_error(l, s.col, olabel(s.label) + " call: calls nested deeper than " +
+                                    std::to_string(opt.max_call_depth) + " (runaway recursion?)");
+  }
+  std::array<double, 30> args{};
+  std::string_view text = l.text;
+  std::size_t p = s.rest;
+  refresh_system_parameters();
+  ExpressionReader er(params);
+  for (std::size_t n = 0;; ++n) {
+    skip_blanks(text, p);
+    if (p >= text.size() || text[p] != '[') break;
+    if (n == args.size()) {
+      ++f.pc;
+      return flow_error(l, static_cast<std::uint32_t>(p + 1), "more than 30 arguments in a call");
+    }
+    if (!er.read_value(text, p, args[n])) {
+      ++f.pc;
+      return flow_error(l, static_cast<std::uint32_t>(er.error_pos() + 1), er.error());
+    }
+  }
+  ++f.pc;  // returns to the line after the call (before push_back: `f` may move)
+  Frame callee;
+  callee.sub = &it->second;
+  callee.label = s.label;
+  callee.call_line = l.number;
+  for (int n = 0; n < 30; ++n) {
+    params.get_numbered(n + 1, callee.saved_args[static_cast<std::size_t>(n)]);
+    params.set_numbered(n + 1, args[static_cast<std::size_t>(n)]);
+  }
+  frames.push_back(std::move(callee));
+  return true;
+}
+
+bool Parser::Impl::do_return(std::size_t level) {
+  Frame& f = frames[level];
+  for (int n = 0; n < 30; ++n) params.set_numbered(n + 1, f.saved_args[static_cast<std::size_t>(n)]);
+  frames.pop_back();
+  return true;
+}
+
+// Drops main-program lines nothing can come back to, and bounds what is kept.
+void Parser::Impl::trim_window() {
+  const Frame& m = frames[0];
+  std::uint64_t keep = m.pc;
+  for (const Control& c : m.controls)
+    if (is_loop(c.kind)) keep = std::min(keep, c.start);
+  if (owner.line != 0) keep = std::min(keep, owner.line);  // abort_expansion reads its statement
+  while (!window.empty() && window_first < keep) {
+    window.pop_front();
+    ++window_first;
+  }
+  if (window.size() <= opt.max_buffered_lines) return;
+  // Past the bound: the oldest open loop gives up repeating (its end will say so).
+  Frame& mm = frames[0];
+  for (std::size_t i = 0; i < mm.controls.size(); ++i) {
+    if (!is_loop(mm.controls[i].kind)) continue;
+    const SourceLine* start = line_at(mm, mm.controls[i].start);
+    if (start != nullptr && owner.line != 0 && !owner.error) {
+      owner.error = true;
+      emit_diagnostic(start->number, 1, Severity::kError,
+                      "loop " + olabel(mm.controls[i].label) + " is longer than parse.max_buffered_lines (" +
+                          std::to_string(opt.max_buffered_lines) + " lines): it runs once; shorten it or raise the limit");
+    }
+    mm.controls.erase(mm.controls.begin() + static_cast<std::ptrdiff_t>(i));
+    break;
+  }
+}
+
+bool Parser::Impl::finish() {
+  input_done = true;
+  run_ready();
+  close_owner();
+  Frame& m = frames[0];
+  // What never closed: reported on its opening line, which is counted as rejected instead.
+  auto unclosed = [&](std::uint64_t line, const std::string& what, bool was_skipped) {
+    if (was_skipped) --summary.lines_deleted, --summary.lines_not_run;
+    else --summary.blocks_emitted;
+    ++summary.lines_rejected;
+    emit_diagnostic(line, 1, Severity::kError, what);
+  };
+  if (m.skip == Skip::kSubDefinition)
+    unclosed(m.skip_from, olabel(m.skip_label) + " sub has no " + olabel(m.skip_label) + " endsub before the end of the program", true);
+  for (const Control& c : m.controls)
+    unclosed(c.start, olabel(c.label) + (c.kind == Control::kIf ? " if has no endif" : " loop has no end") +
+                          " before the end of the program", false);
+  m.controls.clear();
+  window.clear();
+  return !stopped;
+}
+
+}  // namespace gcpipe
