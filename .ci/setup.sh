@@ -16,6 +16,7 @@ packages=(
   libeigen3-dev libyaml-cpp-dev libopencv-dev
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools
   libgtest-dev libgmock-dev libbenchmark-dev
+  linuxcnc-uspace  # rs274, LinuxCNC's interpreter: the oracle of tests/rs274_diff_test.cpp
 )
 missing=()
 for p in "${packages[@]}"; do
