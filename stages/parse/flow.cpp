@@ -395,71 +395,65 @@ bool Parser::Impl::statement(Frame& f, const SourceLine& l, const Statement& s) 
   return true;
 }
 
-// while / endwhile / do / repeat / endrepeat / break / continue (and the `while` closing a do).
-bool Parser::Impl::loop_end(Frame& f, const SourceLine& l, const Statement& s) {
+void Parser::Impl::skip_to_loop_end(Frame& f, const Statement& s, std::uint64_t from) {
+  f.skip = Skip::kToLoopEnd;
+  f.skip_label = s.label;
+  f.skip_from = from;
+}
+
+// Counts a pass; past parse.max_loop_passes the loop is stopped with an error.
+bool Parser::Impl::next_pass(Frame& f, Control& ctl, const SourceLine& l, const Statement& s) {
+  if (++ctl.passes < opt.max_loop_passes) return true;
+  const std::uint64_t start = ctl.start;
+  f.controls.pop_back();
+  ++f.pc;
+  flow_error(l, s.col, "loop " + olabel(s.label) + " (from line " + std::to_string(start) + ") ran " +
+                           std::to_string(opt.max_loop_passes) +
+                           " passes and was stopped: check its condition, or raise parse.max_loop_passes");
+  return false;
+}
+
+// do / repeat / while, and the `while` that closes a do.
+bool Parser::Impl::loop_open(Frame& f, const SourceLine& l, const Statement& s) {
   const std::string& k = s.keyword;
   const std::uint64_t here = f.pc;
   Control* c = f.controls.empty() ? nullptr : &f.controls.back();
-  auto skip_to_end = [&](std::uint64_t from) {
-    f.skip = Skip::kToLoopEnd;
-    f.skip_label = s.label;
-    f.skip_from = from;
-  };
-  auto next_pass = [&](Control& ctl) {
-    if (++ctl.passes >= opt.max_loop_passes) {
-      const std::uint64_t start = ctl.start;
-      f.controls.pop_back();
-      ++f.pc;
-      return flow_error(l, s.col, "loop " + olabel(s.label) + " (from line " + std::to_string(start) + ") ran " +
-                                      std::to_string(opt.max_loop_passes) +
-                                      " passes and was stopped: check its condition, or raise parse.max_loop_passes");
-    }
-    return true;
-  };
+  double v = 0;
   if (k == "do") {
     f.controls.push_back({Control::kDo, s.label, here});
-    ++f.pc;
-    return true;
-  }
-  if (k == "repeat") {
-    double v = 0;
+  } else if (k == "repeat") {
     if (!condition(l, s, v)) v = 0;
     f.controls.push_back({Control::kRepeat, s.label, here, false, 0, static_cast<std::int64_t>(std::floor(v))});
     if (f.controls.back().remaining <= 0) {
       f.controls.pop_back();
-      skip_to_end(l.number);
+      skip_to_loop_end(f, s, l.number);
     }
-    ++f.pc;
-    return true;
-  }
-  if (k == "while" && c != nullptr && c->kind == Control::kDo && c->label == s.label) {
-    double v = 0;
+  } else if (c != nullptr && c->kind == Control::kDo && c->label == s.label) {
     if (!condition(l, s, v)) v = 0;
-    if (v != 0 && next_pass(*c)) {
+    if (v != 0 && next_pass(f, *c, l, s)) {
       f.pc = c->start + 1;
       return true;
     }
-    if (!f.controls.empty() && &f.controls.back() == c) f.controls.pop_back();
-    f.pc = here + 1;
-    return true;
-  }
-  if (k == "while") {
+    if (!f.controls.empty() && f.controls.back().kind == Control::kDo && f.controls.back().label == s.label)
+      f.controls.pop_back();
+  } else {
+    // A while met again from its endwhile tests its condition again; else a new loop opens.
     const bool again = c != nullptr && c->kind == Control::kWhile && c->label == s.label && c->start == here;
     if (!again) f.controls.push_back({Control::kWhile, s.label, here});
-    Control& ctl = f.controls.back();
-    double v = 0;
     if (!condition(l, s, v)) v = 0;
-    if (v != 0) {
-      ++f.pc;
-      return true;
+    if (v == 0) {
+      f.controls.pop_back();
+      skip_to_loop_end(f, s, l.number);
     }
-    f.controls.pop_back();
-    skip_to_end(l.number);
-    ++f.pc;
-    (void)ctl;
-    return true;
   }
-  // endwhile, endrepeat, break, continue: the innermost loop of that label.
+  f.pc = here + 1;
+  return true;
+}
+
+// endwhile, endrepeat, break, continue: act on the innermost open loop of that label.
+bool Parser::Impl::loop_end(Frame& f, const SourceLine& l, const Statement& s) {
+  const std::string& k = s.keyword;
+  if (k == "do" || k == "repeat" || k == "while") return loop_open(f, l, s);
   std::size_t i = f.controls.size();
   while (i-- > 0)
     if (f.controls[i].label == s.label && is_loop(f.controls[i].kind)) break;
@@ -471,7 +465,7 @@ bool Parser::Impl::loop_end(Frame& f, const SourceLine& l, const Statement& s) {
   Control& ctl = f.controls.back();
   if (k == "break") {
     f.controls.pop_back();
-    skip_to_end(l.number);
+    skip_to_loop_end(f, s, l.number);
     ++f.pc;
     return true;
   }
@@ -480,17 +474,17 @@ bool Parser::Impl::loop_end(Frame& f, const SourceLine& l, const Statement& s) {
       ++f.pc;
       return flow_error(l, s.col, olabel(s.label) + " endwhile closes a " + (ctl.kind == Control::kDo ? "do" : "repeat") + " loop");
     }
-    if (next_pass(ctl)) f.pc = ctl.start;  // the while line tests the condition again
+    if (next_pass(f, ctl, l, s)) f.pc = ctl.start;  // the while line tests the condition again
     return true;
   }
   // endrepeat, or continue in a do / repeat loop.
   if (ctl.kind == Control::kRepeat && --ctl.remaining <= 0) {
     f.controls.pop_back();
-    if (k == "continue") skip_to_end(l.number);
+    if (k == "continue") skip_to_loop_end(f, s, l.number);
     ++f.pc;
     return true;
   }
-  if (next_pass(ctl)) f.pc = ctl.start + 1;
+  if (next_pass(f, ctl, l, s)) f.pc = ctl.start + 1;
   return true;
 }
 

@@ -307,6 +307,10 @@ struct Parser::Impl {
   bool do_return(std::size_t level);
   bool condition(const parse_detail::SourceLine& l, const parse_detail::Statement& s, double& v);
   bool loop_end(parse_detail::Frame& f, const parse_detail::SourceLine& l, const parse_detail::Statement& s);
+  bool loop_open(parse_detail::Frame& f, const parse_detail::SourceLine& l, const parse_detail::Statement& s);
+  bool next_pass(parse_detail::Frame& f, parse_detail::Control& ctl, const parse_detail::SourceLine& l,
+                 const parse_detail::Statement& s);
+  void skip_to_loop_end(parse_detail::Frame& f, const parse_detail::Statement& s, std::uint64_t from);
   bool flow_error(const parse_detail::SourceLine& l, std::uint32_t col, std::string msg);
   bool run_plain(const parse_detail::SourceLine& l, bool first_visit);
   void collect_definition(const parse_detail::SourceLine& l);
