@@ -581,15 +581,18 @@ TEST(ParseIssue14, MachineCoordinatesReferenceReturnAndShifts) {
   EXPECT_DOUBLE_EQ(p.blocks[1].target[kX], 7);
   EXPECT_DOUBLE_EQ(p.blocks[1].target[kZ], 9);
   EXPECT_DOUBLE_EQ(p.blocks[1].target[kY], 51);
-  // G91 G28 Z0: Z stays (intermediate point), then Z goes to the G28 position; X and Y stay.
-  EXPECT_DOUBLE_EQ(p.blocks[3].target[kZ], 200);
-  EXPECT_DOUBLE_EQ(p.blocks[3].target[kX], 7);
+  // G91 G28 Z0: the intermediate point is where Z stands (no move), then Z goes to the G28
+  // position; X and Y stay.
+  EXPECT_DOUBLE_EQ(p.blocks[2].target[kZ], 200);
+  EXPECT_DOUBLE_EQ(p.blocks[2].target[kX], 7);
+  EXPECT_EQ(p.blocks[2].line, 3u);
   // G30 X2: through X2 in G55 (machine 102) to the G30 X, machine -50.
-  EXPECT_DOUBLE_EQ(p.blocks[4].target[kX], 102);
-  EXPECT_DOUBLE_EQ(p.blocks[5].target[kX], -50);
+  EXPECT_DOUBLE_EQ(p.blocks[3].target[kX], 102);
+  EXPECT_DOUBLE_EQ(p.blocks[4].target[kX], -50);
+  EXPECT_EQ(p.blocks[4].line, 4u);
   // G92 X0 at machine X-50: X1 is machine X-49; the blocks keep the G55 origin.
-  EXPECT_DOUBLE_EQ(p.blocks[7].target[kX], -49);
-  EXPECT_DOUBLE_EQ(p.blocks[7].work_origin[kX], 100);
+  EXPECT_DOUBLE_EQ(p.blocks[6].target[kX], -49);
+  EXPECT_DOUBLE_EQ(p.blocks[6].work_origin[kX], 100);
   // G92.1 clears it, G52 X5 shifts by 5: X1 is machine 100 + 5 + 1.
   EXPECT_DOUBLE_EQ(p.blocks.back().target[kX], 106);
   expect_error("G91 G53 X1\n", "G53 with G91", 5);

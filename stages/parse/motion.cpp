@@ -256,7 +256,8 @@ bool Parser::Impl::reference_return(const BlockCodes& c, ResolvedBlock& b, Modal
     }
     end[a] = (home & (1u << a)) ? ref[a] : mid[a];
   }
-  moves.push_back({Motion::kRapid, mid});
+  // A stop at the intermediate point where the tool already is (`G91 G28 Z0`) is no move.
+  if (mid != ns.position) moves.push_back({Motion::kRapid, mid});
   moves.push_back({Motion::kRapid, end});
   b.motion = Motion::kRapid;
   b.target = end;
