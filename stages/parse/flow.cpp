@@ -62,6 +62,15 @@ bool read_statement(std::string_view line, Statement& s) {
 
 namespace {
 
+// The hot path's test: an o-word statement starts with 'o' (read_statement says if it is one).
+bool maybe_statement(std::string_view line) {
+  std::size_t p = 0;
+  skip_blanks(line, p);
+  if (p >= line.size() || (line[p] | 0x20) != 'o') return false;
+  Statement s;
+  return read_statement(line, s);
+}
+
 std::string olabel(const std::string& label) { return "o" + label; }
 
 bool is_loop(Control::Kind k) { return k != Control::kIf; }
@@ -85,8 +94,7 @@ bool Parser::Impl::feed(std::string_view line, std::size_t overlong) {
   summary.bytes_read += (overlong ? overlong : line.size()) + 1;
   const std::uint64_t n = summary.lines_read;
   if (n == 1 && line.substr(0, 3) == "\xEF\xBB\xBF") line.remove_prefix(3);  // UTF-8 byte-order mark
-  Statement s;
-  if (idle() && frames[0].pc == n && !read_statement(line, s)) {
+  if (idle() && frames[0].pc == n && !maybe_statement(line)) {
     // The hot path: nothing open, the line runs at once and is counted.
     open_owner(n);
     std::string why;

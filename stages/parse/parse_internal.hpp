@@ -113,15 +113,16 @@ struct Scan {
 
 // The G and M codes of one block sorted by modal group (step 1 of resolve).
 struct BlockCodes {
-  std::uint32_t group_col[100] = {};
-  int group_code[100] = {};
+  static constexpr int kGroups = 16;  // G groups 0..14, M groups 4..9: small, zeroed per line
+  std::uint32_t group_col[kGroups] = {};
+  int group_code[kGroups] = {};
   int motion_code = -1;  // G0 G1 G2 G3 or a cycle
   std::uint32_t motion_col = 0;
   bool g4 = false, g275 = false;
   int non_modal = 0;  // G28 G30 G53 G92 G92.1 G92.2 G92.3 G52 (x10), 0 = none
   std::uint32_t non_modal_col = 0;
-  int m_code[100] = {};
-  std::uint32_t m_col[100] = {};
+  int m_code[kGroups] = {};
+  std::uint32_t m_col[kGroups] = {};
   bool mist = false, flood = false, coolant_off = false;
   bool has(int group) const { return group_col[group] != 0; }
 };
