@@ -702,3 +702,20 @@ TEST(ParseIssue14, ToolTableFilesAndTheirErrors) {
   EXPECT_EQ(p.diags[0].column, 5u);
   EXPECT_NE(p.diags[1].message.find("T3: tool 3 is not in tool table"), std::string::npos);
 }
+
+// FANUC Series 0i-MF operator's manual, "Changing workpiece coordinate system" (G10 L2 Pp IP_):
+// p = 1..6 for G54..G59; in G90 the values are the new offset, in G91 they are added to it.
+TEST(ParseIssue14, FanucG10L2ByHand) {
+  Parsed p = parse_text("G10 L2 P2 X100. Y50. Z-20.\nG55 G0 X0 Y0 Z0\nG91 G10 L2 P2 X-10.\nG90 G0 X1\nG10 L2 P1 Z5\nG54 G0 Z0\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  EXPECT_DOUBLE_EQ(p.blocks[1].target[kX], 100);
+  EXPECT_DOUBLE_EQ(p.blocks[1].target[kZ], -20);
+  EXPECT_DOUBLE_EQ(p.blocks[3].target[kX], 91);  // offset 100 - 10, plus X1
+  EXPECT_DOUBLE_EQ(p.blocks[5].target[kZ], 5);
+  // The blocks publish the machine file's origin (G55: 100 50 -20 in the test machine), so every
+  // later stage and the writer see one frame.
+  EXPECT_DOUBLE_EQ(p.blocks[3].work_origin[kX], 100);
+  expect_error("G10 L20 P1 X0\n", "extended work offsets", 5);
+  expect_error("G10 L1 P1 Z10\n", "belong in the tool table", 5);
+  expect_error("G10 L2 P7 X0\n", "must be 1..6", 8);
+}

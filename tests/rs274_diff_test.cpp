@@ -209,6 +209,9 @@ std::vector<std::pair<std::string, std::string>> generated_programs() {
                                 "G28 X3 Z4\nG30 Y2\nG91 G28 Z0\nG90 G0 X2 Y2 Z2\nM2\n"},
       {"coordinate_shifts", "G21 G90\nG0 X1 Y1 Z1\nG92 X0 Y0\nG0 X2 Y3\nG92.2\nG0 X2\nG92.3\nG0 Y1\nG92.1\nG0 X4\n"
                             "G52 X10 Z-1\nG0 X1 Z0\nG52 X0 Z0\nG0 X1\nM2\n"},
+      {"work_offsets_from_the_program", "G21 G90\nG0 X1 Y1 Z1\nG10 L2 P1 X10 Y5\nG0 X1 Y1\nG10 L2 P2 X-5 Z2\n"
+                                        "G55 G0 X1 Z1\nG10 L20 P0 X0 Y0\nG0 X2 Y2\nG10 L20 P1 Z0\nG54 G0 Z1\nG92 X0\n"
+                                        "G10 L20 P1 X5\nG0 X1\nG92.1\nG0 X0\nG10 L2 P1 C30\nG0 C0\nM2\n"},
       {"arcs_three_planes", "G21 G90 F100\nG0 X0 Y0 Z0\nG2 X2 Y0 I1 J0\nG3 X0 Y0 R1\nG18 G2 X2 Z0 I1 K0\n"
                             "G19 G3 Y2 Z0 J1 K0\nG17 G2 X2 Y2 I0 J1 Z-1 P2\nM2\n"},
       {"subroutines", "o100 sub\n  G1 X#1 Y#2 F100\n  o100 return\n  G0 X99\no100 endsub\n"
@@ -242,7 +245,7 @@ TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
     expect_same(text, file, name);
     ++n;
   }
-  EXPECT_EQ(n, 11);
+  EXPECT_EQ(n, 12);
 }
 
 TEST(Rs274Diff, SharedLinuxCncProgramsMatchLinuxCnc) {

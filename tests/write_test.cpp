@@ -83,7 +83,7 @@ TEST(WriteRoundTrip, ExpandedCyclesCallsAndLoopsBecomePlainMoves) {
       "o<hole> sub\n  G81 X#1 Y#2 Z-3 R1\n  G80\no<hole> endsub\n"
       "G21 G90 G17 F250 S1200 M3\nG0 X0 Y0 Z10\n#1 = 0\no1 while [#1 lt 3]\n  o<hole> call [#1 * 10] [5]\n"
       "  #1 = [#1 + 1]\no1 endwhile\nG98 G83 X40 Y5 Z-8 R2 Q2.5\nG82 X50 Z-2 R2 P0.5\nG86 X60 Z-2 R2 P0.25\n"
-      "G80\nG91 G28 Z0\nG90 G53 G0 X10\nG92 X0\nG0 X5\nG92.1\nM2\n";
+      "G80\nG91 G28 Z0\nG90 G53 G0 X10\nG92 X0\nG0 X5\nG92.1\nG10 L2 P1 X3 Y-2\nG0 X1 Y1\nM2\n";
   ParseOptions lc;
   lc.dialect = Dialect::kLinuxCnc;
   Parsed first = parse_text(program, lc);

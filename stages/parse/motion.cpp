@@ -184,7 +184,8 @@ bool Parser::Impl::slot(const Scan& s, ResolvedBlock& b, ModalState& ns) {
 }
 
 void Parser::Impl::update_origin(ModalState& ns) const {
-  for (int a = 0; a < kNumAxes; ++a) ns.origin[a] = ns.work_origin[a] + (ns.shift_suspended ? 0 : ns.shift[a]);
+  const Axes& g5x = offsets[static_cast<std::size_t>(ns.work_offset - 54)];
+  for (int a = 0; a < kNumAxes; ++a) ns.origin[a] = g5x[a] + (ns.shift_suspended ? 0 : ns.shift[a]);
 }
 
 // G28 G30 G53 G52 G92 G92.1 G92.2 G92.3: non-modal codes with an action of their own.
@@ -192,6 +193,11 @@ bool Parser::Impl::non_modal(const BlockCodes& c, ResolvedBlock& b, ModalState& 
   switch (c.non_modal) {
     case 530: return machine_move(c, b, ns, mask);
     case 280: case 300: return reference_return(c, b, ns, mask);
+    case 100:
+      if (!set_offsets(c, ns, mask)) return false;
+      b.motion = Motion::kNone;
+      b.target = ns.position;
+      return true;
     default: break;
   }
   if (!coordinate_shift(c, ns, mask)) return false;
@@ -278,8 +284,45 @@ bool Parser::Impl::coordinate_shift(const BlockCodes& c, ModalState& ns, std::ui
     if (!(mask & (1u << a))) continue;
     const Word& w = sc.w(kAxisLetters[a]);
     const double v = a >= kA ? angle_value(w) : linear_value(w, ns.units);
-    ns.shift[a] = code == 520 ? v : ns.position[a] - ns.work_origin[a] - v;
+    ns.shift[a] = code == 520 ? v : ns.position[a] - offsets[static_cast<std::size_t>(ns.work_offset - 54)][a] - v;
   }
+  update_origin(ns);
+  return true;
+}
+
+}  // namespace gcpipe
+
+namespace gcpipe {
+
+// G10 L2 P (the origin of G54..G59 = the words; P0 = the system in force, LinuxCNC) and, in
+// LinuxCNC, G10 L20 P (the origin such that the tool's position reads as the words). In force
+// from this line on. Fanuc G91 adds the words to the origin (its manual's rule for G10 L2).
+bool Parser::Impl::set_offsets(const BlockCodes& c, ModalState& ns, std::uint8_t mask) {
+  const Scan& s = sc;
+  const std::uint32_t col = c.non_modal_col;
+  if (!s.has('L')) return fail(col, "G10 needs L: L2 (work offset values) or L20 (LinuxCNC: make the position read as the values)");
+  const double l = s.w('L').value;
+  const bool fanuc = opt.dialect == Dialect::kFanuc;
+  if (l == 20 && fanuc)
+    return fail(s.w('L').col, "G10 L20 on Fanuc sets the extended work offsets G54.1 P1..P48, which this machine does not have");
+  if (l != 2 && l != 20)
+    return fail(s.w('L').col, "G10 L" + show(l) + " is not supported: tool offsets (L1, L10..L13) belong in the tool table "
+                              "(machine.tool_table); work offsets take L2" + std::string(fanuc ? "" : " or L20"));
+  if (!s.has('P')) return fail(col, "G10 L" + show(l) + " needs P: the work offset, 1..6 for G54..G59" + (fanuc ? "" : ", 0 for the one in force"));
+  const double p = s.w('P').value;
+  if (p != std::floor(p) || p < (fanuc ? 1 : 0) || p > 6)
+    return fail(s.w('P').col, "G10 P" + show(p) + ": the work offset must be " + (fanuc ? "1..6" : "0..6") +
+                                  " (G54..G59" + (fanuc ? "" : ", 0 = the one in force") + ")");
+  const std::size_t k = p == 0 ? static_cast<std::size_t>(ns.work_offset - 54) : static_cast<std::size_t>(p - 1);
+  Axes origin = offsets[k];
+  for (int a = 0; a < kNumAxes; ++a) {
+    if (!(mask & (1u << a))) continue;
+    const Word& w = s.w(kAxisLetters[a]);
+    const double v = a >= kA ? angle_value(w) : linear_value(w, ns.units);
+    if (l == 20) origin[a] = ns.position[a] - v - (ns.shift_suspended ? 0 : ns.shift[a]);
+    else origin[a] = fanuc && ns.incremental ? origin[a] + v : v;
+  }
+  offsets[k] = origin;
   update_origin(ns);
   return true;
 }

@@ -42,6 +42,7 @@ Parser::Impl::Impl(ParseOptions o, MachineConfig m, std::string f)
   st.arc_incremental = !opt.absolute_arc_centres;
   // rs274 starts in R-plane retract (its output shows it); a Fanuc control powers up in G98.
   st.cycle_to_r = opt.dialect == Dialect::kLinuxCnc;
+  offsets = machine.work_offsets;
   st.work_origin = machine.work_offsets[0];
   st.origin = st.work_origin;
   for (int a = 0; a < kNumAxes; ++a) st.position[a] = machine.initial_position[a] + st.origin[a];

@@ -89,7 +89,7 @@ struct ModalState {
   Axes work_origin{};  // origin of the G5x system (published with each block)
   Axes shift{};        // G92 / G52 shift added to the G5x origin
   bool shift_suspended = false;  // G92.2: the shift is kept but not applied
-  Axes origin{};       // origin program values are measured from: work_origin + shift
+  Axes origin{};       // origin program values are measured from: the program's G5x origin + shift
   Axes position{};     // machine coordinates
   bool ended = false;
 };
@@ -119,7 +119,7 @@ struct BlockCodes {
   int motion_code = -1;  // G0 G1 G2 G3 or a cycle
   std::uint32_t motion_col = 0;
   bool g4 = false, g275 = false;
-  int non_modal = 0;  // G28 G30 G53 G92 G92.1 G92.2 G92.3 G52 (x10), 0 = none
+  int non_modal = 0;  // G10 G28 G30 G53 G92 G92.1 G92.2 G92.3 G52 (x10), 0 = none
   std::uint32_t non_modal_col = 0;
   int m_code[kGroups] = {};
   std::uint32_t m_col[kGroups] = {};
@@ -211,6 +211,9 @@ struct Parser::Impl {
   Scan sc;
   std::string error;  // message of the current line's error
   std::uint32_t error_col = 0;
+  // G54..G59 origins as the program has them (G10 L2/L20 change them); blocks publish the
+  // machine file's, so targets stay in the frame every later stage and the writer know.
+  std::array<Axes, 6> offsets{};
   std::vector<parse_detail::Move> moves;  // expansion of the current line, empty for one block
   ResolvedBlock block;                    // the block being resolved (reused: no allocation)
   ResolvedBlock expanded;                 // one move of an expansion
@@ -291,6 +294,7 @@ struct Parser::Impl {
   bool reference_return(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, std::uint8_t mask);
   bool coordinate_shift(const BlockCodes& c, ModalState& ns, std::uint8_t mask);
   void update_origin(ModalState& ns) const;
+  bool set_offsets(const BlockCodes& c, ModalState& ns, std::uint8_t mask);
 
   // -- cycles.cpp
   bool cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, std::uint8_t mask);

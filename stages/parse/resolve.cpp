@@ -26,7 +26,7 @@ bool is_cycle(int code) {
 // The non-modal codes that act on their block (at most one per block).
 bool is_non_modal_action(int code) {
   switch (code) {
-    case 280: case 300: case 530: case 520: case 920: case 921: case 922: case 923:
+    case 100: case 280: case 300: case 530: case 520: case 920: case 921: case 922: case 923:
       return true;
     default:
       return false;
@@ -69,9 +69,6 @@ std::string unsupported_g(int code, Dialect d) {
     case 410: case 420:
       return g + " (cutter radius compensation) is not supported: post-process the tool-centre path "
                  "(CAM compensation 'computer')";
-    case 100:
-      return "G10 (setting offsets from the program) is not supported: put the offsets in the machine "
-             "config (machine.work_offsets) or the tool table (machine.tool_table)";
     case 950: return "G95 (feed per revolution) is not supported: use G94 (mm/min) or G93 (inverse time)";
     case 960: case 970: return g + " (constant surface speed) is not supported on this milling machine";
     case 330: case 331: return g + " (threading) is not supported";
@@ -402,6 +399,8 @@ bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalState& ns, boo
   const bool arc_mode = !c.g4 && !c.g275 && c.non_modal == 0 && ns.cycle == 0 &&
                         (ns.motion == Motion::kArcCW || ns.motion == Motion::kArcCCW);
   const bool cycle_block = ns.cycle != 0 && c.non_modal == 0 && !c.g4;
+  if (c.non_modal == 100 && s.has('R'))
+    return fail(s.w('R').col, "G10 with R: a rotated coordinate system (LinuxCNC) or a tool radius is not supported");
   const int look = c.has(kGLookAhead) ? c.group_code[kGLookAhead] : -1;
   const bool path = c.has(kGPathMode) && c.group_code[kGPathMode] == 640;
   for (char L : {'D', 'W', 'Q', 'K', 'I', 'J', 'R', 'P', 'L'}) {
@@ -411,11 +410,12 @@ bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalState& ns, boo
     const bool arc_word = L == 'I' || L == 'J' || L == 'K' || L == 'R' || L == 'P';
     const bool cycle_word = L == 'R' || L == 'Q' || L == 'P' || L == 'L' ||
                             (L == 'K' && opt.dialect == Dialect::kFanuc);  // Fanuc repeats: K
+    const bool g10_word = c.non_modal == 100 && (L == 'L' || L == 'P');
     const bool look_word = (look == 50 || look == 80) ? L == 'P' : look == 51 ? (L == 'Q' || L == 'R') : false;
     if ((c.g275 && slot_word) || (arc_mode && arc_word) || (L == 'P' && c.g4) || (path && (L == 'P' || L == 'Q')) ||
-        (cycle_block && cycle_word) || look_word)
+        (cycle_block && cycle_word) || g10_word || look_word)
       continue;
-    std::string where = L == 'L' ? "canned cycles (repeats)"
+    std::string where = L == 'L' ? "canned cycles (repeats) and G10"
                         : L == 'D' || L == 'W' ? "the G275 slot cycle"
                         : L == 'Q' ? "G73/G83 (peck), G64 and G275"
                         : L == 'P' ? "G4 (dwell), G2/G3 (turns), canned cycles, G64 or G275"
