@@ -719,3 +719,14 @@ TEST(ParseIssue14, FanucG10L2ByHand) {
   expect_error("G10 L1 P1 Z10\n", "belong in the tool table", 5);
   expect_error("G10 L2 P7 X0\n", "must be 1..6", 8);
 }
+
+TEST(ParseIssue14, LinuxCncPolarCoordinates) {
+  Parsed p = parse_text("G0 @2 ^90\nG0 @1\nG91 G0 @1 ^90\n", linuxcnc());
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  EXPECT_NEAR(p.blocks[0].target[kY], 2, 1e-12);
+  EXPECT_NEAR(p.blocks[1].target[kY], 1, 1e-12);  // the angle stays
+  EXPECT_NEAR(p.blocks[2].target[kX], -2, 1e-12); // G91: distance 1 + 1, angle 90 + 90
+  expect_error("G0 X1 @1 ^2\n", "polar coordinates (@ ^) and X", 4, linuxcnc());
+  expect_error("G18\nG0 @1 ^0\n", "need the G17 plane", 4, linuxcnc());
+  expect_error("G0 @1\n", "unexpected '@'", 4);  // not a Fanuc word
+}

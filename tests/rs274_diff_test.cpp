@@ -212,6 +212,8 @@ std::vector<std::pair<std::string, std::string>> generated_programs() {
       {"work_offsets_from_the_program", "G21 G90\nG0 X1 Y1 Z1\nG10 L2 P1 X10 Y5\nG0 X1 Y1\nG10 L2 P2 X-5 Z2\n"
                                         "G55 G0 X1 Z1\nG10 L20 P0 X0 Y0\nG0 X2 Y2\nG10 L20 P1 Z0\nG54 G0 Z1\nG92 X0\n"
                                         "G10 L20 P1 X5\nG0 X1\nG92.1\nG0 X0\nG10 L2 P1 C30\nG0 C0\nM2\n"},
+      {"polar_coordinates", "G21 G90\nG0 @2 ^90\nG0 @1\nG0 ^0\nG91 G0 @1 ^90\nG90 G0 X3 ^45\nG91 G55 G0 @1 ^0\n"
+                            "G0 Z1 @2 ^180\nG18 G0 @1 ^0\nG17 G90 G1 @3 ^30 F100\nM2\n"},
       {"arcs_three_planes", "G21 G90 F100\nG0 X0 Y0 Z0\nG2 X2 Y0 I1 J0\nG3 X0 Y0 R1\nG18 G2 X2 Z0 I1 K0\n"
                             "G19 G3 Y2 Z0 J1 K0\nG17 G2 X2 Y2 I0 J1 Z-1 P2\nM2\n"},
       {"subroutines", "o100 sub\n  G1 X#1 Y#2 F100\n  o100 return\n  G0 X99\no100 endsub\n"
@@ -245,7 +247,7 @@ TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
     expect_same(text, file, name);
     ++n;
   }
-  EXPECT_EQ(n, 12);
+  EXPECT_EQ(n, 13);
 }
 
 TEST(Rs274Diff, SharedLinuxCncProgramsMatchLinuxCnc) {

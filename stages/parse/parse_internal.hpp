@@ -97,6 +97,7 @@ struct ModalState {
 // Everything scanned from one line.
 struct Scan {
   Word words[26];
+  Word polar_r, polar_a;  // LinuxCNC polar coordinates: @ distance, ^ angle [deg]
   Code g[8];
   int ng = 0;
   Code m[8];
@@ -259,6 +260,8 @@ struct Parser::Impl {
   bool scan_o_word(std::string_view s, std::size_t& p, std::uint32_t col);
   bool scan_assignment(std::string_view s, std::size_t& p, std::uint32_t col);
   bool scan_word(std::string_view s, std::size_t& p, char L, std::uint32_t col);
+  bool scan_polar(std::string_view s, std::size_t& p, std::uint32_t col);
+  bool polar_target(const ModalState& ns, Axes& target, std::uint8_t& mask);
   bool reject_character(std::string_view s, std::size_t p, char c, std::uint32_t col);
   bool read_number(std::string_view s, std::size_t& p, char letter, Word& w);
   bool read_expression_number(std::string_view s, std::size_t& p, char letter, Word& w);

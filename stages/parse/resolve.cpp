@@ -4,6 +4,7 @@
 // code, a cycle, a move). Every step works on a copy of the modal state (`ns`), committed only
 // when the whole line is valid.
 #include <cmath>
+#include <numbers>
 
 #include "parse_internal.hpp"
 
@@ -485,6 +486,30 @@ bool Parser::Impl::axis_targets(const BlockCodes& c, const ModalState& ns, Axes&
                              (rotary ? " deg)" : " mm)"));
     mask = static_cast<std::uint8_t>(mask | (1u << a));
   }
+  if (sc.polar_r.col != 0 || sc.polar_a.col != 0) return polar_target(ns, target, mask);
+  return true;
+}
+
+// @ ^: X and Y from a distance and an angle about the origin of the system in force; in G91 they
+// are added to the current distance and angle. As in rs274, only with G17 in force before the
+// block (a G17 or G18 in the same block does not count).
+bool Parser::Impl::polar_target(const ModalState& ns, Axes& target, std::uint8_t& mask) {
+  const std::uint32_t col = sc.polar_r.col ? sc.polar_r.col : sc.polar_a.col;
+  if (st.plane != Plane::kXY)
+    return fail(col, "polar coordinates (@ ^) need the G17 plane in force before this block (LinuxCNC's rule)");
+  for (char L : {'X', 'Y'})
+    if (sc.has(L))
+      return fail(sc.w(L).col, std::string("polar coordinates (@ ^) and ") + L + " in one block: keep one way");
+  const double x0 = ns.position[kX] - ns.origin[kX], y0 = ns.position[kY] - ns.origin[kY];
+  const double r0 = std::hypot(x0, y0), a0 = std::atan2(y0, x0) * 180 / std::numbers::pi;
+  const double dr = sc.polar_r.col ? linear_value(sc.polar_r, ns.units) : 0;
+  const double da = sc.polar_a.col ? angle_value(sc.polar_a) : 0;
+  const double r = ns.incremental ? r0 + dr : (sc.polar_r.col ? dr : r0);
+  const double a = (ns.incremental ? a0 + da : (sc.polar_a.col ? da : a0)) * std::numbers::pi / 180;
+  if (!(std::fabs(r) <= kMaxLinear)) return fail(col, "polar distance " + show(r) + " mm is out of range (|@| <= 100000 mm)");
+  target[kX] = r * std::cos(a) + ns.origin[kX];
+  target[kY] = r * std::sin(a) + ns.origin[kY];
+  mask = static_cast<std::uint8_t>(mask | (1u << kX) | (1u << kY));
   return true;
 }
 

@@ -182,6 +182,7 @@ bool Parser::Impl::scan(std::string_view s, ResolvedBlock& b) {
   sc.program_number = -1;
   sc.any_word = false;
   std::memset(static_cast<void*>(sc.words), 0, sizeof sc.words);
+  sc.polar_r.col = sc.polar_a.col = 0;
   std::size_t p = 0;
   skip_blanks(s, p);
   if (p < s.size() && s[p] == '%') {
@@ -219,6 +220,8 @@ bool Parser::Impl::scan(std::string_view s, ResolvedBlock& b) {
       break;
     } else if (c == '#') {
       if (!scan_assignment(s, p, col)) return false;
+    } else if ((c == '@' || c == '^') && opt.dialect == Dialect::kLinuxCnc) {
+      if (!scan_polar(s, p, col)) return false;
     } else if (upper(c) == 'O') {
       if (!scan_o_word(s, p, col)) return false;
     } else if (upper(c) < 'A' || upper(c) > 'Z' || !is_word_letter(upper(c))) {
@@ -322,6 +325,19 @@ bool Parser::Impl::scan_word(std::string_view s, std::size_t& p, char L, std::ui
   w.col = col;
   if (!read_number(s, p, L, w)) return false;
   if (std::isinf(w.value)) return fail(col, std::string("value of ") + L + " overflows (more than 1.8e308)");
+  return true;
+}
+
+// LinuxCNC's polar coordinates in the XY plane: @ distance and ^ angle from the origin (G90) or
+// added to the current distance and angle (G91); either may be left out.
+bool Parser::Impl::scan_polar(std::string_view s, std::size_t& p, std::uint32_t col) {
+  const char c = s[p++];
+  Word& w = c == '@' ? sc.polar_r : sc.polar_a;
+  if (w.col != 0) return fail(col, std::string("word ") + c + " appears twice in one block: keep one");
+  w.col = col;
+  sc.any_word = true;
+  if (!read_number(s, p, c, w)) return false;
+  if (std::isinf(w.value)) return fail(col, std::string("value of ") + c + " overflows (more than 1.8e308)");
   return true;
 }
 
