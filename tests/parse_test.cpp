@@ -227,7 +227,7 @@ TEST(ParseErrors, EachClassNamesWordValueAndColumn) {
   expect_error("G1 X0 Y0 F1\nG2 X1 I[10**60]\n", "I1e+60 is out of range", 7);
   expect_error("G1 X1e5 F1\n", "'E' is not a word", 6);
   expect_error("G41 X1\n", "cutter radius compensation", 1);
-  expect_error("M98 P100\n", "subprogram", 1);
+  expect_error("M98 P100\n", "subprogram O100 is not defined", 1);
   expect_error("M123\n", "not a supported M code", 1);
   expect_error("G12.5\n", "not a supported G code", 1);
   expect_error("G1.55 X1\n", "not a valid G code", 1);
@@ -729,4 +729,29 @@ TEST(ParseIssue14, LinuxCncPolarCoordinates) {
   expect_error("G0 X1 @1 ^2\n", "polar coordinates (@ ^) and X", 4, linuxcnc());
   expect_error("G18\nG0 @1 ^0\n", "need the G17 plane", 4, linuxcnc());
   expect_error("G0 @1\n", "unexpected '@'", 4);  // not a Fanuc word
+}
+
+// FANUC Series 0i-MF operator's manual, "Subprogram" (M98 P L, M99): the main program calls
+// O1010 twice (M98 P1010 L2, and the older form P21010); the subprogram follows M30 and ends
+// with M99. Worked by hand: each run moves X by 10 incrementally.
+TEST(ParseIssue14, FanucSubprogramsByHand) {
+  Parsed p = parse_text("O0001\nG90 G0 X0 Y0\nM98 P1010 L2\nM98 P21010\nG90 G0 Y5\nM98 P1020\nM30\n"
+                        "O1010 (STEP)\nG91 G1 X10. F100\nG90\nM99\nO1020\nM98 P1010\nG0 Z1\nM99\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  const auto e = ends(p);
+  ASSERT_EQ(e.size(), 1u + 4 + 1 + 1 + 1);
+  for (int i = 0; i < 4; ++i) EXPECT_DOUBLE_EQ(e[static_cast<std::size_t>(1 + i)][kX], 10.0 * (i + 1));
+  EXPECT_DOUBLE_EQ(e[5][kY], 5);
+  EXPECT_DOUBLE_EQ(e[6][kX], 50);  // O1020 calls O1010 once more
+  EXPECT_DOUBLE_EQ(e[7][kZ], 1);
+  EXPECT_EQ(p.blocks[2].line, 3u);  // the M98 line itself (it moves nothing)
+  EXPECT_EQ(p.blocks[3].line, 9u);  // the moves carry the subprogram's line
+  EXPECT_EQ(p.summary.lines_not_run, 8u);  // the two subprograms where they stand
+  EXPECT_EQ(p.summary.lines_read, p.summary.blocks_emitted + p.summary.lines_rejected + p.summary.lines_deleted);
+  Parsed missing = parse_text("M98 P2000\nG0 X1\nM30\n");
+  ASSERT_NE(missing.first_error(), nullptr);
+  EXPECT_NE(missing.first_error()->message.find("subprogram O2000 is not defined"), std::string::npos);
+  EXPECT_EQ(missing.first_error()->line, 1u);
+  expect_error("G0 X1\nM99\n", "M99 in the main program", 1);
+  expect_error("M98 P1\n", "M98 (Fanuc subprogram call/return) is not LinuxCNC", 1, linuxcnc());
 }

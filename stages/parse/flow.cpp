@@ -71,7 +71,29 @@ bool maybe_statement(std::string_view line) {
   return read_statement(line, s);
 }
 
-std::string olabel(const std::string& label) { return "o" + label; }
+std::string olabel(const std::string& label) { return label[0] == 'O' ? label : "o" + label; }
+
+// Whether the line holds M<code> outside comments (M2, M02 and M002 alike): read at the time a
+// line arrives, before it runs, to find Fanuc subprograms.
+bool has_m_code(std::string_view line, int code) {
+  for (std::size_t p = 0; p < line.size(); ++p) {
+    const char c = line[p];
+    if (c == '(') {
+      const std::size_t close = line.find(')', p);
+      if (close == std::string_view::npos) return false;
+      p = close;
+    } else if (c == ';') {
+      return false;
+    } else if ((c | 0x20) == 'm') {
+      std::size_t q = p + 1;
+      skip_blanks(line, q);
+      int v = 0, digits = 0;
+      while (q < line.size() && line[q] >= '0' && line[q] <= '9' && digits < 6) v = v * 10 + (line[q++] - '0'), ++digits;
+      if (digits > 0 && v == code && (q >= line.size() || line[q] != '.')) return true;
+    }
+  }
+  return false;
+}
 
 bool is_loop(Control::Kind k) { return k != Control::kIf; }
 
@@ -80,7 +102,26 @@ bool is_loop(Control::Kind k) { return k != Control::kIf; }
 bool Parser::Impl::idle() const {
   const Frame& f = frames[0];
   return frames.size() == 1 && f.controls.empty() && f.skip == Skip::kNone && window.empty() &&
-         defining.empty() && owner.line == 0;
+         defining.empty() && owner.line == 0 && f.pending_call.empty();
+}
+
+// Fanuc: after the main program's M30/M2, a line `O2000` (or `:2000`) starts a subprogram that
+// runs to its M99.
+bool Parser::Impl::fanuc_subprogram_start(std::string_view line, std::string& label) const {
+  if (opt.dialect != Dialect::kFanuc || !(st.ended || main_end_read)) return false;
+  std::size_t p = 0;
+  skip_blanks(line, p);
+  if (p >= line.size() || ((line[p] | 0x20) != 'o' && line[p] != ':')) return false;
+  ++p;
+  skip_blanks(line, p);
+  long v = 0;
+  int digits = 0;
+  while (p < line.size() && line[p] >= '0' && line[p] <= '9' && digits < 9) v = v * 10 + (line[p++] - '0'), ++digits;
+  if (digits == 0) return false;
+  skip_blanks(line, p);
+  if (p < line.size() && line[p] != '(' && line[p] != ';') return false;  // an O number alone
+  label = "O" + std::to_string(v);
+  return true;
 }
 
 const SourceLine* Parser::Impl::line_at(const Frame& f, std::uint64_t pc) const {
@@ -94,7 +135,8 @@ bool Parser::Impl::feed(std::string_view line, std::size_t overlong) {
   summary.bytes_read += (overlong ? overlong : line.size()) + 1;
   const std::uint64_t n = summary.lines_read;
   if (n == 1 && line.substr(0, 3) == "\xEF\xBB\xBF") line.remove_prefix(3);  // UTF-8 byte-order mark
-  if (idle() && frames[0].pc == n && !maybe_statement(line)) {
+  std::string fanuc_label;
+  if (idle() && frames[0].pc == n && !maybe_statement(line) && !fanuc_subprogram_start(line, fanuc_label)) {
     // The hot path: nothing open, the line runs at once and is counted.
     open_owner(n);
     std::string why;
@@ -112,6 +154,13 @@ bool Parser::Impl::feed(std::string_view line, std::size_t overlong) {
       emit_diagnostic(n, col, Severity::kError, why);
     }
     frames[0].pc = n + 1;
+    if (o == Outcome::kBlocks && (fanuc.ret || !fanuc.label.empty())) {
+      window_first = n + 1;
+      fanuc_call(frames[0], SourceLine{std::string(line), n, overlong});
+      if (!run_ready()) return false;
+      trim_window();
+      return !stopped;
+    }
     return close_owner();
   }
   SourceLine l{std::string(line), n, overlong};
@@ -125,6 +174,25 @@ bool Parser::Impl::feed(std::string_view line, std::size_t overlong) {
 
 // Subroutine definitions are taken as their lines arrive, before the main program reaches them.
 void Parser::Impl::collect_definition(const SourceLine& l) {
+  std::string label;
+  if (!defining.empty() && defining[0] == 'O') {  // a Fanuc subprogram runs to its M99
+    Subroutine& sub = subs[defining];
+    if (sub.body.size() < opt.max_buffered_lines) sub.body.push_back(l);
+    if (has_m_code(l.text, 99)) {
+      sub.end_line = l.number;
+      defining.clear();
+    }
+    return;
+  }
+  if (fanuc_subprogram_start(l.text, label)) {
+    if (subs.count(label) != 0) return;  // defined twice: the second is passed over as main code
+    defining = label;
+    subs[label].line = l.number;
+    fanuc_starts[l.number] = label;
+    return;
+  }
+  if (opt.dialect == Dialect::kFanuc && defining.empty() && (has_m_code(l.text, 30) || has_m_code(l.text, 2)))
+    main_end_read = true;
   Statement s;
   const bool stmt = read_statement(l.text, s);
   if (!defining.empty()) {
@@ -182,6 +250,10 @@ bool Parser::Impl::note_skipped(const SourceLine& l, const Frame& f) {
 bool Parser::Impl::run_ready() {
   while (!stopped) {
     Frame& f = frames.back();
+    if (!f.pending_call.empty()) {
+      if (!try_pending_call(f)) break;  // the subprogram is further down: wait for it
+      continue;
+    }
     const SourceLine* l = line_at(f, f.pc);
     if (l == nullptr) {
       if (f.sub == nullptr) {
@@ -200,6 +272,18 @@ bool Parser::Impl::run_ready() {
 // One line of a frame. Returns false when the frame must wait for more input.
 bool Parser::Impl::step(Frame& f, const SourceLine& l) {
   const bool first = f.sub == nullptr && l.number > classified && l.number != owner.line;
+  if (f.sub == nullptr && (fanuc_starts.count(l.number) != 0 || (f.skip == Skip::kSubDefinition && f.skip_label[0] == 'O'))) {
+    // A Fanuc subprogram met where it stands: passed over to its M99, as the definition.
+    if (f.skip == Skip::kNone) {
+      f.skip = Skip::kSubDefinition;
+      f.skip_label = fanuc_starts[l.number];
+      f.skip_from = l.number;
+    }
+    if (first && !note_skipped(l, f)) return true;
+    if (subs[f.skip_label].end_line == l.number) f.skip = Skip::kNone;
+    ++f.pc;
+    return true;
+  }
   Statement s;
   const bool stmt = read_statement(l.text, s);
   if (f.skip != Skip::kNone) {
@@ -238,6 +322,9 @@ bool Parser::Impl::run_plain(const SourceLine& l, bool first) {
   std::uint32_t col = 0;
   const Outcome o = run_line(l.text, l.number, l.overlong, why, col);
   ++frames.back().pc;
+  if (o == Outcome::kBlocks && (fanuc.ret || !fanuc.label.empty())) {
+    fanuc_call(frames.back(), l);
+  }
   if (o == Outcome::kDeleted) {
     if (first) {
       owner = Owner{};
@@ -548,6 +635,11 @@ bool Parser::Impl::call(Frame& f, const SourceLine& l, const Statement& s, bool&
 
 bool Parser::Impl::do_return(std::size_t level) {
   Frame& f = frames[level];
+  if (f.repeats > 1) {  // Fanuc M98 L: the body runs again
+    --f.repeats;
+    f.pc = 0;
+    return true;
+  }
   for (int n = 0; n < 30; ++n) params.set_numbered(n + 1, f.saved_args[static_cast<std::size_t>(n)]);
   frames.pop_back();
   return true;
@@ -579,6 +671,52 @@ void Parser::Impl::trim_window() {
     mm.controls.erase(mm.controls.begin() + static_cast<std::ptrdiff_t>(i));
     break;
   }
+}
+
+// After a block with M98 or M99 has run (its other words first, as a Fanuc control does).
+bool Parser::Impl::fanuc_call(Frame& f, const SourceLine& l) {
+  if (fanuc.ret) {
+    if (f.sub == nullptr)
+      return flow_error(l, 1, "M99 in the main program would run it again without end: end the program with M30");
+    do_return(frames.size() - 1);
+    return true;
+  }
+  f.pending_call = fanuc.label;
+  f.pending_repeats = fanuc.repeats;
+  f.pending_line = l.number;
+  return true;
+}
+
+// The call waits while its subprogram may still come (the main program, input not done, room
+// in the buffer); else it runs or fails.
+bool Parser::Impl::try_pending_call(Frame& f) {
+  auto it = subs.find(f.pending_call);
+  const bool defined = it != subs.end() && it->second.end_line != 0;
+  if (!defined && !input_done && f.sub == nullptr && window.size() < opt.max_buffered_lines) return false;
+  const std::string label = f.pending_call;
+  const long repeats = f.pending_repeats;
+  const std::uint64_t line = f.pending_line;
+  f.pending_call.clear();
+  const SourceLine at{std::string(), line, 0};
+  if (!defined)
+    return flow_error(at, 1, "M98: subprogram " + label + " is not defined in this file" +
+                                 (input_done ? "" : " within parse.max_buffered_lines lines") +
+                                 " (gcpipe reads one file): add it after M30, ending with M99") || true;
+  if (frames.size() > static_cast<std::size_t>(opt.max_call_depth))
+    return flow_error(at, 1, "M98 P" + label.substr(1) + ": calls nested deeper than " +
+                                 std::to_string(opt.max_call_depth) + " (runaway recursion?)") || true;
+  return push_subprogram(label, repeats, line);
+}
+
+bool Parser::Impl::push_subprogram(const std::string& label, long repeats, std::uint64_t line) {
+  Frame callee;
+  callee.sub = &subs[label];
+  callee.label = label;
+  callee.call_line = line;
+  callee.repeats = repeats;
+  for (int n = 0; n < 30; ++n) params.get_numbered(n + 1, callee.saved_args[static_cast<std::size_t>(n)]);
+  frames.push_back(std::move(callee));
+  return true;
 }
 
 bool Parser::Impl::finish() {

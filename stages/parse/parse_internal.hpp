@@ -184,6 +184,11 @@ struct Frame {
   std::uint64_t skip_from = 0;  // line that started the skip (for notes)
   std::array<double, 30> saved_args{};                 // caller's #1..#30
   std::vector<std::pair<std::string, double>> saved_named;  // caller's local named parameters
+  long repeats = 1;  // Fanuc M98 L: runs of the body still to go, this one included
+  // A Fanuc M98 whose subprogram is not defined yet: the call waits, the lines after it too.
+  std::string pending_call;
+  long pending_repeats = 0;
+  std::uint64_t pending_line = 0;
 };
 
 // A parsed o-word statement: `o100 if [#1 gt 2]`, `o<name> call [1] [2]`.
@@ -227,6 +232,15 @@ struct Parser::Impl {
   std::vector<parse_detail::Frame> frames;       // frames[0] is the main program
   std::map<std::string, parse_detail::Subroutine> subs;
   std::string defining;                          // label of the sub being collected, or empty
+  // Fanuc subprograms (O2000 ... M99 after the main program's M30): where each starts, and
+  // whether the main program's end has been read (then an O number starts a subprogram).
+  std::map<std::uint64_t, std::string> fanuc_starts;
+  bool main_end_read = false;
+  struct FanucCall {
+    std::string label;  // "O" + number, empty: none
+    long repeats = 1;
+    bool ret = false;   // M99
+  } fanuc;
   bool input_done = false;
   struct Owner {
     std::uint64_t line = 0;  // the newest main-program line run (0: none open)
@@ -329,6 +343,11 @@ struct Parser::Impl {
   bool abort_expansion();
   const parse_detail::SourceLine* line_at(const parse_detail::Frame& f, std::uint64_t pc) const;
   bool idle() const;
+  bool fanuc_subprogram_start(std::string_view line, std::string& label) const;
+  bool fanuc_call(parse_detail::Frame& f, const parse_detail::SourceLine& l);
+  bool try_pending_call(parse_detail::Frame& f);
+  bool push_subprogram(const std::string& label, long repeats, std::uint64_t line);
+  bool read_fanuc_call(const BlockCodes& c);
 };
 
 namespace parse_detail {

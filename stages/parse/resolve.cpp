@@ -92,7 +92,8 @@ std::string unsupported_g(int code, Dialect d) {
   }
 }
 
-enum MGroup : int { kMStop = 4, kMToolChange = 6, kMSpindle = 7, kMCoolant = 8, kMKins = 9, kMUnsupported = 99 };
+enum MGroup : int { kMStop = 4, kMSubprogram = 5, kMToolChange = 6, kMSpindle = 7, kMCoolant = 8, kMKins = 9,
+                    kMUnsupported = 99 };
 
 int m_group(int code) {
   switch (code) {
@@ -101,6 +102,7 @@ int m_group(int code) {
     case 30: case 40: case 50: return kMSpindle;
     case 70: case 80: case 90: return kMCoolant;
     case 4280: case 4290: case 4300: return kMKins;
+    case 980: case 990: return kMSubprogram;
     default: return kMUnsupported;
   }
 }
@@ -108,7 +110,7 @@ int m_group(int code) {
 std::string unsupported_m(int code) {
   const std::string m = code_text('M', code);
   switch (code) {
-    case 980: case 990: return m + " (Fanuc subprogram call/return) is not supported yet: use LinuxCNC o-word subroutines (dialect linuxcnc) or expand it in CAM";
+    case 980: case 990: return m + " (Fanuc subprogram call/return) is not LinuxCNC: use o-word subroutines (o100 call), or parse with dialect fanuc";
     case 600: return "M60 (pallet change) is not supported";
     case 480: case 490: case 500: case 510: case 520: case 530:
       return m + " (override control) is not supported";
@@ -138,7 +140,7 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
   if (!sort_g_codes(c) || !sort_m_codes(c)) return false;
   if (c.has(kGUnits)) ns.units = c.group_code[kGUnits] == 200 ? Units::kInch : Units::kMillimetre;
   if (!check_block_number() || !apply_feed_speed_tool(c, ns, b) || !apply_tool_length(c, ns)) return false;
-  if (!apply_modes(c, ns, b)) return false;
+  if (!apply_modes(c, ns, b) || !read_fanuc_call(c)) return false;
   const bool arc_mode = !c.g4 && !c.g275 && c.non_modal == 0 && ns.cycle == 0 &&
                         (ns.motion == Motion::kArcCW || ns.motion == Motion::kArcCCW);
   // In G43.5, I J K of a block that is not an arc are the tool axis (on arcs they stay centres).
@@ -217,7 +219,8 @@ bool Parser::Impl::sort_m_codes(BlockCodes& c) {
   for (int i = 0; i < s.nm; ++i) {
     const int code = s.m[i].code;
     const int grp = m_group(code);
-    if (grp == kMUnsupported) return fail(s.m[i].col, unsupported_m(code));
+    if (grp == kMUnsupported || (grp == kMSubprogram && opt.dialect != Dialect::kFanuc))
+      return fail(s.m[i].col, unsupported_m(code));
     if (grp == kMCoolant) {
       bool& f = code == 70 ? c.mist : code == 80 ? c.flood : c.coolant_off;
       if (f) return fail(s.m[i].col, code_text('M', code) + " appears twice in one block");
@@ -230,6 +233,35 @@ bool Parser::Impl::sort_m_codes(BlockCodes& c) {
     c.m_col[grp] = s.m[i].col;
     c.m_code[grp] = code;
   }
+  return true;
+}
+
+// Fanuc M98 P<program> L<times> (or P<times><program, 4 digits>) and M99: flow.cpp runs them
+// after the block's other words.
+bool Parser::Impl::read_fanuc_call(const BlockCodes& c) {
+  fanuc = FanucCall{};
+  if (c.m_col[kMSubprogram] == 0) return true;
+  const std::uint32_t col = c.m_col[kMSubprogram];
+  if (c.m_code[kMSubprogram] == 990) {
+    fanuc.ret = true;
+    return true;
+  }
+  if (!sc.has('P')) return fail(col, "M98 needs P: the subprogram number (M98 P1010, or P21010 for twice)");
+  const double p = sc.w('P').value;
+  if (p < 1 || p > 99999999 || p != std::floor(p))
+    return fail(sc.w('P').col, "M98 P" + show(p) + ": the subprogram number must be a whole number 1..9999");
+  long number = static_cast<long>(p), repeats = 1;
+  if (sc.has('L')) {
+    const double l = sc.w('L').value;
+    if (l < 1 || l > 9999 || l != std::floor(l))
+      return fail(sc.w('L').col, "M98 L" + show(l) + ": the number of runs must be a whole number 1..9999");
+    repeats = static_cast<long>(l);
+  } else if (number > 9999) {
+    repeats = number / 10000;  // Fanuc: the digits before the last four count the runs
+    number %= 10000;
+  }
+  fanuc.label = "O" + std::to_string(number);
+  fanuc.repeats = repeats;
   return true;
 }
 
@@ -412,9 +444,10 @@ bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalState& ns, boo
     const bool cycle_word = L == 'R' || L == 'Q' || L == 'P' || L == 'L' ||
                             (L == 'K' && opt.dialect == Dialect::kFanuc);  // Fanuc repeats: K
     const bool g10_word = c.non_modal == 100 && (L == 'L' || L == 'P');
+    const bool m98_word = c.m_code[kMSubprogram] == 980 && (L == 'P' || L == 'L');
     const bool look_word = (look == 50 || look == 80) ? L == 'P' : look == 51 ? (L == 'Q' || L == 'R') : false;
     if ((c.g275 && slot_word) || (arc_mode && arc_word) || (L == 'P' && c.g4) || (path && (L == 'P' || L == 'Q')) ||
-        (cycle_block && cycle_word) || g10_word || look_word)
+        (cycle_block && cycle_word) || g10_word || m98_word || look_word)
       continue;
     std::string where = L == 'L' ? "canned cycles (repeats) and G10"
                         : L == 'D' || L == 'W' ? "the G275 slot cycle"
