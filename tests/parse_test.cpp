@@ -755,3 +755,28 @@ TEST(ParseIssue14, FanucSubprogramsByHand) {
   expect_error("G0 X1\nM99\n", "M99 in the main program", 1);
   expect_error("M98 P1\n", "M98 (Fanuc subprogram call/return) is not LinuxCNC", 1, linuxcnc());
 }
+
+// FANUC Series 0i-MF operator's manual, Custom Macro B, "sum of the numbers from 1 to 10", once
+// with WHILE [..] DO 1 ... END 1 and once with IF [..] GOTO and GOTO back; by hand: 55.
+TEST(ParseIssue14, FanucMacroBByHand) {
+  Parsed w = parse_text("O0001;\n#1=0;\n#2=1;\nWHILE[#2 LE 10]DO 1;\n#1=#1+#2;\n#2=#2+1;\nEND 1;\nG0 X#1;\n"
+                        "IF [#1 EQ 55] THEN #3=7;\nIF [#1 NE 55] THEN #3=8;\nG0 Y#3\nM30;\n");
+  ASSERT_EQ(w.first_error(), nullptr) << format(*w.first_error());
+  ASSERT_EQ(ends(w).size(), 2u);
+  EXPECT_DOUBLE_EQ(ends(w)[0][kX], 55);
+  EXPECT_DOUBLE_EQ(ends(w)[1][kY], 7);
+  EXPECT_EQ(w.summary.lines_read, w.summary.blocks_emitted + w.summary.lines_rejected + w.summary.lines_deleted);
+  Parsed g = parse_text("O9500;\n#1=0;\n#2=1;\nN1 IF[#2 GT 10] GOTO 2;\n#1=#1+#2;\n#2=#2+1;\nGOTO 1;\nG0 Z99;\n"
+                        "N2 G0 X#1;\nM30;\n");
+  ASSERT_EQ(g.first_error(), nullptr) << format(*g.first_error());
+  ASSERT_EQ(ends(g).size(), 1u);  // G0 Z99 is jumped over
+  EXPECT_DOUBLE_EQ(ends(g)[0][kX], 55);
+  EXPECT_EQ(g.summary.lines_not_run, 1u);
+  ParseOptions o;
+  o.max_loop_passes = 500;
+  Parsed runaway = parse_text("#1=0\nN1 #1=#1+1\nGOTO 1\nG0 X#1\n", o);
+  ASSERT_NE(runaway.first_error(), nullptr);
+  EXPECT_NE(runaway.first_error()->message.find("jumped back 500 times and was stopped"), std::string::npos);
+  EXPECT_DOUBLE_EQ(ends(runaway).back()[kX], 501);  // the program goes on after the GOTO
+  expect_error("GOTO 7\nG0 X1\n", "GOTO 7: no block N7 follows it", 1);
+}

@@ -58,6 +58,94 @@ bool read_statement(std::string_view line, Statement& s) {
   return false;
 }
 
+namespace {
+
+bool keyword_at(std::string_view s, std::size_t& p, std::string_view kw) {
+  std::size_t q = p;
+  skip_blanks(s, q);
+  if (s.size() - q < kw.size()) return false;
+  for (std::size_t i = 0; i < kw.size(); ++i)
+    if ((s[q + i] | 0x20) != kw[i]) return false;
+  p = q + kw.size();
+  return true;
+}
+
+bool whole_number(std::string_view s, std::size_t& p, long& v) {
+  skip_blanks(s, p);
+  int digits = 0;
+  v = 0;
+  while (p < s.size() && s[p] >= '0' && s[p] <= '9' && digits < 9) v = v * 10 + (s[p++] - '0'), ++digits;
+  return digits > 0;
+}
+
+// Past the bracketed condition at p ('['), nesting counted.
+bool skip_brackets(std::string_view s, std::size_t& p) {
+  skip_blanks(s, p);
+  if (p >= s.size() || s[p] != '[') return false;
+  int depth = 0;
+  for (; p < s.size(); ++p) {
+    if (s[p] == '[') ++depth;
+    if (s[p] == ']' && --depth == 0) {
+      ++p;
+      return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
+long sequence_number(std::string_view line) {
+  std::size_t p = 0;
+  skip_blanks(line, p);
+  if (p >= line.size() || (line[p] | 0x20) != 'n') return -1;
+  ++p;
+  long v = 0;
+  return whole_number(line, p, v) ? v : -1;
+}
+
+bool read_macro(std::string_view line, Statement& s) {
+  std::size_t p = 0;
+  skip_blanks(line, p);
+  if (p < line.size() && (line[p] | 0x20) == 'n') {
+    ++p;
+    long n = 0;
+    if (!whole_number(line, p, n)) return false;
+  }
+  skip_blanks(line, p);
+  s.col = static_cast<std::uint32_t>(p + 1);
+  long m = 0;
+  if (keyword_at(line, p, "while")) {
+    skip_blanks(line, p);
+    s.rest = p;
+    if (!skip_brackets(line, p) || !keyword_at(line, p, "do") || !whole_number(line, p, m)) return false;
+    s.keyword = "while";
+    s.label = "DO" + std::to_string(m);
+    return true;
+  }
+  if (keyword_at(line, p, "end")) {
+    if (!whole_number(line, p, m)) return false;
+    s.keyword = "endwhile";
+    s.label = "DO" + std::to_string(m);
+    return true;
+  }
+  s.label.clear();
+  if (keyword_at(line, p, "goto")) {
+    s.keyword = "goto";
+    s.target = p;
+    return true;
+  }
+  if (!keyword_at(line, p, "if")) return false;
+  skip_blanks(line, p);
+  s.rest = p;
+  if (!skip_brackets(line, p)) return false;
+  if (keyword_at(line, p, "goto")) s.keyword = "ifgoto";
+  else if (keyword_at(line, p, "then")) s.keyword = "ifthen";
+  else return false;
+  s.target = p;
+  return true;
+}
+
 }  // namespace parse_detail
 
 namespace {
@@ -71,7 +159,9 @@ bool maybe_statement(std::string_view line) {
   return read_statement(line, s);
 }
 
-std::string olabel(const std::string& label) { return label[0] == 'O' ? label : "o" + label; }
+std::string olabel(const std::string& label) {
+  return label.empty() ? std::string("GOTO") : label[0] == 'O' || label[0] == 'D' ? label : "o" + label;
+}
 
 // Whether the line holds M<code> outside comments (M2, M02 and M002 alike): read at the time a
 // line arrives, before it runs, to find Fanuc subprograms.
@@ -102,7 +192,7 @@ bool is_loop(Control::Kind k) { return k != Control::kIf; }
 bool Parser::Impl::idle() const {
   const Frame& f = frames[0];
   return frames.size() == 1 && f.controls.empty() && f.skip == Skip::kNone && window.empty() &&
-         defining.empty() && owner.line == 0 && f.pending_call.empty();
+         defining.empty() && owner.line == 0 && f.pending_call.empty() && !macro_mode;
 }
 
 // Fanuc: after the main program's M30/M2, a line `O2000` (or `:2000`) starts a subprogram that
@@ -135,6 +225,10 @@ bool Parser::Impl::feed(std::string_view line, std::size_t overlong) {
   summary.bytes_read += (overlong ? overlong : line.size()) + 1;
   const std::uint64_t n = summary.lines_read;
   if (n == 1 && line.substr(0, 3) == "\xEF\xBB\xBF") line.remove_prefix(3);  // UTF-8 byte-order mark
+  // A Fanuc macro program (# variables, IF/GOTO/WHILE) keeps its lines: GOTO may jump back.
+  if (opt.dialect == Dialect::kFanuc && !macro_mode && line.find('#') != std::string_view::npos) macro_mode = true;
+  Statement macro;
+  if (opt.dialect == Dialect::kFanuc && !macro_mode && read_macro(line, macro)) macro_mode = true;
   std::string fanuc_label;
   if (idle() && frames[0].pc == n && !maybe_statement(line) && !fanuc_subprogram_start(line, fanuc_label)) {
     // The hot path: nothing open, the line runs at once and is counted.
@@ -235,6 +329,9 @@ bool Parser::Impl::note_skipped(const SourceLine& l, const Frame& f) {
     case Skip::kSubDefinition:
       why = "not run here: part of the definition of subroutine " + olabel(f.skip_label) + " (it runs where it is called)";
       break;
+    case Skip::kToLabel:
+      why = "not run: jumped over by GOTO " + std::to_string(f.goto_target) + " (line " + std::to_string(f.skip_from) + ")";
+      break;
     case Skip::kBranch: case Skip::kToEndif:
       why = "not run: in a branch of " + olabel(f.skip_label) + " if (line " + std::to_string(f.skip_from) + ") not taken";
       break;
@@ -286,9 +383,18 @@ bool Parser::Impl::step(Frame& f, const SourceLine& l) {
   }
   Statement s;
   const bool stmt = read_statement(l.text, s);
+  const bool macro = !stmt && opt.dialect == Dialect::kFanuc && read_macro(l.text, s);
+  if (f.skip == Skip::kToLabel) {  // a forward GOTO: lines pass until the N number
+    if (sequence_number(l.text) != f.goto_target) {
+      if (first && !note_skipped(l, f)) return true;
+      ++f.pc;
+      return true;
+    }
+    f.skip = Skip::kNone;
+  }
   if (f.skip != Skip::kNone) {
     bool consumed = false;
-    if (stmt && s.label == f.skip_label && !statement_skipping(f, l, s, consumed)) return true;
+    if ((stmt || macro) && s.label == f.skip_label && !statement_skipping(f, l, s, consumed)) return true;
     if (!consumed) {
       if (first && !note_skipped(l, f)) return true;
       ++f.pc;
@@ -302,7 +408,8 @@ bool Parser::Impl::step(Frame& f, const SourceLine& l) {
                          "check the loop conditions or raise parse.max_loop_passes");
     return true;
   }
-  if (!stmt) return run_plain(l, first);
+  if (macro && s.label.empty()) return macro_statement(f, l, s);
+  if (!stmt && !macro) return run_plain(l, first);
   if (s.keyword == "sub" && f.sub == nullptr) {
     // A definition met where it stands: passed over, it ran when collected.
     owner = Owner{};
@@ -652,6 +759,8 @@ void Parser::Impl::trim_window() {
   for (const Control& c : m.controls)
     if (is_loop(c.kind)) keep = std::min(keep, c.start);
   if (owner.line != 0) keep = std::min(keep, owner.line);  // abort_expansion reads its statement
+  // A macro program keeps half the buffer behind the line running, for GOTO back.
+  if (macro_mode) keep = std::min(keep, m.pc > opt.max_buffered_lines / 2 ? m.pc - opt.max_buffered_lines / 2 : 0);
   while (!window.empty() && window_first < keep) {
     window.pop_front();
     ++window_first;
@@ -671,6 +780,70 @@ void Parser::Impl::trim_window() {
     mm.controls.erase(mm.controls.begin() + static_cast<std::ptrdiff_t>(i));
     break;
   }
+}
+
+// Fanuc IF [..] GOTO n, IF [..] THEN #i = ..., GOTO n.
+bool Parser::Impl::macro_statement(Frame& f, const SourceLine& l, const Statement& s) {
+  const bool first = f.sub == nullptr && owner.line == l.number && !owner.blocks && !owner.error;
+  double v = 1;
+  const bool ok = s.keyword == "goto" || condition(l, s, v);
+  if (s.keyword == "ifthen" && ok && v != 0) {
+    // The statement after THEN runs as a line of its own, at its columns.
+    std::string rest(l.text);
+    for (std::size_t i = 0; i < s.target && i < rest.size(); ++i) rest[i] = ' ';
+    return run_plain(SourceLine{rest, l.number, l.overlong}, first);
+  }
+  if (first && ok) {  // the statement line itself: a block that moves nothing
+    reset_block(l.text, l.number);
+    publish(block);
+    emit(block);
+  }
+  if (!ok || v == 0 || s.keyword == "ifthen") {
+    ++f.pc;
+    return true;
+  }
+  std::size_t p = s.target;
+  double n = 0;
+  refresh_system_parameters();
+  ExpressionReader er(params);
+  skip_blanks(l.text, p);
+  if (!er.read_value(l.text, p, n)) {
+    ++f.pc;
+    return flow_error(l, static_cast<std::uint32_t>(er.error_pos() + 1), er.error()) || true;
+  }
+  return go_to(f, l, s, std::lround(n));
+}
+
+// GOTO n: Fanuc looks forward from the block first, then from the program's start. Back is
+// within the lines kept (half of parse.max_buffered_lines); forward waits for the line to come.
+bool Parser::Impl::go_to(Frame& f, const SourceLine& l, const Statement& s, long n) {
+  if (n < 1 || n > 99999) {
+    ++f.pc;
+    return flow_error(l, s.col, "GOTO " + std::to_string(n) + ": the target must be a sequence number N1..N99999") || true;
+  }
+  const std::uint64_t last = f.sub != nullptr ? f.sub->body.size() : window_first + window.size();
+  const std::uint64_t begin = f.sub != nullptr ? 0 : window_first;
+  for (std::uint64_t pass = 0; pass < 2; ++pass)
+    for (std::uint64_t i = pass == 0 ? f.pc + 1 : begin; i < (pass == 0 ? last : f.pc + 1); ++i) {
+      const SourceLine* t = line_at(f, i);
+      if (t == nullptr || sequence_number(t->text) != n) continue;
+      if (i <= f.pc && ++owner.jumps > opt.max_loop_passes) {
+        ++f.pc;
+        return flow_error(l, s.col, "GOTO " + std::to_string(n) + " jumped back " + std::to_string(opt.max_loop_passes) +
+                                        " times and was stopped: check the IF condition, or raise parse.max_loop_passes") || true;
+      }
+      f.pc = i;
+      return true;
+    }
+  ++f.pc;
+  if (f.sub == nullptr && !input_done) {
+    f.skip = Skip::kToLabel;
+    f.goto_target = n;
+    f.skip_from = l.number;
+    return true;
+  }
+  return flow_error(l, s.col, "GOTO " + std::to_string(n) + ": no block N" + std::to_string(n) +
+                                  (f.sub ? " in this subprogram" : " ahead, nor within the lines kept behind (half of parse.max_buffered_lines)")) || true;
 }
 
 // After a block with M98 or M99 has run (its other words first, as a Fanuc control does).
@@ -731,6 +904,9 @@ bool Parser::Impl::finish() {
     ++summary.lines_rejected;
     emit_diagnostic(line, 1, Severity::kError, what);
   };
+  if (m.skip == Skip::kToLabel)
+    unclosed(m.skip_from, "GOTO " + std::to_string(m.goto_target) + ": no block N" + std::to_string(m.goto_target) +
+                              " follows it in the program", false);
   if (m.skip == Skip::kSubDefinition)
     unclosed(m.skip_from, olabel(m.skip_label) + " sub has no " + olabel(m.skip_label) + " endsub before the end of the program", true);
   for (const Control& c : m.controls)

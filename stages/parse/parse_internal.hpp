@@ -171,7 +171,7 @@ struct Subroutine {
 };
 
 // Why lines are being passed over without running.
-enum class Skip : std::uint8_t { kNone, kBranch, kToEndif, kToLoopEnd, kSubDefinition, kAfterReturn };
+enum class Skip : std::uint8_t { kNone, kBranch, kToEndif, kToLoopEnd, kSubDefinition, kToLabel };
 
 struct Frame {
   const Subroutine* sub = nullptr;  // nullptr: the main program
@@ -182,6 +182,7 @@ struct Frame {
   Skip skip = Skip::kNone;
   std::string skip_label;
   std::uint64_t skip_from = 0;  // line that started the skip (for notes)
+  long goto_target = -1;        // Fanuc GOTO n: the N number looked for
   std::array<double, 30> saved_args{};                 // caller's #1..#30
   std::vector<std::pair<std::string, double>> saved_named;  // caller's local named parameters
   long repeats = 1;  // Fanuc M98 L: runs of the body still to go, this one included
@@ -198,6 +199,7 @@ struct Statement {
                         // endrepeat break continue
   std::size_t rest = 0; // position after the keyword (condition, arguments)
   std::uint32_t col = 1;
+  std::size_t target = 0;  // Fanuc IF [..] GOTO n / THEN ...: where n or the statement starts
 };
 
 }  // namespace parse_detail
@@ -236,6 +238,7 @@ struct Parser::Impl {
   // whether the main program's end has been read (then an O number starts a subprogram).
   std::map<std::uint64_t, std::string> fanuc_starts;
   bool main_end_read = false;
+  bool macro_mode = false;  // a Fanuc program with # variables: lines are kept for GOTO
   struct FanucCall {
     std::string label;  // "O" + number, empty: none
     long repeats = 1;
@@ -247,6 +250,7 @@ struct Parser::Impl {
     bool error = false;
     bool blocks = false;
     std::uint64_t steps = 0;  // lines run on its behalf (bounded: no input may hang)
+    std::uint64_t jumps = 0;  // GOTOs back on its behalf (bounded like loop passes)
   } owner;
   std::uint64_t classified = 0;  // every line up to this one is counted in the summary
 
@@ -348,12 +352,20 @@ struct Parser::Impl {
   bool try_pending_call(parse_detail::Frame& f);
   bool push_subprogram(const std::string& label, long repeats, std::uint64_t line);
   bool read_fanuc_call(const BlockCodes& c);
+  bool macro_statement(parse_detail::Frame& f, const parse_detail::SourceLine& l, const parse_detail::Statement& s);
+  bool go_to(parse_detail::Frame& f, const parse_detail::SourceLine& l, const parse_detail::Statement& s, long n);
 };
 
 namespace parse_detail {
 /// Reads an o-word statement (`o100 while [...]`); false when the line is not one (a Fanuc
 /// program number `O1234` is not). Blanks and case as LinuxCNC reads them.
 bool read_statement(std::string_view line, Statement& s);
+/// Reads a Fanuc Custom Macro B statement: WHILE [..] DO m, END m, IF [..] GOTO n,
+/// IF [..] THEN ..., GOTO n (after an optional N number); mapped onto the o-word keywords
+/// (while/endwhile with label "DO m") or goto / ifgoto / ifthen.
+bool read_macro(std::string_view line, Statement& s);
+/// The N number a line starts with, -1 if none.
+long sequence_number(std::string_view line);
 }  // namespace parse_detail
 
 }  // namespace gcpipe

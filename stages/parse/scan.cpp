@@ -246,7 +246,9 @@ bool Parser::Impl::scan_assignment(std::string_view s, std::size_t& p, std::uint
     return fail(static_cast<std::uint32_t>(p + 1), "a parameter outside a word must be assigned: '#... = value'");
   ++p;
   double v = 0;
-  if (!er.read_value(s, p, v)) return fail(static_cast<std::uint32_t>(er.error_pos() + 1), er.error());
+  // Fanuc Macro B writes the value as a bare expression (#1 = #2 + 3); LinuxCNC as one value.
+  const bool ok = opt.dialect == Dialect::kFanuc ? er.read_expression(s, p, v) : er.read_value(s, p, v);
+  if (!ok) return fail(static_cast<std::uint32_t>(er.error_pos() + 1), er.error());
   if (!std::isfinite(v)) return fail(col, "parameter value is not a finite number");
   a.value = v;
   ++sc.nassign;
