@@ -345,10 +345,13 @@ bool Parser::Impl::note_skipped(const SourceLine& l, const Frame& f) {
 // Runs what can run: stops at the end of the input read so far, or at a call that waits for its
 // definition.
 bool Parser::Impl::run_ready() {
+  if (abort_requested) unwind_expansion();
   while (!stopped) {
     Frame& f = frames.back();
     if (!f.pending_call.empty()) {
-      if (!try_pending_call(f)) break;  // the subprogram is further down: wait for it
+      const bool ran = try_pending_call(f);
+      if (abort_requested) unwind_expansion();
+      if (!ran) break;  // the subprogram is further down: wait for it
       continue;
     }
     const SourceLine* l = line_at(f, f.pc);
@@ -361,7 +364,9 @@ bool Parser::Impl::run_ready() {
       continue;
     }
     if (f.sub == nullptr && l->number != owner.line && l->number > classified && !close_owner()) return false;
-    if (!step(f, *l)) break;  // waiting
+    const bool go_on = step(f, *l);  // `f` may be gone after this
+    if (abort_requested) unwind_expansion();
+    if (!go_on) break;  // waiting
   }
   return !stopped;
 }
@@ -471,21 +476,37 @@ bool Parser::Impl::flow_error(const SourceLine& l, std::uint32_t col, std::strin
   return false;
 }
 
-// Unwinds every call, and stops the main-program loop whose end line is the owner.
+// Asks run_ready to abandon the expansion once the statement at hand is done with its frame
+// (unwinding here would pull frames and the program counter from under the caller).
 bool Parser::Impl::abort_expansion() {
-  while (frames.size() > 1) do_return(frames.size() - 1);
+  abort_requested = true;
+  return false;
+}
+
+// Unwinds every call, and stops the main-program loop whose end line is the owner.
+void Parser::Impl::unwind_expansion() {
+  abort_requested = false;
+  while (frames.size() > 1) {
+    frames.back().repeats = 1;
+    do_return(frames.size() - 1);
+  }
   Frame& m = frames[0];
   const SourceLine* end = line_at(m, owner.line);
   Statement s;
-  if (end == nullptr || !read_statement(end->text, s)) return false;
+  if (end == nullptr || !(read_statement(end->text, s) || (opt.dialect == Dialect::kFanuc && read_macro(end->text, s))))
+    return;
+  if (s.keyword == "goto" || s.keyword == "ifgoto") {  // a GOTO back: go on after it
+    m.skip = Skip::kNone;
+    m.pc = owner.line + 1;
+    return;
+  }
   for (std::size_t i = m.controls.size(); i-- > 0;) {
     if (m.controls[i].label != s.label || !is_loop(m.controls[i].kind)) continue;
     m.controls.resize(i);
     m.skip = Skip::kNone;
     m.pc = owner.line + 1;
-    return true;
+    return;
   }
-  return false;
 }
 
 bool Parser::Impl::condition(const SourceLine& l, const Statement& s, double& v) {

@@ -245,6 +245,7 @@ struct Parser::Impl {
     bool ret = false;   // M99
   } fanuc;
   bool input_done = false;
+  bool abort_requested = false;  // an expansion failed: run_ready unwinds it after the step
   struct Owner {
     std::uint64_t line = 0;  // the newest main-program line run (0: none open)
     bool error = false;
@@ -345,6 +346,7 @@ struct Parser::Impl {
   bool note_skipped(const parse_detail::SourceLine& l, const parse_detail::Frame& f);
   void trim_window();
   bool abort_expansion();
+  void unwind_expansion();
   const parse_detail::SourceLine* line_at(const parse_detail::Frame& f, std::uint64_t pc) const;
   bool idle() const;
   bool fanuc_subprogram_start(std::string_view line, std::string& label) const;
