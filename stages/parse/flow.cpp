@@ -189,6 +189,33 @@ bool is_loop(Control::Kind k) { return k != Control::kIf; }
 
 }  // namespace
 
+// A Fanuc macro program (# variables, IF/GOTO/WHILE) keeps its lines: GOTO may jump back.
+void Parser::Impl::note_macro_program(std::string_view line) {
+  if (line.find('#') != std::string_view::npos) {
+    macro_mode = true;
+    return;
+  }
+  // Only IF, WHILE, END and GOTO start a macro statement: look no further on other lines.
+  std::size_t p = 0;
+  skip_blanks(line, p);
+  if (p < line.size() && (line[p] | 0x20) == 'n') {
+    ++p;
+    while (p < line.size() && ((line[p] >= '0' && line[p] <= '9') || line[p] == ' ')) ++p;
+  }
+  if (p >= line.size()) return;
+  const char c = static_cast<char>(line[p] | 0x20);
+  const bool go = c == 'g' && p + 1 < line.size() && (line[p + 1] | 0x20) == 'o';
+  Statement macro;
+  if ((c == 'i' || c == 'w' || c == 'e' || go) && read_macro(line, macro)) macro_mode = true;
+}
+
+// A Fanuc line that starts a subprogram goes to collect_definition, not the hot path.
+bool Parser::Impl::fanuc_line_to_keep(std::string_view line) const {
+  if (opt.dialect != Dialect::kFanuc || !(st.ended || main_end_read)) return false;
+  std::string label;
+  return fanuc_subprogram_start(line, label);
+}
+
 bool Parser::Impl::idle() const {
   const Frame& f = frames[0];
   return frames.size() == 1 && f.controls.empty() && f.skip == Skip::kNone && window.empty() &&
@@ -225,12 +252,8 @@ bool Parser::Impl::feed(std::string_view line, std::size_t overlong) {
   summary.bytes_read += (overlong ? overlong : line.size()) + 1;
   const std::uint64_t n = summary.lines_read;
   if (n == 1 && line.substr(0, 3) == "\xEF\xBB\xBF") line.remove_prefix(3);  // UTF-8 byte-order mark
-  // A Fanuc macro program (# variables, IF/GOTO/WHILE) keeps its lines: GOTO may jump back.
-  if (opt.dialect == Dialect::kFanuc && !macro_mode && line.find('#') != std::string_view::npos) macro_mode = true;
-  Statement macro;
-  if (opt.dialect == Dialect::kFanuc && !macro_mode && read_macro(line, macro)) macro_mode = true;
-  std::string fanuc_label;
-  if (idle() && frames[0].pc == n && !maybe_statement(line) && !fanuc_subprogram_start(line, fanuc_label)) {
+  if (opt.dialect == Dialect::kFanuc && !macro_mode) note_macro_program(line);
+  if (idle() && frames[0].pc == n && !maybe_statement(line) && !fanuc_line_to_keep(line)) {
     // The hot path: nothing open, the line runs at once and is counted.
     open_owner(n);
     std::string why;

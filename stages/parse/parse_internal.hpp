@@ -51,7 +51,10 @@ enum Group : int {
 // Why a code is what it is: the parser's words for "G81" in messages.
 std::string code_text(char letter, int code);
 std::string show(double v);  // a value as a message shows it: shortest exact digits
-void skip_blanks(std::string_view s, std::size_t& p);
+// Inline: the scanner calls it between every two words, from several files.
+inline void skip_blanks(std::string_view s, std::size_t& p) {
+  while (p < s.size() && (s[p] == ' ' || s[p] == '\t')) ++p;
+}
 inline char upper(char c) { return (c >= 'a' && c <= 'z') ? static_cast<char>(c - 'a' + 'A') : c; }
 
 // Plane geometry: the two in-plane axes, the normal axis, and the letters of the centre offsets.
@@ -349,6 +352,8 @@ struct Parser::Impl {
   void unwind_expansion();
   const parse_detail::SourceLine* line_at(const parse_detail::Frame& f, std::uint64_t pc) const;
   bool idle() const;
+  void note_macro_program(std::string_view line);
+  bool fanuc_line_to_keep(std::string_view line) const;
   bool fanuc_subprogram_start(std::string_view line, std::string& label) const;
   bool fanuc_call(parse_detail::Frame& f, const parse_detail::SourceLine& l);
   bool try_pending_call(parse_detail::Frame& f);

@@ -8,6 +8,10 @@
 
 #include "parse_internal.hpp"
 
+// The steps of resolve() are separate functions for reading; inlined into it they cost what the
+// one long function cost (called per line, their call overhead was ~20 % of the parse).
+#define GCPIPE_STEP [[gnu::always_inline]] inline
+
 namespace gcpipe {
 
 using namespace parse_detail;
@@ -165,7 +169,7 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
 }
 
 // Step 1: G codes, one per modal group, all known; G80 beside G0..G3 is allowed (see g_group).
-bool Parser::Impl::sort_g_codes(BlockCodes& c) {
+GCPIPE_STEP bool Parser::Impl::sort_g_codes(BlockCodes& c) {
   const Scan& s = sc;
   for (int i = 0; i < s.ng; ++i) {
     const int code = s.g[i].code;
@@ -214,7 +218,7 @@ bool Parser::Impl::sort_g_codes(BlockCodes& c) {
 }
 
 // Step 2: M codes, at most one per group (M7 with M8 is allowed: both coolants on).
-bool Parser::Impl::sort_m_codes(BlockCodes& c) {
+GCPIPE_STEP bool Parser::Impl::sort_m_codes(BlockCodes& c) {
   const Scan& s = sc;
   for (int i = 0; i < s.nm; ++i) {
     const int code = s.m[i].code;
@@ -238,8 +242,10 @@ bool Parser::Impl::sort_m_codes(BlockCodes& c) {
 
 // Fanuc M98 P<program> L<times> (or P<times><program, 4 digits>) and M99: flow.cpp runs them
 // after the block's other words.
-bool Parser::Impl::read_fanuc_call(const BlockCodes& c) {
-  fanuc = FanucCall{};
+GCPIPE_STEP bool Parser::Impl::read_fanuc_call(const BlockCodes& c) {
+  fanuc.ret = false;
+  fanuc.repeats = 1;
+  if (!fanuc.label.empty()) fanuc.label.clear();  // per line: no string built when unused
   if (c.m_col[kMSubprogram] == 0) return true;
   const std::uint32_t col = c.m_col[kMSubprogram];
   if (c.m_code[kMSubprogram] == 990) {
@@ -265,7 +271,7 @@ bool Parser::Impl::read_fanuc_call(const BlockCodes& c) {
   return true;
 }
 
-bool Parser::Impl::check_block_number() {
+GCPIPE_STEP bool Parser::Impl::check_block_number() {
   if (!sc.has('N')) return true;
   const Word& w = sc.w('N');
   if (w.value < 0 || w.value > 99999999 || w.value != std::floor(w.value))
@@ -274,7 +280,7 @@ bool Parser::Impl::check_block_number() {
 }
 
 // Step 3: feed mode and F, S, T and M6, spindle and coolant.
-bool Parser::Impl::apply_feed_speed_tool(const BlockCodes& c, ModalState& ns, ResolvedBlock& b) {
+GCPIPE_STEP bool Parser::Impl::apply_feed_speed_tool(const BlockCodes& c, ModalState& ns, ResolvedBlock& b) {
   const Scan& s = sc;
   const double unit = ns.units == Units::kInch ? kInch : 1.0;
   if (c.has(kGFeedMode)) ns.feed_mode = c.group_code[kGFeedMode] == 930 ? FeedMode::kInverseTime : FeedMode::kUnitsPerMinute;
@@ -316,7 +322,7 @@ bool Parser::Impl::apply_feed_speed_tool(const BlockCodes& c, ModalState& ns, Re
 }
 
 // Step 4: G43 / G43.4 / G43.5 H and G49, with each dialect's grouping of TCP.
-bool Parser::Impl::apply_tool_length(const BlockCodes& c, ModalState& ns) {
+GCPIPE_STEP bool Parser::Impl::apply_tool_length(const BlockCodes& c, ModalState& ns) {
   const Scan& s = sc;
   if (!c.has(kGToolLength)) {
     if (s.has('H'))
@@ -374,7 +380,7 @@ bool Parser::Impl::apply_tool_length(const BlockCodes& c, ModalState& ns) {
 }
 
 // Step 5: kinematics switch, plane, work offset, distance modes, motion mode, program stops.
-bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, ResolvedBlock& b) {
+GCPIPE_STEP bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, ResolvedBlock& b) {
   if (c.m_col[kMKins]) {
     ns.tcp = c.m_code[kMKins] == 4280;  // M428 TCP on; M429/M430 joint mode
     ns.tool_vector_mode = false;        // M428 is TCP with A C programmed
@@ -420,7 +426,7 @@ bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, ResolvedBloc
 }
 
 // Step 6: words that only some blocks may carry.
-bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalState& ns, bool vector_words) {
+GCPIPE_STEP bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalState& ns, bool vector_words) {
   const Scan& s = sc;
   if (ns.tool_vector_mode) {
     for (char L : {'A', 'C'})
@@ -461,7 +467,7 @@ bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalState& ns, boo
 
 // Step 7: lengths that are not axes (arc centres and radii, cycle parameters): the same range
 // as the axes, so no absurd value can reach the geometry or the writer.
-bool Parser::Impl::check_lengths(bool vector_words, const ModalState& ns) {
+GCPIPE_STEP bool Parser::Impl::check_lengths(bool vector_words, const ModalState& ns) {
   for (char L : {'I', 'J', 'K', 'R', 'D', 'W', 'Q'}) {
     if (!sc.has(L)) continue;
     if (vector_words && (L == 'I' || L == 'J' || L == 'K')) continue;  // checked in read_tool_vector
@@ -497,7 +503,7 @@ bool Parser::Impl::read_tool_vector(Vec3& vector) {
 
 // Step 8: axis words to machine targets (G53 and G10/G92/G52 read their own axis words later,
 // from `mask`; here they are range-checked like any other).
-bool Parser::Impl::axis_targets(const BlockCodes& c, const ModalState& ns, Axes& target, std::uint8_t& mask) {
+GCPIPE_STEP bool Parser::Impl::axis_targets(const BlockCodes& c, const ModalState& ns, Axes& target, std::uint8_t& mask) {
   target = ns.position;
   const bool x_as_dwell = c.g4 && opt.dialect == Dialect::kFanuc && sc.has('X');
   for (int a = 0; a < kNumAxes; ++a) {
@@ -584,7 +590,7 @@ bool Parser::Impl::check_feed(const BlockCodes& c, const ModalState& ns) {
 }
 
 // Step 9: the block's move in the modal motion mode (or no move at all).
-bool Parser::Impl::move(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, const Axes& target,
+GCPIPE_STEP bool Parser::Impl::move(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, const Axes& target,
                         std::uint8_t mask, bool vector_words, const Vec3& vector) {
   const Scan& s = sc;
   const bool arc_mode = ns.motion == Motion::kArcCW || ns.motion == Motion::kArcCCW;

@@ -12,10 +12,6 @@ namespace gcpipe {
 
 namespace parse_detail {
 
-void skip_blanks(std::string_view s, std::size_t& p) {
-  while (p < s.size() && (s[p] == ' ' || s[p] == '\t')) ++p;
-}
-
 std::string code_text(char letter, int code) {
   std::string s(1, letter);
   s += std::to_string(code / 10);
@@ -298,7 +294,8 @@ bool Parser::Impl::reject_character(std::string_view s, std::size_t p, char c, s
   return fail(col, std::string("unexpected '") + c + "': expected a word (letter and number) or a comment");
 }
 
-bool Parser::Impl::scan_word(std::string_view s, std::size_t& p, char L, std::uint32_t col) {
+// Inlined into scan(): it runs for every word of every line.
+[[gnu::always_inline]] inline bool Parser::Impl::scan_word(std::string_view s, std::size_t& p, char L, std::uint32_t col) {
   ++p;
   sc.any_word = true;
   if (L == 'G' || L == 'M') {
