@@ -780,3 +780,20 @@ TEST(ParseIssue14, FanucMacroBByHand) {
   EXPECT_DOUBLE_EQ(ends(runaway).back()[kX], 501);  // the program goes on after the GOTO
   expect_error("GOTO 7\nG0 X1\n", "GOTO 7: no block N7 follows it", 1);
 }
+
+// The machine file's `tool_table` key: a path relative to the machine file, merged over `tools`.
+TEST(ParseIssue14, MachineFileToolTableKey) {
+  const auto dir = std::filesystem::path(testing::TempDir()) / "gcpipe_machine_tbl";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "shop.tbl") << "T1 P1 D12 Z80.5\nT5 P5 D6 Z42\n";
+  const std::string base = read_file(std::filesystem::path(GCPIPE_SOURCE_DIR) / "pipeline_configs/machines/mx330.yaml");
+  std::ofstream(dir / "machine.yaml") << base << "\ntool_table: shop.tbl\nreference_positions:\n  G28: [0, 0, 250, 0, 0]\n";
+  const MachineConfig m = load_machine(Config::load_file(dir / "machine.yaml"));
+  EXPECT_DOUBLE_EQ(m.tools.at(1).length, 80.5);  // the table replaces the machine file's T1
+  EXPECT_DOUBLE_EQ(m.tools.at(2).length, 110);   // and keeps the others
+  EXPECT_DOUBLE_EQ(m.tools.at(5).diameter, 6);
+  EXPECT_EQ(m.tool_table_source, (dir / "shop.tbl").string());
+  EXPECT_DOUBLE_EQ(m.reference_positions[0][kZ], 250);
+  std::ofstream(dir / "bad.yaml") << base << "\ntool_table: missing.tbl\n";
+  EXPECT_THROW(load_machine(Config::load_file(dir / "bad.yaml")), ConfigError);
+}
