@@ -16,7 +16,8 @@ packages=(
   libeigen3-dev libyaml-cpp-dev libopencv-dev nlohmann-json3-dev
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools
   libgtest-dev libgmock-dev libbenchmark-dev
-  libcli11-dev nlohmann-json3-dev libpng-dev
+  libcli11-dev libpng-dev
+  linuxcnc-uspace  # rs274, LinuxCNC's interpreter: the oracle of tests/rs274_diff_test.cpp
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -27,12 +27,18 @@ inline std::vector<ResolvedBlock> parse_text(const std::string& text, const Pipe
   std::vector<ResolvedBlock> out;
   std::istringstream in(text);
   std::string line;
+  LineOutput lo;
+  auto take = [&] {
+    out.insert(out.end(), lo.blocks.begin(), lo.blocks.end());
+    for (const Diagnostic& d : lo.diagnostics)
+      if (d.severity == Severity::kError) ADD_FAILURE() << format(d);
+  };
   while (std::getline(in, line)) {
-    ResolvedBlock b;
-    Diagnostic d;
-    if (parser.parse_line(line, b, d) == LineStatus::kBlock) out.push_back(b);
-    else if (d.severity == Severity::kError) ADD_FAILURE() << format(d);
+    parser.feed(line, lo);
+    take();
   }
+  parser.finish(lo);
+  take();
   return out;
 }
 

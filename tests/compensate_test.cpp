@@ -25,11 +25,11 @@ std::vector<ResolvedBlock> parse_text(const std::string& text, const PipelineCon
   std::vector<ResolvedBlock> out;
   std::istringstream in(text);
   std::string line;
+  LineOutput got;
   while (std::getline(in, line)) {
-    ResolvedBlock b;
-    Diagnostic d;
-    if (parser.parse_line(line, b, d) == LineStatus::kBlock) out.push_back(b);
-    else if (d.severity == Severity::kError) ADD_FAILURE() << format(d);
+    parser.feed(line, got);
+    out.insert(out.end(), got.blocks.begin(), got.blocks.end());
+    if (got.error() != nullptr) ADD_FAILURE() << format(*got.error());
   }
   return out;
 }

@@ -173,13 +173,13 @@ TEST(ShippedIkModel, SamplesThroughTheStageWithTheConfiguredModel) {
     Parser parser(load_parse_options(pc.root.section("parse")), pc.machine, path.string());
     IkStage stage(pc.machine.kinematics, o, pc.machine.initial_position, &*model);
     std::ifstream in(path);
-    ResolvedBlock block;
-    Diagnostic diag;
+    LineOutput out;
     IkPoint p;
     ErrorStats stats;
     int diverged = 0, points = 0;
     for (std::string line; std::getline(in, line);) {
-      if (parser.parse_line(line, block, diag) != LineStatus::kBlock || !stage.step(block, p)) continue;
+      parser.feed(line, out);
+      if (out.blocks.size() != 1 || !stage.step(out.blocks[0], p)) continue;
       ++points;
       ASSERT_TRUE(p.has_neural);
       stats.add(p.neural_joints, p.joints);

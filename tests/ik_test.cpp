@@ -43,15 +43,14 @@ ProgramRun run_program(const fs::path& path, IkOptions options) {
   Parser parser(load_parse_options(pc.root.section("parse")), pc.machine, path.string());
   IkStage stage(pc.machine.kinematics, options, pc.machine.initial_position);
   std::ifstream in(path);
-  ResolvedBlock block;
-  Diagnostic diag;
+  LineOutput out;
   IkPoint p;
   for (std::string line; std::getline(in, line);) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
-    const LineStatus st = parser.parse_line(line, block, diag);
-    if (st == LineStatus::kRejected) ++run.rejected;
-    if (st != LineStatus::kBlock) continue;
-    if (stage.step(block, p)) run.points.push_back(p);
+    parser.feed(line, out);
+    if (out.error() != nullptr) ++run.rejected;
+    for (const ResolvedBlock& block : out.blocks)
+      if (stage.step(block, p)) run.points.push_back(p);
   }
   run.summary = stage.summary();
   return run;
@@ -123,14 +122,14 @@ TEST(IkStage, BlocksFromTheParser) {
   const PipelineConfig pc = linuxcnc_config();
   Parser parser(load_parse_options(pc.root.section("parse")), pc.machine, "inline");
   IkStage stage(pc.machine.kinematics, IkOptions{}, pc.machine.initial_position);
-  ResolvedBlock block;
-  Diagnostic diag;
+  LineOutput out;
   IkPoint p;
   std::vector<IkPoint> points;
   for (const char* line : {"G21 G90 G94", "G1 X10 Y0 Z5 A0 C0 F100", "M428",
                            "G1 X10 Y0 Z5 A-30 C90", "G4 P1", "M429", "G0 X0 Y0 Z0 A0 C0"}) {
-    ASSERT_EQ(parser.parse_line(line, block, diag), LineStatus::kBlock) << line;
-    if (stage.step(block, p)) points.push_back(p);
+    parser.feed(line, out);
+    ASSERT_EQ(out.blocks.size(), 1u) << line;
+    if (stage.step(out.blocks[0], p)) points.push_back(p);
   }
   ASSERT_EQ(points.size(), 3u);
   EXPECT_EQ(points[0].mode, IkInputMode::kMachineAxes);
@@ -307,15 +306,15 @@ TEST(IkStage, ToolVectorSampleThroughIkAndFk) {
   IkStage stage(m, load_ik_options(pc.root.section("ik")), pc.machine.initial_position);
   std::ifstream in(path);
   ASSERT_TRUE(in) << path;
-  ResolvedBlock block;
-  Diagnostic diag;
+  LineOutput out;
   IkPoint p;
   std::vector<IkPoint> points;
   std::vector<ResolvedBlock> blocks;
   for (std::string line; std::getline(in, line);) {
-    const LineStatus st = parser.parse_line(line, block, diag);
-    ASSERT_NE(st, LineStatus::kRejected) << format(diag);
-    if (st != LineStatus::kBlock || !stage.step(block, p)) continue;
+    parser.feed(line, out);
+    ASSERT_EQ(out.error(), nullptr) << format(*out.error());
+    if (out.blocks.size() != 1 || !stage.step(out.blocks[0], p)) continue;
+    const ResolvedBlock& block = out.blocks[0];
     points.push_back(p);
     blocks.push_back(block);
   }

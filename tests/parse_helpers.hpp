@@ -17,6 +17,8 @@ struct Parsed {
   std::vector<ResolvedBlock> blocks;
   std::vector<Diagnostic> diags;
   ParseSummary summary;
+  /// The order things came out: true = the next block, false = the next diagnostic.
+  std::vector<bool> order;
   const Diagnostic* first_error() const {
     for (const auto& d : diags)
       if (d.severity == Severity::kError) return &d;
@@ -39,15 +41,22 @@ inline Parsed parse_text(const std::string& text, ParseOptions opt = {},
   Parser p(opt, std::move(machine), file);
   std::istringstream in(text);
   std::string line;
-  ResolvedBlock b;
-  Diagnostic d;
+  const ParseSink sink{[&](const ResolvedBlock& b) {
+                         out.blocks.push_back(b);
+                         out.order.push_back(true);
+                         return true;
+                       },
+                       [&](const Diagnostic& d) {
+                         out.diags.push_back(d);
+                         out.order.push_back(false);
+                         return true;
+                       }};
   while (std::getline(in, line)) {
     if (!line.empty() && line.back() == '\r') line.pop_back();  // as LineReader does
     const std::size_t cut = line.size() > opt.max_line_length ? line.size() : 0;
-    auto st = p.parse_line(cut ? std::string_view(line).substr(0, opt.max_line_length) : std::string_view(line), b, d, cut);
-    if (st == LineStatus::kBlock) out.blocks.push_back(b);
-    else out.diags.push_back(d);
+    p.feed(cut ? std::string_view(line).substr(0, opt.max_line_length) : std::string_view(line), sink, cut);
   }
+  p.finish(sink);
   out.summary = p.summary();
   return out;
 }

@@ -147,6 +147,24 @@ TEST(Limits, TravelViolationIsAnErrorAtItsLine) {
   EXPECT_FALSE(fs::exists(dir / "trace.csv")) << "no trace for a program the machine cannot run";
 }
 
+// A shop's tool table on the command line: T/H numbers the machine file does not know resolve
+// from it; without it they stay errors at their line that name where tools come from.
+TEST(ToolTable, CommandLineTableResolvesTheShopsTools) {
+  const fs::path dir = tmpdir("tooltable");
+  {
+    std::ofstream t(dir / "shop.tbl");
+    t << "T7 P7 Z123.5 D10 ;shop end mill\n";
+    std::ofstream p(dir / "t7.nc");
+    p << "G21 G90 G94\nT7 M6\nG43 H7\nG0 X0 Y0 Z50\nM30\n";
+  }
+  Outcome without = gcpipe({"parse", (dir / "t7.nc").string()});
+  EXPECT_EQ(without.status, 3) << without.err;
+  EXPECT_NE(without.err.find("t7.nc:2:"), std::string::npos) << without.err;
+  Outcome with = gcpipe({"parse", (dir / "t7.nc").string(), "--tool-table", (dir / "shop.tbl").string(), "--json"});
+  EXPECT_EQ(with.status, 0) << with.err;
+  EXPECT_NE(with.out.find("\"tool_length\":123.5"), std::string::npos) << with.out;
+}
+
 // gcpipe evaluate on the simulate stage's own trace of a program measures the same rapid error as
 // batch's report: a cross-check of the measured-data contour error against the simulation's
 // (cutting moves are classified differently: evaluate by the nearest point of the path, since a

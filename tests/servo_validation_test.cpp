@@ -275,12 +275,12 @@ TEST(Seed002Sample, ProgramThroughParserAndInterpolatorMatchesPrediction) {
   struct Window { double omega, begin, end; };
   std::vector<Window> windows;
   std::string line;
-  ResolvedBlock b;
-  Diagnostic diag;
+  LineOutput out;
   while (std::getline(in, line)) {
-    const LineStatus st = parser.parse_line(line, b, diag);
-    ASSERT_NE(st, LineStatus::kRejected) << format(diag);
-    if (st != LineStatus::kBlock || b.motion == Motion::kNone) continue;
+    parser.feed(line, out);
+    ASSERT_EQ(out.error(), nullptr) << format(*out.error());
+    if (out.blocks.size() != 1 || out.blocks[0].motion == Motion::kNone) continue;
+    const ResolvedBlock& b = out.blocks[0];
     if (!ip) {
       ip.emplace(io, b.start);
       rec.raw.push_back(b.start);

@@ -413,10 +413,11 @@ DemoRun run_demo(const std::vector<std::string>& lines, const PipelineConfig& pc
   io.kinematics = &kin;
   Parser parser(load_parse_options(pc.root.section("parse")), pc.machine, "five_axis_demo.nc");
   std::optional<Interpolator> ip;
-  ResolvedBlock b;
-  Diagnostic d;
+  LineOutput out;
   for (const std::string& line : lines) {
-    if (parser.parse_line(line, b, d) != LineStatus::kBlock) continue;
+    parser.feed(line, out);
+    if (out.blocks.size() != 1) continue;
+    const ResolvedBlock& b = out.blocks[0];
     const double L = b.tool_length_active ? b.tool_length : kin.tool_length;
     if (!ip) {
       if (b.motion == Motion::kNone) continue;

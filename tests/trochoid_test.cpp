@@ -859,12 +859,12 @@ TEST(TrochoidSample, PaperSlotProgramExpandsWritesAndReadsBack) {
   std::vector<ResolvedBlock> out;
   std::string text, line;
   int cycles = 0;
+  LineOutput got;
   while (std::getline(f, line)) {
-    ResolvedBlock b;
-    Diagnostic d;
-    const auto st = parser.parse_line(line, b, d);
-    ASSERT_NE(st, LineStatus::kRejected) << format(d);
-    if (st != LineStatus::kBlock) continue;
+    parser.feed(line, got);
+    ASSERT_EQ(got.error(), nullptr) << format(*got.error());
+    if (got.blocks.size() != 1) continue;
+    const ResolvedBlock& b = got.blocks[0];
     if (b.motion == Motion::kTrochoidSlot) {
       ++cycles;
       EXPECT_EQ(b.slot.tool_diameter, 20.0);  // from T2 in the machine config
@@ -881,11 +881,10 @@ TEST(TrochoidSample, PaperSlotProgramExpandsWritesAndReadsBack) {
   std::istringstream in(text);
   std::vector<Axes> ends;
   while (std::getline(in, line)) {
-    ResolvedBlock b;
-    Diagnostic d;
-    const auto st = again.parse_line(line, b, d);
-    ASSERT_NE(st, LineStatus::kRejected) << format(d) << " in: " << line;
-    if (st == LineStatus::kBlock && b.motion != Motion::kNone) ends.push_back(b.target);
+    again.feed(line, got);
+    ASSERT_EQ(got.error(), nullptr) << format(*got.error()) << " in: " << line;
+    for (const ResolvedBlock& b : got.blocks)
+      if (b.motion != Motion::kNone) ends.push_back(b.target);
   }
   std::vector<Axes> expected;
   for (const auto& b : out)

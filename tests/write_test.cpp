@@ -28,10 +28,10 @@ std::vector<ResolvedBlock> active(const Parsed& p) {
 std::string write_all(const Parsed& p, WriteOptions wo) {
   Writer w(wo);
   std::string out;
-  // Interleave blocks and diagnostics by line, as the batch loop does.
+  // Blocks and diagnostics in the order the parser handed them out, as the batch loop sees them.
   std::size_t i = 0, j = 0;
-  while (i < p.blocks.size() || j < p.diags.size()) {
-    if (j >= p.diags.size() || (i < p.blocks.size() && p.blocks[i].line < p.diags[j].line)) w.write(p.blocks[i++], out);
+  for (bool is_block : p.order) {
+    if (is_block) w.write(p.blocks[i++], out);
     else w.write_diagnostic(p.diags[j++], out);
   }
   return out;
@@ -73,6 +73,28 @@ TEST(WriteRoundTrip, EveryProgramUnderSharedData) {
     ParseOptions back_other;
     back_other.dialect = other.dialect;
     expect_round_trip(first, back_other, other, kTol, "other dialect");
+  }
+}
+
+// Issue 14: what the parser expands (cycles, G28, calls, loops) is written as plain moves, which
+// read back to the same blocks in either dialect.
+TEST(WriteRoundTrip, ExpandedCyclesCallsAndLoopsBecomePlainMoves) {
+  const std::string program =
+      "o<hole> sub\n  G81 X#1 Y#2 Z-3 R1\n  G80\no<hole> endsub\n"
+      "G21 G90 G17 F250 S1200 M3\nG0 X0 Y0 Z10\n#1 = 0\no1 while [#1 lt 3]\n  o<hole> call [#1 * 10] [5]\n"
+      "  #1 = [#1 + 1]\no1 endwhile\nG98 G83 X40 Y5 Z-8 R2 Q2.5\nG82 X50 Z-2 R2 P0.5\nG86 X60 Z-2 R2 P0.25\n"
+      "G80\nG91 G28 Z0\nG90 G53 G0 X10\nG92 X0\nG0 X5\nG92.1\nG10 L2 P1 X3 Y-2\nG0 X1 Y1\nM2\n";
+  ParseOptions lc;
+  lc.dialect = Dialect::kLinuxCnc;
+  Parsed first = parse_text(program, lc);
+  ASSERT_EQ(first.first_error(), nullptr) << format(*first.first_error());
+  ASSERT_GT(first.summary.blocks_out, first.summary.blocks_emitted + 20);
+  for (Dialect d : {Dialect::kLinuxCnc, Dialect::kFanuc}) {
+    WriteOptions wo;
+    wo.dialect = d;
+    ParseOptions back;
+    back.dialect = d;
+    expect_round_trip(first, back, wo, kTol, d == Dialect::kFanuc ? "fanuc" : "linuxcnc");
   }
 }
 

@@ -94,12 +94,18 @@ std::vector<ResolvedBlock> parse_program(const std::string& path, const Pipeline
   Parser parser(load_parse_options(pc.root.section("parse")), pc.machine, path);
   std::string line;
   int shown = 0;
+  LineOutput lo;
+  auto take = [&] {
+    out.insert(out.end(), lo.blocks.begin(), lo.blocks.end());
+    for (const Diagnostic& d : lo.diagnostics)
+      if (d.severity == Severity::kError && shown++ < 20) err << format(d) << "\n";
+  };
   while (std::getline(in, line)) {
-    ResolvedBlock b;
-    Diagnostic d;
-    if (parser.parse_line(line, b, d) == LineStatus::kBlock) out.push_back(b);
-    else if (d.severity == Severity::kError && shown++ < 20) err << format(d) << "\n";
+    parser.feed(line, lo);
+    take();
   }
+  parser.finish(lo);
+  take();
   return out;
 }
 

@@ -15,6 +15,7 @@ namespace gcpipe::cli {
 struct ProgramArgs {
   std::string input;      //!< program file, "-" = standard input
   std::string config;     //!< pipeline config; empty = pipeline_configs/default.yaml
+  std::string tool_table; //!< a shop's tool table (LinuxCNC .tbl or YAML) instead of the machine file's tools
   bool strict = false;    //!< stop at the first rejected line
   bool progress = false;  //!< progress on stderr even when it is not a terminal
   bool no_progress = false;

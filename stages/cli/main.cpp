@@ -19,11 +19,14 @@ constexpr const char* kExitStatus =
 const CLI::Validator kNonEmpty(
     [](std::string& s) { return s.empty() ? std::string("must not be empty") : std::string(); }, "NONEMPTY");
 
-// --config, --strict, --progress, --no-progress and the input program.
+// --config, --tool-table, --strict, --progress, --no-progress and the input program.
 void add_program_options(CLI::App& sub, ProgramArgs& a) {
   sub.add_option("input", a.input, "the program (ISO 6983 G-code); - reads standard input")->required();
   // No file check here: the config loader names the file and says what is wrong with it.
   sub.add_option("--config", a.config, "pipeline config (default: pipeline_configs/default.yaml)");
+  sub.add_option("--tool-table", a.tool_table,
+                 "a shop's tool table (LinuxCNC .tbl or YAML) instead of the machine file's tools")
+      ->check(CLI::ExistingFile);
   sub.add_flag("--strict", a.strict, "stop at the first rejected line (default: reject it and go on)");
   sub.add_flag("--progress", a.progress, "progress on stderr even when it is not a terminal");
   sub.add_flag("--no-progress", a.no_progress, "no progress on stderr, even on a terminal");

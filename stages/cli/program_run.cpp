@@ -45,7 +45,7 @@ ProgramRun::ProgramRun(const ProgramArgs& args, const std::vector<std::string>& 
 ProgramRun::ProgramRun(const ProgramArgs& args,
                        const std::function<std::vector<std::string>(const PipelineConfig&)>& last_stages,
                        pipeline::DiagnosticLog& log, const pipeline::StageContext& overrides)
-    : config_(load_config_option(args.config)), input_(args.input), progress_(show_progress(args)) {
+    : config_(load_config_option(args.config, args.tool_table)), input_(args.input), progress_(show_progress(args)) {
   pipeline::StageContext c = overrides;
   c.config = &config_;
   c.file = input_.name();

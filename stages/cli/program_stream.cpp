@@ -5,11 +5,9 @@
 #include <unistd.h>
 
 #include <cerrno>
-#include <chrono>
 #include <cstring>
 #include <stdexcept>
 
-#include "gcpipe/line_reader.hpp"
 
 namespace gcpipe::cli {
 
@@ -35,96 +33,17 @@ InputFile::~InputFile() {
   if (fd_ > 0) ::close(fd_);
 }
 
-std::function<bool(const Diagnostic&)> print_diagnostics(std::uint64_t& errors) {
-  return [&errors](const Diagnostic& d) {
-    if (d.severity == Severity::kError) ++errors;
-    std::fprintf(stderr, "%s\n", format(d).c_str());
-    return true;
-  };
-}
-
-bool stream_program(InputFile& in, Parser& parser, const LineSink& sink, bool progress,
-                    std::string& error) {
-  const std::size_t max_line = parser.options().max_line_length;
-  LineReader reader(in.fd(), max_line);
-  ResolvedBlock block;
-  Diagnostic diag;
-  std::string_view line;
-  bool overlong = false;
-  std::size_t full = 0;
-  using clock = std::chrono::steady_clock;
-  auto next_report = clock::now() + std::chrono::seconds(1);
-  const auto t0 = clock::now();
-  bool shown = false;
-  while (reader.next(line, overlong, full)) {
-    const LineStatus st = parser.parse_line(line, block, diag, overlong ? full : 0);
-    bool go = true;
-    if (st == LineStatus::kBlock) {
-      go = sink.block(block);
-    } else {
-      go = sink.diagnostic(diag);
-      if (st == LineStatus::kRejected && parser.options().strict) {
-        error = "stopped at the first error (parse.strict is on)";
-        go = false;
-      }
-    }
-    if (!go) return false;
-    if (progress && (parser.summary().lines_read & 0xfff) == 0 && clock::now() > next_report) {
-      next_report += std::chrono::seconds(1);
-      const double s = std::chrono::duration<double>(clock::now() - t0).count();
-      const double mb = static_cast<double>(reader.bytes_read()) / 1e6;
-      if (in.size() > 0)
-        std::fprintf(stderr, "\r%s: %5.1f %%  %.0f MB  %.0f MB/s  %llu lines   ", in.name().c_str(),
-                     100.0 * static_cast<double>(reader.bytes_read()) / static_cast<double>(in.size()), mb, mb / s,
-                     static_cast<unsigned long long>(parser.summary().lines_read));
-      else
-        std::fprintf(stderr, "\r%s: %.0f MB  %.0f MB/s  %llu lines   ", in.name().c_str(), mb, mb / s,
-                     static_cast<unsigned long long>(parser.summary().lines_read));
-      shown = true;
-    }
+PipelineConfig load_config_option(const std::string& path_or_empty, const std::string& tool_table) {
+  std::filesystem::path path = path_or_empty;
+  if (path.empty()) {
+    path = default_pipeline_config();
+    if (!std::filesystem::exists(path))
+      throw std::runtime_error("no --config given and the default " + path.string() +
+                               " does not exist: pass --config pipeline_configs/<name>.yaml");
   }
-  if (shown) std::fprintf(stderr, "\n");
-  if (!reader.error().empty()) {
-    error = in.name() + ": read error: " + reader.error();
-    return false;
-  }
-  return true;
-}
-
-PipelineConfig load_config_option(const std::string& path_or_empty) {
-  if (!path_or_empty.empty()) return load_pipeline_config(path_or_empty);
-  auto def = default_pipeline_config();
-  if (!std::filesystem::exists(def))
-    throw std::runtime_error("no --config given and the default " + def.string() +
-                             " does not exist: pass --config pipeline_configs/<name>.yaml");
-  return load_pipeline_config(def);
-}
-
-OutputFile::OutputFile(const std::string& path) : path_(path) {
-  if (path == "-") {
-    f_ = stdout;
-    return;
-  }
-  f_ = std::fopen(path.c_str(), "wb");
-  if (f_ == nullptr) throw std::runtime_error(path + ": cannot write: " + std::strerror(errno));
-}
-
-OutputFile::~OutputFile() {
-  if (f_ != nullptr && f_ != stdout) std::fclose(f_);
-}
-
-void OutputFile::write(std::string& buffer, bool force) {
-  if (!force && buffer.size() < (1u << 20)) return;
-  if (!buffer.empty() && std::fwrite(buffer.data(), 1, buffer.size(), f_) != buffer.size())
-    throw std::runtime_error(path_ + ": write failed: " + std::strerror(errno));
-  buffer.clear();
-}
-
-void OutputFile::close() {
-  if (f_ == nullptr) return;
-  if (std::fflush(f_) != 0) throw std::runtime_error(path_ + ": write failed: " + std::strerror(errno));
-  if (f_ != stdout) std::fclose(f_);
-  f_ = nullptr;
+  PipelineConfig pc = load_pipeline_config(path);
+  if (!tool_table.empty()) merge_tool_table(pc.machine, tool_table);
+  return pc;
 }
 
 }  // namespace gcpipe::cli

@@ -6,7 +6,8 @@ namespace gcpipe {
 
 MachineConfig load_machine(const Config& m) {
   MachineConfig out;
-  m.reject_unknown({"name", "work_offsets", "tools", "initial_position", "kinematics", "limits"});
+  m.reject_unknown({"name", "work_offsets", "tools", "tool_table", "reference_positions", "initial_position",
+                    "kinematics", "limits"});
   out.name = m.string("name", "unnamed");
   if (m.has("work_offsets")) {
     Config wo = m.section("work_offsets");
@@ -40,6 +41,23 @@ MachineConfig load_machine(const Config& m) {
   if (m.has("initial_position")) {
     auto v = m.numbers("initial_position", kNumAxes, "mm or deg (X Y Z A C)", -1e5, 1e5);
     for (int a = 0; a < kNumAxes; ++a) out.initial_position[static_cast<std::size_t>(a)] = v[static_cast<std::size_t>(a)];
+  }
+  if (m.has("reference_positions")) {
+    Config rp = m.section("reference_positions");
+    rp.reject_unknown({"G28", "G30"});
+    static const char* names[2] = {"G28", "G30"};
+    for (int i = 0; i < 2; ++i) {
+      if (!rp.has(names[i])) continue;
+      auto v = rp.numbers(names[i], kNumAxes, "mm or deg (X Y Z A C), machine coordinates", -1e5, 1e5);
+      for (int a = 0; a < kNumAxes; ++a)
+        out.reference_positions[static_cast<std::size_t>(i)][static_cast<std::size_t>(a)] = v[static_cast<std::size_t>(a)];
+    }
+  }
+  if (m.has("tool_table")) {
+    // Relative to the machine file, so a config tree can be moved as a whole.
+    std::filesystem::path p = m.string("tool_table", "");
+    if (p.is_relative() && !m.file().empty()) p = std::filesystem::path(m.file()).parent_path() / p;
+    merge_tool_table(out, p);
   }
   out.kinematics = load_kinematics(m);
   return out;

@@ -86,16 +86,22 @@ class CompensateStage final : public pipeline::Stage {
     po.decimal_point_increments = false;
     Parser parser(po, machine_, "compensated.nc");
     std::vector<ResolvedBlock> back;
-    ResolvedBlock block;
-    Diagnostic diag;
+    const ParseSink sink{[&back](const ResolvedBlock& b) {
+                           if (b.motion != Motion::kNone) back.push_back(b);
+                           return true;
+                         },
+                         [](const Diagnostic& d) {
+                           if (d.severity == Severity::kError)
+                             throw std::runtime_error("compensated.nc does not read back: " + format(d));
+                           return true;
+                         }};
     std::size_t begin = 0;
     while (begin < text.size()) {
       const std::size_t end = std::min(text.find('\n', begin), text.size());
-      const LineStatus st = parser.parse_line(std::string_view(text).substr(begin, end - begin), block, diag);
-      if (st == LineStatus::kRejected) throw std::runtime_error("compensated.nc does not read back: " + format(diag));
-      if (st == LineStatus::kBlock && block.motion != Motion::kNone) back.push_back(block);
+      parser.feed(std::string_view(text).substr(begin, end - begin), sink);
       begin = end + 1;
     }
+    parser.finish(sink);
     const auto& nodes = compensation_.result->nodes;
     if (back.size() + 1 != nodes.size())
       throw std::runtime_error("compensated.nc does not read back as written (" + std::to_string(back.size()) +

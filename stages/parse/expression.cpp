@@ -275,6 +275,10 @@ bool ExpressionReader::read_value(std::string_view line, std::size_t& pos, doubl
   return unary(line, pos, out, 0);
 }
 
+bool ExpressionReader::read_expression(std::string_view line, std::size_t& pos, double& out) {
+  return binary(line, pos, out, 0, 0);
+}
+
 bool ExpressionReader::read_target(std::string_view s, std::size_t& p, Assignment& t) {
   const std::size_t at = p;
   skip_blanks(s, p);

@@ -41,6 +41,8 @@ class ExpressionReader {
  public:
   explicit ExpressionReader(const ParameterStore& params) : params_(params) {}
   bool read_value(std::string_view line, std::size_t& pos, double& out);
+  /// Reads an expression without outer brackets, as Fanuc Macro B writes them (`#1 = #2 + 3`).
+  bool read_expression(std::string_view line, std::size_t& pos, double& out);
   /// Reads `#n` or `#<name>` as an assignment target (after '#').
   bool read_target(std::string_view line, std::size_t& pos, Assignment& target);
   const std::string& error() const { return error_; }

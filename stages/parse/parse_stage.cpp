@@ -14,14 +14,12 @@ class ParseStage final : public pipeline::Stage {
   explicit ParseStage(const pipeline::StageContext& c)
       : parser_(options(c), c.config->machine, c.file), log_(*c.log) {}
 
+  // A line may yield several blocks (a canned cycle, a subroutine call) or, inside flow control,
+  // nothing until its loop or definition ends; finish() hands out what still waits.
   bool line(std::string_view text, std::size_t overlong_length, Emitter& out) override {
-    const LineStatus st = parser_.parse_line(text, block_, diag_, overlong_length);
-    if (st == LineStatus::kBlock) return out.block(block_);
-    log_.report(diag_);
-    const bool go = out.diagnostic(diag_, st == LineStatus::kDeleted ? DiagnosticKind::kLineDeleted
-                                                                      : DiagnosticKind::kLineRejected);
-    return go && !(st == LineStatus::kRejected && parser_.options().strict);
+    return parser_.feed(text, sink(out), overlong_length);
   }
+  bool finish(bool complete, Emitter& out) override { return !complete || parser_.finish(sink(out)); }
   bool block(const ResolvedBlock&, Emitter&) override { throw std::logic_error("parse reads program text"); }
 
   // The line accounting stands at the top of the report: lines read = emitted + rejected + skipped.
@@ -33,6 +31,7 @@ class ParseStage final : public pipeline::Stage {
     j["lines_rejected"] = s.lines_rejected;
     j["lines_deleted"] = s.lines_deleted;
     j["bytes_read"] = s.bytes_read;
+    j["blocks_out"] = s.blocks_out;  // >= blocks_emitted: cycles and calls give several per line
     char buf[200];
     std::snprintf(buf, sizeof buf, "  lines:    %llu read = %llu emitted + %llu rejected + %llu skipped (block delete)\n",
                   static_cast<unsigned long long>(s.lines_read), static_cast<unsigned long long>(s.blocks_emitted),
@@ -44,6 +43,17 @@ class ParseStage final : public pipeline::Stage {
   const Parser& parser() const { return parser_; }
 
  private:
+  // Blocks and diagnostics to `out`; a rejected line stops the program in strict mode.
+  ParseSink sink(Emitter& out) {
+    return {[&out](const ResolvedBlock& b) { return out.block(b); },
+            [this, &out](const Diagnostic& d) {
+              log_.report(d);
+              const bool error = d.severity == Severity::kError;
+              const bool go = out.diagnostic(d, error ? DiagnosticKind::kLineRejected : DiagnosticKind::kLineDeleted);
+              return go && !(error && parser_.options().strict);
+            }};
+  }
+
   static ParseOptions options(const pipeline::StageContext& c) {
     ParseOptions o = load_parse_options(c.config->root.section("parse"));
     o.strict = o.strict || c.strict;
@@ -51,8 +61,6 @@ class ParseStage final : public pipeline::Stage {
   }
   Parser parser_;
   pipeline::DiagnosticLog& log_;
-  ResolvedBlock block_;
-  Diagnostic diag_;
 };
 
 }  // namespace

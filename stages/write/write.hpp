@@ -50,6 +50,21 @@ class Writer {
   void write_diagnostic(const Diagnostic& diag, std::string& out);
 
  private:
+  struct Line;
+  bool refuse(const ResolvedBlock& b, std::string& out);
+  bool write_program_start(const ResolvedBlock& b, std::string& out);
+  void units_and_offset(const ResolvedBlock& b, Line& line);
+  void tool_length_and_tcp(const ResolvedBlock& b, Line& line);
+  void feed_mode_tool_spindle_coolant(const ResolvedBlock& b, Line& line);
+  void motion(const ResolvedBlock& b, Line& line);
+  void motion_word(Motion m, const char* text, Line& line);
+  void axes(const ResolvedBlock& b, Line& line, std::uint8_t must);
+  void feed(const ResolvedBlock& b, Line& line, bool always);
+  void tool_vector(const ResolvedBlock& b, Line& line);
+  void arc(const ResolvedBlock& b, Line& line);
+  void slot(const ResolvedBlock& b, Line& line);
+  void program_stop(const ResolvedBlock& b, Line& line);
+
   WriteOptions opt_;
   // What the output has established so far; starts at the control defaults the header asserts.
   bool header_done_ = false;

@@ -35,10 +35,10 @@ std::vector<ResolvedBlock> program(const PipelineConfig& pc, int moves) {
   std::vector<ResolvedBlock> out;
   std::istringstream in(p.str());
   std::string line;
+  LineOutput lo;
   while (std::getline(in, line)) {
-    ResolvedBlock b;
-    Diagnostic d;
-    if (parser.parse_line(line, b, d) == LineStatus::kBlock) out.push_back(b);
+    parser.feed(line, lo);
+    out.insert(out.end(), lo.blocks.begin(), lo.blocks.end());
   }
   return out;
 }

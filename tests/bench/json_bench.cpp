@@ -98,13 +98,12 @@ const std::vector<ResolvedBlock>& blocks() {
     gen.footer(text);
     Parser parser(ParseOptions{}, MachineConfig{}, "synthetic");
     std::vector<ResolvedBlock> out;
-    ResolvedBlock block;
-    Diagnostic diag;
+    LineOutput lo;
     std::size_t at = 0;
     while (at < text.size()) {
       const std::size_t end = std::min(text.find('\n', at), text.size());
-      if (parser.parse_line(std::string_view(text).substr(at, end - at), block, diag) == LineStatus::kBlock)
-        out.push_back(block);
+      parser.feed(std::string_view(text).substr(at, end - at), lo);
+      out.insert(out.end(), lo.blocks.begin(), lo.blocks.end());
       at = end + 1;
     }
     return out;

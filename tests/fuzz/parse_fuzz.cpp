@@ -34,6 +34,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   o.absolute_arc_centres = (f & 8) != 0;
   o.initial_units = (f & 16) ? Units::kInch : Units::kMillimetre;
   o.max_line_length = 256;
+  o.max_loop_passes = 1000;  // loops run to their limit quickly: each input stays fast
   MachineConfig m;
   m.tools[1] = {100, 10};
   m.tools[2] = {110, 20};
@@ -45,21 +46,23 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   Writer w(wo);
   std::string written;
   std::string_view in(reinterpret_cast<const char*>(data + 1), size - 1);
-  ResolvedBlock b;
-  Diagnostic d;
+  const ParseSink sink{[&](const ResolvedBlock& b) {
+                         w.write(b, written);
+                         return true;
+                       },
+                       [&](const Diagnostic& d) {
+                         check(d.line >= 1 && d.line <= p.summary().lines_read && !d.message.empty());
+                         return true;
+                       }};
   while (!in.empty()) {
     std::size_t nl = in.find('\n');
     std::string_view line = in.substr(0, nl);
     in = nl == std::string_view::npos ? std::string_view() : in.substr(nl + 1);
     std::size_t overlong = line.size() > o.max_line_length ? line.size() : 0;
     if (overlong) line = line.substr(0, o.max_line_length);
-    const LineStatus st = p.parse_line(line, b, d, overlong);
-    if (st == LineStatus::kBlock) {
-      w.write(b, written);
-    } else {
-      check(d.line == p.summary().lines_read && !d.message.empty());
-    }
+    p.feed(line, sink, overlong);
   }
+  p.finish(sink);
   const ParseSummary& s = p.summary();
   check(s.lines_read == s.blocks_emitted + s.lines_rejected + s.lines_deleted);
 
@@ -70,13 +73,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     back.dialect = o.dialect;
     back.max_line_length = 1 << 16;
     Parser q(back, m, "written.nc");
+    LineOutput got;
     std::string_view out(written);
     while (!out.empty()) {
       std::size_t nl = out.find('\n');
       std::string_view line = out.substr(0, nl);
       out = nl == std::string_view::npos ? std::string_view() : out.substr(nl + 1);
-      if (q.parse_line(line, b, d) == LineStatus::kRejected) {
-        std::fprintf(stderr, "written output does not parse: %s\n  line: %.*s\n", format(d).c_str(),
+      q.feed(line, got);
+      if (const Diagnostic* d = got.error()) {
+        std::fprintf(stderr, "written output does not parse: %s\n  line: %.*s\n", format(*d).c_str(),
                      static_cast<int>(line.size()), line.data());
         std::abort();
       }

@@ -1,0 +1,203 @@
+// Canned cycles G73 G74 G81..G86 G89 expanded into plain moves, as LinuxCNC's interpreter
+// expands them (checked move for move against its rs274 in tests/rs274_diff_test.cpp) and as the
+// Fanuc manuals describe them. In the G17 plane the drilling axis is Z, in G18 Y, in G19 X.
+//
+// Per repeat (L, or K on Fanuc): rapid to the hole in the plane at the current level, rapid down
+// to R, the cycle's own strokes, retract to the clear level: R in G99, in G98 the higher of R and
+// the level the series started at (Fanuc: the initial level; LinuxCNC: the level the block
+// started at). If the drilling axis starts below R it first rapids up to R (LinuxCNC's
+// preliminary move). G91: R is measured from the level at the block's start, the bottom from R,
+// the hole position step is repeated L times.
+#include <algorithm>
+#include <cmath>
+
+#include "parse_internal.hpp"
+
+namespace gcpipe {
+
+using namespace parse_detail;
+
+namespace {
+
+// LinuxCNC's G73 chip-break retract and G83 re-approach clearance: 0.010 inch (its
+// G83_RAPID_DELTA); Fanuc's parameter d, taken at the same value.
+constexpr double kPeckDelta = 0.010 * kInch;  // [mm]
+
+// The resolved numbers of one cycle block.
+struct CycleGeometry {
+  PlaneAxes pa;
+  int code;
+  double r, bottom, clear;  // levels along the drilling axis [mm, machine]
+  double q, dwell;          // peck depth [mm] and dwell [s]
+  double du, dv;            // G91: the hole step in the plane [mm]
+  bool incremental;
+  long repeats;
+};
+
+// Builds the moves of one hole; `pos` is where the tool stands, updated.
+class HoleWriter {
+ public:
+  HoleWriter(std::vector<Move>& moves, Axes& pos, int n) : moves_(moves), pos_(pos), n_(n) {}
+  void rapid_to(double level) { to(Motion::kRapid, level); }
+  void feed_to(double level) { to(Motion::kLinear, level); }
+  void rapid_in_plane(int u, double pu, int v, double pv) {
+    Axes t = pos_;
+    t[u] = pu;
+    t[v] = pv;
+    add(Motion::kRapid, t);
+  }
+  void dwell(double s) {
+    if (s > 0) moves_.push_back({Motion::kDwell, pos_, s});
+  }
+  void spindle(Spindle sp) { spindle_ = static_cast<int>(sp); }
+
+ private:
+  void to(Motion m, double level) {
+    Axes t = pos_;
+    t[n_] = level;
+    add(m, t);
+  }
+  // A stroke that goes nowhere (R reached already) is not a move: it is left out.
+  void add(Motion m, const Axes& t) {
+    if (t == pos_) return;
+    moves_.push_back({m, t, 0, spindle_});
+    pos_ = t;
+  }
+  std::vector<Move>& moves_;
+  Axes& pos_;
+  int n_;
+  int spindle_ = -1;
+};
+
+void peck(HoleWriter& h, const CycleGeometry& g, bool full_retract) {
+  double depth = g.r;
+  while (depth - g.q > g.bottom) {
+    depth -= g.q;
+    h.feed_to(depth);
+    if (full_retract) {
+      h.rapid_to(g.r);
+      h.rapid_to(depth + kPeckDelta);
+    } else {
+      h.rapid_to(depth + kPeckDelta);
+    }
+  }
+  h.feed_to(g.bottom);
+  h.rapid_to(g.clear);
+}
+
+// The strokes of one hole below R, ending at the clear level.
+void strokes(HoleWriter& h, const CycleGeometry& g, Spindle spindle) {
+  switch (g.code) {
+    case 730: return peck(h, g, false);
+    case 830: return peck(h, g, true);
+    case 810: case 820:
+      h.feed_to(g.bottom);
+      h.dwell(g.code == 820 ? g.dwell : 0);
+      return h.rapid_to(g.clear);
+    case 850: case 890:
+      h.feed_to(g.bottom);
+      h.dwell(g.code == 890 ? g.dwell : 0);
+      h.feed_to(g.r);
+      return h.rapid_to(g.clear);
+    case 860:
+      // Bore, dwell, stop the spindle, rapid out, restart it.
+      h.feed_to(g.bottom);
+      h.dwell(g.dwell);
+      h.spindle(Spindle::kOff);
+      h.rapid_to(g.clear);
+      return h.spindle(spindle);
+    case 840: case 740: {
+      // Tapping: in with the spindle as it turns, reverse at the bottom, out at feed.
+      h.feed_to(g.bottom);
+      h.spindle(spindle == Spindle::kCW ? Spindle::kCCW : Spindle::kCW);
+      h.dwell(g.dwell);
+      h.feed_to(g.r);
+      h.spindle(spindle);
+      return h.rapid_to(g.clear);
+    }
+    default: return;
+  }
+}
+
+}  // namespace
+
+// A block in a canned-cycle mode with axis words: one or more holes.
+bool Parser::Impl::cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, std::uint8_t mask) {
+  const Scan& s = sc;
+  const std::string name = code_text('G', ns.cycle);
+  const std::uint32_t col = c.motion_col ? c.motion_col : 1;
+  CycleGeometry g{};
+  g.pa = plane_axes(ns.plane);
+  g.code = ns.cycle;
+  g.incremental = ns.incremental;
+  const int n = g.pa.n;
+  for (char L : {'A', 'C'})
+    if (s.has(L)) return fail(s.w(L).col, name + " with " + L + ": rotary axes cannot move in a canned cycle");
+  const char depth_letter = kAxisLetters[n];
+  if (s.has('R')) ns.cycle_r = s.w('R');
+  if (s.has(depth_letter)) ns.cycle_z = s.w(depth_letter);
+  if (s.has('Q')) ns.cycle_q = s.w('Q');
+  if (s.has('P')) ns.cycle_p = s.w('P');
+  if (ns.cycle_r.col == 0) return fail(col, name + " needs R (the retract plane), in this block or an earlier cycle block");
+  if (ns.cycle_z.col == 0)
+    return fail(col, name + " needs " + depth_letter + " (the hole bottom), in this block or an earlier cycle block");
+  const double start_n = ns.position[n];
+  const double r_word = linear_value(ns.cycle_r, ns.units);
+  const double z_word = linear_value(ns.cycle_z, ns.units);
+  g.r = g.incremental ? start_n + r_word : r_word + ns.origin[n];
+  g.bottom = g.incremental ? g.r + z_word : z_word + ns.origin[n];
+  if (g.bottom > g.r)
+    return fail(s.has(depth_letter) ? s.w(depth_letter).col : col,
+                name + ": the bottom " + depth_letter + " is above the R plane: the cycle drills towards -" + depth_letter);
+  const double old = opt.dialect == Dialect::kFanuc ? ns.cycle_initial : std::max(start_n, g.r);
+  g.clear = ns.cycle_to_r ? g.r : std::max(g.r, old);
+  if (ns.cycle == 730 || ns.cycle == 830) {
+    g.q = ns.cycle_q.col ? linear_value(ns.cycle_q, ns.units) : 0;
+    if (!(g.q > 0)) return fail(ns.cycle_q.col ? ns.cycle_q.col : col, name + " needs a positive peck depth Q");
+  }
+  if (ns.cycle_p.col) {
+    const double p = ns.cycle_p.value;
+    g.dwell = opt.dialect == Dialect::kFanuc ? p / 1000.0 : p;  // Fanuc P in ms, LinuxCNC in s
+    if (g.dwell < 0 || g.dwell > 1e5) return fail(ns.cycle_p.col, name + " P" + show(p) + ": the dwell is out of range (0..100000 s)");
+  }
+  const char rep = opt.dialect == Dialect::kFanuc && s.has('K') ? 'K' : 'L';
+  g.repeats = 1;
+  if (s.has(rep)) {
+    const double v = s.w(rep).value;
+    if (v < 0 || v > 10000 || v != std::floor(v))
+      return fail(s.w(rep).col, name + " " + rep + show(v) + ": the number of repeats must be a whole number 0..10000");
+    g.repeats = static_cast<long>(v);
+  }
+  if (ns.cycle == 840 && ns.spindle != Spindle::kCW)
+    return fail(col, "G84 (right-hand tapping) needs the spindle turning clockwise (M3) before the cycle");
+  if (ns.cycle == 740 && ns.spindle != Spindle::kCCW)
+    return fail(col, "G74 (left-hand tapping) needs the spindle turning counter-clockwise (M4) before the cycle");
+  const Motion saved = ns.motion;
+  ns.motion = Motion::kLinear;
+  const bool feed_ok = check_feed(c, ns);
+  ns.motion = saved;
+  if (!feed_ok) return false;
+  // In-plane target: G90 the block's words (or where the tool is); G91 a step per repeat.
+  Axes target = ns.position;
+  const int u = g.pa.u, v = g.pa.v;
+  for (int a : {u, v})
+    if (mask & (1u << a)) target[a] = ns.incremental ? target[a] : linear_value(s.w(kAxisLetters[a]), ns.units) + ns.origin[a];
+  g.du = (mask & (1u << u)) && g.incremental ? linear_value(s.w(kAxisLetters[u]), ns.units) : 0;
+  g.dv = (mask & (1u << v)) && g.incremental ? linear_value(s.w(kAxisLetters[v]), ns.units) : 0;
+  Axes pos = ns.position;
+  HoleWriter h(moves, pos, n);
+  if (pos[n] < g.r) h.rapid_to(g.r);  // preliminary move, once
+  for (long i = 0; i < g.repeats; ++i) {
+    const double pu = g.incremental ? pos[u] + g.du : target[u];
+    const double pv = g.incremental ? pos[v] + g.dv : target[v];
+    h.rapid_in_plane(u, pu, v, pv);
+    h.rapid_to(g.r);
+    strokes(h, g, ns.spindle);
+  }
+  b.motion = moves.empty() ? Motion::kNone : moves.back().motion;
+  b.target = pos;
+  ns.position = pos;
+  return true;
+}
+
+}  // namespace gcpipe

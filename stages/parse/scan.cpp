@@ -1,0 +1,354 @@
+// Scanner: one line into words (letter, value, column), G and M codes, comments and parameter
+// assignments, with every syntax error at its column. The hot path (plain words with literal
+// numbers) allocates nothing; expressions and parameters take the slow path.
+#include <charconv>
+#include <cmath>
+#include <cstring>
+
+#include "gcpipe/number_format.hpp"
+#include "parse_internal.hpp"
+
+namespace gcpipe {
+
+namespace parse_detail {
+
+std::string code_text(char letter, int code) {
+  std::string s(1, letter);
+  s += std::to_string(code / 10);
+  if (code % 10) s += "." + std::to_string(code % 10);
+  return s;
+}
+
+// A value as a message shows it: shortest exact digits, no forced point ("I2", "X0.001").
+std::string show(double v) {
+  std::string s;
+  append_json_number(s, v);
+  return s;
+}
+
+PlaneAxes plane_axes(Plane p) {
+  switch (p) {
+    case Plane::kXY: return {kX, kY, kZ, 'I', 'J'};
+    case Plane::kZX: return {kZ, kX, kY, 'K', 'I'};
+    case Plane::kYZ: return {kY, kZ, kX, 'J', 'K'};
+  }
+  return {kX, kY, kZ, 'I', 'J'};
+}
+
+}  // namespace parse_detail
+
+using namespace parse_detail;
+
+namespace {
+
+// Letters that are words in this dialect. B, U, V, E, L and the others are rejected by name.
+constexpr bool is_word_letter(char c) {
+  switch (c) {
+    case 'A': case 'C': case 'D': case 'F': case 'G': case 'H': case 'I': case 'J': case 'K':
+    case 'L': case 'M': case 'N': case 'P': case 'Q': case 'R': case 'S': case 'T': case 'W': case 'X':
+    case 'Y': case 'Z':
+      return true;
+    default:
+      return false;
+  }
+}
+
+
+void add_comment(std::string& comment, std::string_view text) {
+  // Trim so that "( text )" and "(text)" read back the same after a write.
+  while (!text.empty() && (text.front() == ' ' || text.front() == '\t')) text.remove_prefix(1);
+  while (!text.empty() && (text.back() == ' ' || text.back() == '\t')) text.remove_suffix(1);
+  if (text.empty()) return;
+  if (!comment.empty()) comment += " | ";
+  comment.append(text);
+}
+
+
+}  // namespace
+
+// The slow path: a bracketed expression, a parameter or a function call as a word's value.
+bool Parser::Impl::read_expression_number(std::string_view s, std::size_t& p, char letter, Word& w) {
+  // Function names (sqrt[..]) start with a letter; a plain letter here is a missing value, which
+  // the expression reader reports as such.
+  if ((s[p] | 0x20) >= 'a' && (s[p] | 0x20) <= 'z') {
+    std::size_t q = p;
+    while (q < s.size() && (((s[q] | 0x20) >= 'a' && (s[q] | 0x20) <= 'z'))) ++q;
+    skip_blanks(s, q);
+    if (q >= s.size() || s[q] != '[')
+      return fail(static_cast<std::uint32_t>(p + 1),
+                  std::string("word '") + letter + "' has no value (a number must follow the letter)");
+  }
+  ExpressionReader er(params);
+  double v = 0;
+  if (!er.read_value(s, p, v)) return fail(static_cast<std::uint32_t>(er.error_pos() + 1), er.error());
+  if (!std::isfinite(v))
+    return fail(w.col, std::string("value of ") + letter + " is not a finite number");
+  w.value = v;
+  w.point = true;
+  w.expr = true;
+  return true;
+}
+
+// A number after a letter: optional sign, digits and at most one point, blanks allowed anywhere
+// (ISO 6983 and LinuxCNC ignore spaces). Expressions and parameters take the slow path.
+bool Parser::Impl::read_number(std::string_view s, std::size_t& p, char letter, Word& w) {
+  skip_blanks(s, p);
+  if (p < s.size() && (s[p] == '[' || s[p] == '#' ||
+                       ((s[p] == '-' || s[p] == '+') && p + 1 < s.size() && (s[p + 1] == '[' || s[p + 1] == '#')) ||
+                       ((s[p] | 0x20) >= 'a' && (s[p] | 0x20) <= 'z')))
+    return read_expression_number(s, p, letter, w);
+  const std::size_t start = p;
+  bool neg = false;
+  if (p < s.size() && (s[p] == '+' || s[p] == '-')) {
+    neg = s[p] == '-';
+    ++p;
+    skip_blanks(s, p);
+  }
+  const std::size_t digits = p;
+  bool point = false, blank = false;
+  std::size_t ndig = 0;
+  while (p < s.size()) {
+    char c = s[p];
+    if (c >= '0' && c <= '9') {
+      ++ndig;
+    } else if (c == '.') {
+      if (point) return fail(static_cast<std::uint32_t>(p + 1), std::string("number after ") + letter + " has two decimal points");
+      point = true;
+    } else if (c == ' ' || c == '\t') {
+      // A blank inside a number is allowed only if more digits follow ("X1 2.5" = X12.5).
+      std::size_t q = p;
+      skip_blanks(s, q);
+      if (q < s.size() && ((s[q] >= '0' && s[q] <= '9') || s[q] == '.')) {
+        blank = true;
+        p = q;
+        continue;
+      }
+      break;
+    } else {
+      break;
+    }
+    ++p;
+  }
+  if (ndig == 0) {
+    if (start == p || p == digits)
+      return fail(static_cast<std::uint32_t>(start + 1),
+                  std::string("word '") + letter + "' has no value (a number must follow the letter)");
+    return fail(static_cast<std::uint32_t>(start + 1), std::string("malformed number after ") + letter);
+  }
+  double v = 0;
+  std::from_chars_result r;
+  std::size_t len = p - digits;
+  while (len > 0 && (s[digits + len - 1] == ' ' || s[digits + len - 1] == '\t')) --len;
+  if (!blank) {
+    r = std::from_chars(s.data() + digits, s.data() + digits + len, v);
+    if (r.ec == std::errc::result_out_of_range) v = HUGE_VAL;
+    else if (r.ec != std::errc() || r.ptr != s.data() + digits + len)
+      return fail(static_cast<std::uint32_t>(start + 1), std::string("malformed number after ") + letter);
+  } else {
+    std::string buf;
+    for (std::size_t i = digits; i < digits + len; ++i)
+      if (s[i] != ' ' && s[i] != '\t') buf.push_back(s[i]);
+    r = std::from_chars(buf.data(), buf.data() + buf.size(), v);
+    if (r.ec == std::errc::result_out_of_range) v = HUGE_VAL;
+    else if (r.ec != std::errc() || r.ptr != buf.data() + buf.size())
+      return fail(static_cast<std::uint32_t>(start + 1), std::string("malformed number after ") + letter);
+  }
+  w.value = neg ? -v : v;
+  w.point = point;
+  w.expr = false;
+  return true;
+}
+
+// G and M numbers: an integer with at most one decimal digit (G43.4), or an expression.
+bool Parser::Impl::read_code(std::string_view s, std::size_t& p, char letter, int& code, std::uint32_t col) {
+  Word w;
+  w.col = col;
+  if (!read_number(s, p, letter, w)) return false;
+  double t = w.value * 10;
+  if (w.value < 0 || w.value > 9999 || std::fabs(t - std::round(t)) > 1e-6)
+    return fail(col, std::string(1, letter) + show(w.value) + " is not a valid " + letter +
+                         " code (a whole number, optionally with one decimal: G43.4)");
+  code = static_cast<int>(std::lround(t));
+  return true;
+}
+
+bool Parser::Impl::scan(std::string_view s, ResolvedBlock& b) {
+  sc.ng = sc.nm = sc.nassign = 0;
+  sc.percent = false;
+  sc.program_number = -1;
+  sc.any_word = false;
+  std::memset(static_cast<void*>(sc.words), 0, sizeof sc.words);
+  sc.polar_r.col = sc.polar_a.col = 0;
+  std::size_t p = 0;
+  skip_blanks(s, p);
+  if (p < s.size() && s[p] == '%') {
+    sc.percent = true;
+    ++p;
+    add_comment(b.comment, s.substr(p));  // "%_N_NAME" and the like: keep the text
+    return true;
+  }
+  if (p < s.size() && s[p] == ':') {  // Fanuc's alternative program number
+    ++p;
+    Word w;
+    w.col = static_cast<std::uint32_t>(p);
+    if (!read_number(s, p, ':', w)) return false;
+    if (w.value < 0 || w.value > 99999999 || w.value != std::floor(w.value))
+      return fail(w.col, "program number :" + show(w.value) + " is not a whole number 0..99999999");
+    sc.program_number = static_cast<std::int32_t>(w.value);
+  }
+  while (p < s.size()) {
+    const char c = s[p];
+    const std::uint32_t col = static_cast<std::uint32_t>(p + 1);
+    if (c == ' ' || c == '\t') {
+      ++p;
+    } else if (c == '(') {
+      std::size_t close = p + 1;
+      while (close < s.size() && s[close] != ')') {
+        if (s[close] == '(')
+          return fail(static_cast<std::uint32_t>(close + 1), "comment inside a comment: '(' before the ')' of the comment opened at column " + std::to_string(col));
+        ++close;
+      }
+      if (close >= s.size()) return fail(col, "comment opened with '(' is not closed on this line");
+      add_comment(b.comment, s.substr(p + 1, close - p - 1));
+      p = close + 1;
+    } else if (c == ';') {
+      add_comment(b.comment, s.substr(p + 1));
+      break;
+    } else if (c == '#') {
+      if (!scan_assignment(s, p, col)) return false;
+    } else if ((c == '@' || c == '^') && opt.dialect == Dialect::kLinuxCnc) {
+      if (!scan_polar(s, p, col)) return false;
+    } else if (upper(c) == 'O') {
+      if (!scan_o_word(s, p, col)) return false;
+    } else if (upper(c) < 'A' || upper(c) > 'Z' || !is_word_letter(upper(c))) {
+      return reject_character(s, p, c, col);
+    } else if (!scan_word(s, p, upper(c), col)) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// Parameter assignment: #1 = 2, #<name> = [expr]; applied after the line, as LinuxCNC does.
+bool Parser::Impl::scan_assignment(std::string_view s, std::size_t& p, std::uint32_t col) {
+  ++p;
+  if (sc.nassign == 8) return fail(col, "more than 8 parameter assignments on one line");
+  refresh_system_parameters();
+  ExpressionReader er(params);
+  Assignment& a = sc.assign[sc.nassign];
+  if (!er.read_target(s, p, a)) return fail(static_cast<std::uint32_t>(er.error_pos() + 1), er.error());
+  skip_blanks(s, p);
+  if (p >= s.size() || s[p] != '=')
+    return fail(static_cast<std::uint32_t>(p + 1), "a parameter outside a word must be assigned: '#... = value'");
+  ++p;
+  double v = 0;
+  // Fanuc Macro B writes the value as a bare expression (#1 = #2 + 3); LinuxCNC as one value.
+  const bool ok = opt.dialect == Dialect::kFanuc ? er.read_expression(s, p, v) : er.read_value(s, p, v);
+  if (!ok) return fail(static_cast<std::uint32_t>(er.error_pos() + 1), er.error());
+  if (!std::isfinite(v)) return fail(col, "parameter value is not a finite number");
+  a.value = v;
+  ++sc.nassign;
+  return true;
+}
+
+// Fanuc: O1234 is the program number. LinuxCNC o-word statements (o100 sub, o<name> call ...)
+// never reach the scanner: flow.cpp runs them; one that does is misplaced on its line.
+bool Parser::Impl::scan_o_word(std::string_view s, std::size_t& p, std::uint32_t col) {
+  Statement st;
+  if (read_statement(s.substr(p), st))
+    return fail(col, "o-word statement (o" + st.label + " " + st.keyword +
+                         ") must stand at the start of its line, alone with comments");
+  std::size_t q = p + 1;
+  skip_blanks(s, q);
+  if (q < s.size() && s[q] == '<')
+    return fail(col, "o-word o<name> without a statement: expected sub, endsub, call, return, if, elseif, "
+                     "else, endif, while, endwhile, do, repeat, endrepeat, break or continue");
+  ++p;
+  Word w;
+  w.col = col;
+  if (!read_number(s, p, 'O', w)) return false;
+  if (w.value < 0 || w.value > 99999999 || w.value != std::floor(w.value))
+    return fail(col, "program number O" + show(w.value) + " is not a whole number 0..99999999");
+  if (sc.program_number >= 0) return fail(col, "two program numbers on one line");
+  sc.program_number = static_cast<std::int32_t>(w.value);
+  return true;
+}
+
+bool Parser::Impl::reject_character(std::string_view s, std::size_t p, char c, std::uint32_t col) {
+  const char L = upper(c);
+  if (L >= 'A' && L <= 'Z') {
+    std::string what = (L == 'B' || L == 'U' || L == 'V')
+                           ? std::string("this machine has axes X Y Z A C only (no ") + L + " axis)"
+                           : std::string("'") + L + "' is not a word of this dialect";
+    std::size_t q = p + 1;
+    std::string val;
+    while (q < s.size() && val.size() < 16 && (std::isdigit(static_cast<unsigned char>(s[q])) || s[q] == '.' || s[q] == '-' || s[q] == '+')) val.push_back(s[q++]);
+    return fail(col, "unknown word '" + std::string(1, L) + val + "': " + what);
+  }
+  if (c == '/' && p > 0) return fail(col, "'/' (block delete) is only allowed at the start of a line");
+  if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) {
+    char h[4];
+    std::snprintf(h, sizeof h, "%02X", static_cast<unsigned char>(c));
+    return fail(col, "unexpected byte 0x" + std::string(h) + " outside a comment");
+  }
+  return fail(col, std::string("unexpected '") + c + "': expected a word (letter and number) or a comment");
+}
+
+// Inlined into scan(): it runs for every word of every line.
+[[gnu::always_inline]] inline bool Parser::Impl::scan_word(std::string_view s, std::size_t& p, char L, std::uint32_t col) {
+  ++p;
+  sc.any_word = true;
+  if (L == 'G' || L == 'M') {
+    int code = 0;
+    if (!read_code(s, p, L, code, col)) return false;
+    if (L == 'G') {
+      if (sc.ng == 8) return fail(col, "more than 8 G codes in one block");
+      sc.g[sc.ng++] = {code, col};
+    } else {
+      if (sc.nm == 8) return fail(col, "more than 8 M codes in one block");
+      sc.m[sc.nm++] = {code, col};
+    }
+    return true;
+  }
+  Word& w = sc.words[L - 'A'];
+  if (w.col != 0) {
+    Word again;
+    again.col = col;
+    std::size_t q = p;
+    std::string second = "";
+    if (read_number(s, q, L, again)) second = show(again.value);
+    return fail(col, std::string("word ") + L + " appears twice in one block (" + L + show(w.value) +
+                         " at column " + std::to_string(w.col) + ", " + L + second + " at column " +
+                         std::to_string(col) + "): keep one");
+  }
+  w.col = col;
+  if (!read_number(s, p, L, w)) return false;
+  if (std::isinf(w.value)) return fail(col, std::string("value of ") + L + " overflows (more than 1.8e308)");
+  return true;
+}
+
+// LinuxCNC's polar coordinates in the XY plane: @ distance and ^ angle from the origin (G90) or
+// added to the current distance and angle (G91); either may be left out.
+bool Parser::Impl::scan_polar(std::string_view s, std::size_t& p, std::uint32_t col) {
+  const char c = s[p++];
+  Word& w = c == '@' ? sc.polar_r : sc.polar_a;
+  if (w.col != 0) return fail(col, std::string("word ") + c + " appears twice in one block: keep one");
+  w.col = col;
+  sc.any_word = true;
+  if (!read_number(s, p, c, w)) return false;
+  if (std::isinf(w.value)) return fail(col, std::string("value of ") + c + " overflows (more than 1.8e308)");
+  return true;
+}
+
+// LinuxCNC's read-only named parameters for the position (#<_x> ...), in program units and
+// coordinates, as real subroutines read them (helix_ac.ngc: `g0 x[#<_x> - #<r>]`).
+void Parser::Impl::refresh_system_parameters() {
+  static const char* const names[kNumAxes] = {"_x", "_y", "_z", "_a", "_c"};
+  for (int a = 0; a < kNumAxes; ++a) {
+    double v = st.position[a] - st.origin[a];
+    if (a < kA && st.units == Units::kInch) v /= kInch;
+    params.set_named(names[a], v);
+  }
+}
+
+}  // namespace gcpipe

@@ -1,0 +1,265 @@
+// LinuxCNC's own interpreter as the oracle: every LinuxCNC-dialect program under ../shared/data
+// and a set of generated programs (canned cycles in the three planes, G98/G99, repeats, G91,
+// G53, G28/G30, G92/G52, arcs, o-word subroutines, loops and branches) go through gcpipe's parser
+// and through `rs274 -n 0 -g -t TOOLTABLE FILE` (Debian 12 package linuxcnc-uspace; standalone,
+// no ini or environment needed; -n 0 goes on after an error, as gcpipe's non-strict mode does).
+// Both must reach the same motion end points (within 1e-4 program units) and reject the same
+// lines.
+//
+// How the outputs are compared:
+//  - rs274 prints canonical calls in program units, X Y Z A B C: STRAIGHT_TRAVERSE/FEED(x, y, z,
+//    a, b, c) and ARC_FEED(first end, second end, first centre, second centre, turn, normal end,
+//    a, b, c) whose axes follow the plane (XY: x y, z; XZ: z x, y; YZ: y z, x).
+//  - gcpipe's blocks give target - work origin, divided by 25.4 in inch programs.
+//  - A move that goes nowhere is dropped on both sides (rs274 states R when already there).
+//  - rs274 stops reading at M2/M30; gcpipe's blocks after the program end are not compared.
+//  - rs274 gets the program with M2 appended (see run_rs274): gcpipe does not require a program
+//    end, rs274 in -n 0 mode repeats its complaint about a missing one without end.
+//  - "M-code greater than 199" for M428/M429/M430 is left out: they are user M codes of the
+//    xyzac_trt configuration that standalone rs274 does not load (gcpipe reads them as
+//    LinuxCNC's TCP switch; they move nothing, so the end points stay comparable).
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+#include "parse_helpers.hpp"
+
+using namespace gcpipe;
+using namespace gcpipe::test;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kTol = 1e-4;  // [program units] rs274 prints 4 decimals
+
+using Point = std::array<double, 5>;  // X Y Z A C, program units
+
+struct Run {
+  std::vector<Point> ends;
+  Point last{};  // where the tool stands: both start at machine zero
+  std::vector<std::string> rejected;  // texts of rejected lines, trimmed
+};
+
+std::string trim(std::string s) {
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.pop_back();
+  std::size_t b = s.find_first_not_of(" \t");
+  return b == std::string::npos ? std::string() : s.substr(b);
+}
+
+// A move that goes nowhere is not an end point (rs274 states some, e.g. G0 without axes).
+void add_point(Run& r, const Point& p) {
+  bool same = true;
+  for (int a = 0; a < 5; ++a) same = same && std::fabs(r.last[a] - p[a]) <= kTol / 10;
+  r.last = p;
+  if (!same) r.ends.push_back(p);
+}
+
+std::string rs274_path() {
+  for (const char* p : {"/usr/bin/rs274", "/usr/local/bin/rs274"})
+    if (fs::exists(p)) return p;
+  return {};
+}
+
+const fs::path& tool_table() {
+  static const fs::path p = [] {
+    fs::path t = fs::path(testing::TempDir()) / "gcpipe_rs274_diff.tbl";
+    std::ofstream(t) << "T1 P1 D10 Z100 ;D10 end mill\nT2 P2 D20 Z110 ;D20 end mill\n";
+    return t;
+  }();
+  return p;
+}
+
+// Runs rs274 on a copy of the program with M2 appended: in -n 0 mode rs274 repeats "File ended
+// with no percent sign or program end" without end on a program that lacks one; after a program
+// end it reads nothing more, so the extra line changes nothing else. Canonical calls come on
+// stdout, each error as a message line and the rejected source line on stderr.
+Run run_rs274(const fs::path& program, const std::string& text) {
+  Run r;
+  const fs::path dir = fs::path(testing::TempDir()) / "gcpipe_rs274_diff";
+  fs::create_directories(dir);
+  const fs::path copy = dir / ("rs274_" + program.filename().string());
+  std::ofstream(copy) << text << (text.empty() || text.back() == '\n' ? "" : "\n") << "M2\n";
+  const fs::path out = dir / "rs274.out", err = dir / "rs274.err";
+  const std::string cmd = "timeout 120 " + rs274_path() + " -n 0 -g -t '" + tool_table().string() + "' '" +
+                          copy.string() + "' >'" + out.string() + "' 2>'" + err.string() + "'";
+  if (std::system(cmd.c_str()) != 0) ADD_FAILURE() << "rs274 failed: " << cmd;
+  static const std::regex canon(R"(^\s*\d+ N\.\.\.\.\. (\w+)\((.*)\)\s*$)");
+  std::string plane = "CANON_PLANE_XY";
+  // rs274 states positions without the G5x and G92 offsets, which it passes as calls of their
+  // own; adding them back gives machine coordinates, as gcpipe's targets are.
+  Point g5x{}, g92{};
+  std::ifstream o(out);
+  for (std::string line; std::getline(o, line);) {
+    std::smatch m;
+    if (!std::regex_match(line, m, canon)) continue;
+    const std::string call = m[1], args = m[2];
+    if (call == "SELECT_PLANE") plane = args;
+    const bool offset = call == "SET_G5X_OFFSET" || call == "SET_G92_OFFSET";
+    if (call != "STRAIGHT_TRAVERSE" && call != "STRAIGHT_FEED" && call != "ARC_FEED" && !offset) continue;
+    std::vector<double> v;
+    std::stringstream ss(args);
+    for (std::string tok; std::getline(ss, tok, ',');) v.push_back(std::stod(tok));
+    if (call == "SET_G5X_OFFSET") g5x = {v[1], v[2], v[3], v[4], v[6]};  // index, x y z a b c
+    if (call == "SET_G92_OFFSET") g92 = {v[0], v[1], v[2], v[3], v[5]};
+    if (offset) continue;
+    Point p{};
+    if (call == "ARC_FEED") {  // first end, second end, first c, second c, turn, normal end, a, b, c
+      if (plane == "CANON_PLANE_XY") p = {v[0], v[1], v[5], v[6], v[8]};
+      else if (plane == "CANON_PLANE_XZ") p = {v[1], v[5], v[0], v[6], v[8]};
+      else p = {v[5], v[0], v[1], v[6], v[8]};
+    } else {
+      p = {v[0], v[1], v[2], v[3], v[5]};
+    }
+    for (int a = 0; a < 5; ++a) p[a] += g5x[a] + g92[a];
+    add_point(r, p);
+  }
+  std::ifstream e(err);
+  std::string message;
+  for (std::string line; std::getline(e, line);) {
+    line = trim(line);
+    if (line == "executing" || line.empty()) continue;
+    if (message.empty()) {
+      message = line;
+      continue;
+    }
+    const bool user_m = message.rfind("M-code greater than 199: M4", 0) == 0 &&
+                        (message.find("M428") != std::string::npos || message.find("M429") != std::string::npos ||
+                         message.find("M430") != std::string::npos);
+    if (!user_m) r.rejected.push_back(line);
+    message.clear();
+  }
+  return r;
+}
+
+MachineConfig diff_machine() {
+  MachineConfig m;
+  m.name = "rs274";
+  m.tools[1] = {100.0, 10.0};
+  m.tools[2] = {110.0, 20.0};
+  return m;  // G54 and the G28/G30 positions at machine zero, as rs274 has them without a .var
+}
+
+Run run_gcpipe(const std::string& text, const std::string& name) {
+  ParseOptions o;
+  o.dialect = Dialect::kLinuxCnc;
+  o.block_delete = false;  // rs274's default
+  const Parsed p = parse_text(text, o, diff_machine(), name);
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  for (std::string l; std::getline(in, l);) lines.push_back(trim(l));
+  Run r;
+  std::size_t bi = 0, di = 0;
+  for (bool is_block : p.order) {
+    if (!is_block) {
+      const Diagnostic& d = p.diags[di++];
+      if (d.severity == Severity::kError && d.line >= 1 && d.line <= lines.size()) r.rejected.push_back(lines[d.line - 1]);
+      continue;
+    }
+    const ResolvedBlock& b = p.blocks[bi++];
+    const bool moves = b.motion == Motion::kRapid || b.motion == Motion::kLinear || b.motion == Motion::kArcCW ||
+                       b.motion == Motion::kArcCCW;
+    if (moves) {
+      const double k = b.source_units == Units::kInch ? 1 / 25.4 : 1.0;
+      Point pt{};
+      for (int a = 0; a < 5; ++a) pt[a] = b.target[a] * (a < 3 ? k : 1.0);  // machine coordinates
+      add_point(r, pt);
+    }
+    if (b.stop == ProgramStop::kEnd || b.stop == ProgramStop::kEndRewind) break;
+  }
+  return r;
+}
+
+void expect_same(const std::string& text, const fs::path& file, const std::string& what) {
+  SCOPED_TRACE(what);
+  const Run ours = run_gcpipe(text, file.string());
+  const Run theirs = run_rs274(file, text);
+  EXPECT_EQ(ours.rejected, theirs.rejected) << "rejected lines differ";
+  // The first end point that differs says where, which a count alone would not.
+  const std::size_t n = std::min(ours.ends.size(), theirs.ends.size());
+  for (std::size_t i = 0; i < n; ++i)
+    for (int a = 0; a < 5; ++a)
+      ASSERT_NEAR(ours.ends[i][a], theirs.ends[i][a], kTol)
+          << "end point " << i << " axis " << "XYZAC"[a] << "; gcpipe's previous end point "
+          << (i > 0 ? ours.ends[i - 1][0] : 0) << " " << (i > 0 ? ours.ends[i - 1][1] : 0) << " "
+          << (i > 0 ? ours.ends[i - 1][2] : 0);
+  EXPECT_EQ(ours.ends.size(), theirs.ends.size()) << "number of distinct motion end points differs";
+}
+
+// Programs that exercise every feature the parser resolves into motion, in the LinuxCNC dialect.
+std::vector<std::pair<std::string, std::string>> generated_programs() {
+  return {
+      {"safety_line_g80_with_g0", "G21 G90 G17 G40 G49 G80\nG0 G17 G40 G49 G80 G90 X1 Y2\nG80 G1 X3 F100\nG0 G4 P0.5\nZ4\nM2\n"},
+      {"cycles_g17", "G21 G90 G17 F100 S1000 M3\nG0 X0 Y0 Z5\nG81 X1 Y1 Z-2 R1\nX2\nY3 Z-3\nG80\n"
+                     "G98 G82 X4 Y4 Z-1 R2 P0.5\nG99 X5\nG80 G0 Z10\nG73 X1 Y1 Z-2.5 R1 Q0.7\nG80\n"
+                     "G83 X2 Y2 Z-3 R1 Q1.1\nG80\nG85 X3 Z-1 R1\nG86 X4 Z-1 R1 P0.25\nG89 X5 Z-1 R1 P0.25\n"
+                     "G84 X6 Z-1 R1\nG80\nG0 Z1\nG81 X0 Y0 Z-1 R3\nG80\nM2\n"},
+      {"cycles_repeats_and_g91", "G21 G90 F200\nG0 X0 Y0 Z10\nG98 G81 X1 Y1 Z-3 R2 L2\n"
+                                 "G91 G81 X1 Y0.5 Z-1 R-1 L3\nG99 G83 X-2 Z-2 R-2 Q0.6 L2\nG90 G80\nG0 Z5\nM2\n"},
+      {"cycles_g18_g19", "G21 G90 F100\nG0 X6 Y1 Z1\nG18 G81 X1 Y-2 Z3 R2\nX2 Z4\nG80\n"
+                         "G19 G98 G81 Y2 X-1 Z4 R3\nG99 G73 Y3 Z5 X-2 R2 Q0.5\nG80 G17\nM2\n"},
+      {"cycles_inch", "G20 G90 F10\nG0 X0 Y0 Z1\nG81 X0.5 Y0.5 Z-0.25 R0.1\nG83 X1 Z-0.5 R0.1 Q0.2\nG80\nG21\nG0 X10\nM2\n"},
+      {"machine_and_reference", "G21 G90\nG0 X5 Y5 Z5\nG53 G0 X1 Y2\nG1 G53 Z3 F100\nG0 X7\nG28\nG0 X1 Y1 Z1\n"
+                                "G28 X3 Z4\nG30 Y2\nG91 G28 Z0\nG90 G0 X2 Y2 Z2\nM2\n"},
+      {"coordinate_shifts", "G21 G90\nG0 X1 Y1 Z1\nG92 X0 Y0\nG0 X2 Y3\nG92.2\nG0 X2\nG92.3\nG0 Y1\nG92.1\nG0 X4\n"
+                            "G52 X10 Z-1\nG0 X1 Z0\nG52 X0 Z0\nG0 X1\nM2\n"},
+      {"work_offsets_from_the_program", "G21 G90\nG0 X1 Y1 Z1\nG10 L2 P1 X10 Y5\nG0 X1 Y1\nG10 L2 P2 X-5 Z2\n"
+                                        "G55 G0 X1 Z1\nG10 L20 P0 X0 Y0\nG0 X2 Y2\nG10 L20 P1 Z0\nG54 G0 Z1\nG92 X0\n"
+                                        "G10 L20 P1 X5\nG0 X1\nG92.1\nG0 X0\nG10 L2 P1 C30\nG0 C0\nM2\n"},
+      {"polar_coordinates", "G21 G90\nG0 @2 ^90\nG0 @1\nG0 ^0\nG91 G0 @1 ^90\nG90 G0 X3 ^45\nG91 G55 G0 @1 ^0\n"
+                            "G0 Z1 @2 ^180\nG18 G0 @1 ^0\nG17 G90 G1 @3 ^30 F100\nM2\n"},
+      {"arcs_three_planes", "G21 G90 F100\nG0 X0 Y0 Z0\nG2 X2 Y0 I1 J0\nG3 X0 Y0 R1\nG18 G2 X2 Z0 I1 K0\n"
+                            "G19 G3 Y2 Z0 J1 K0\nG17 G2 X2 Y2 I0 J1 Z-1 P2\nM2\n"},
+      {"subroutines", "o100 sub\n  G1 X#1 Y#2 F100\n  o100 return\n  G0 X99\no100 endsub\n"
+                      "o<corner> sub\n  G0 Z[#1 + 1]\n  o100 call [#1] [#1 * 2]\no<corner> endsub\n"
+                      "o<rec> sub\n  o1 if [#1 gt 0]\n    G0 X[#1]\n    o<rec> call [#1 - 1]\n  o1 endif\no<rec> endsub\n"
+                      "G21 G90\no100 call [1] [2]\no<corner> call [3]\no<rec> call [4]\nG0 X0 Y0\nM2\n"},
+      {"loops_and_branches", "G21 G90 F100\n#1 = 0\no1 while [#1 lt 4]\n  G1 X#1\n  #1 = [#1 + 1]\no1 endwhile\n"
+                             "#2 = 0\no2 do\n  G1 Y#2\n  #2 = [#2 + 0.5]\no2 while [#2 le 2]\n"
+                             "o3 repeat [3]\n  G91 G1 Z-0.1\no3 endrepeat\nG90\n"
+                             "#3 = 0\no4 while [1]\n  #3 = [#3 + 1]\n  o5 if [#3 eq 2]\n    o4 continue\n  o5 endif\n"
+                             "  G1 X[10 + #3]\n  o6 if [#3 ge 5]\n    o4 break\n  o6 endif\no4 endwhile\n"
+                             "o7 if [#3 lt 0]\n  G0 Y9\no7 elseif [#3 eq 5]\n  G0 Y8\no7 else\n  G0 Y7\no7 endif\n"
+                             "#4 = 0\no8 while [#4 lt 3]\n  #5 = 0\n  o9 while [#5 lt 2]\n    G0 X[#4] Y[#5]\n"
+                             "    #5 = [#5 + 1]\n  o9 endwhile\n  #4 = [#4 + 1]\no8 endwhile\nM2\n"},
+      // (B words are left out: rs274 has a B axis, this machine has none, so gcpipe rejects them.)
+      {"rejected_lines", "G21 G90\nG0 X1\nG1 X2\nG1 X3 F100\nG81 X1 Z-1\nG80\nG2 X5 Y0 R1\nG0 X0\nM2\n"},
+  };
+}
+
+}  // namespace
+
+TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
+  if (rs274_path().empty())
+    GTEST_SKIP() << "rs274 is absent (Debian package linuxcnc-uspace): the LinuxCNC differential test did not run";
+  const fs::path dir = fs::path(testing::TempDir()) / "gcpipe_rs274_diff";
+  fs::create_directories(dir);
+  int n = 0;
+  for (const auto& [name, text] : generated_programs()) {
+    const fs::path file = dir / (name + ".ngc");
+    std::ofstream(file) << text;
+    expect_same(text, file, name);
+    ++n;
+  }
+  EXPECT_EQ(n, 13);
+}
+
+TEST(Rs274Diff, SharedLinuxCncProgramsMatchLinuxCnc) {
+  if (rs274_path().empty())
+    GTEST_SKIP() << "rs274 is absent (Debian package linuxcnc-uspace): the LinuxCNC differential test did not run";
+  const auto programs = shared_programs();
+  if (programs.empty()) GTEST_SKIP() << shared_data() << " is absent: real programs not compared";
+  int n = 0;
+  for (const auto& path : programs) {
+    if (options_for(path).dialect != Dialect::kLinuxCnc) continue;
+    expect_same(read_file(path), path, path.filename().string());
+    ++n;
+  }
+  EXPECT_GE(n, 18);
+}
