@@ -19,6 +19,7 @@
 //    xyzac_trt configuration that standalone rs274 does not load (gcpipe reads them as
 //    LinuxCNC's TCP switch; they move nothing, so the end points stay comparable).
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <array>
 #include <cmath>
@@ -67,9 +68,13 @@ std::string rs274_path() {
   return {};
 }
 
+// One folder per process: ctest runs the two tests of this file in parallel, and a shared folder
+// let one overwrite the other's rs274 output.
+fs::path work_dir() { return fs::path(testing::TempDir()) / ("gcpipe_rs274_diff_" + std::to_string(::getpid())); }
+
 const fs::path& tool_table() {
   static const fs::path p = [] {
-    fs::path t = fs::path(testing::TempDir()) / "gcpipe_rs274_diff.tbl";
+    fs::path t = fs::path(testing::TempDir()) / ("gcpipe_rs274_diff_" + std::to_string(::getpid()) + ".tbl");
     std::ofstream(t) << "T1 P1 D10 Z100 ;D10 end mill\nT2 P2 D20 Z110 ;D20 end mill\n";
     return t;
   }();
@@ -82,7 +87,7 @@ const fs::path& tool_table() {
 // stdout, each error as a message line and the rejected source line on stderr.
 Run run_rs274(const fs::path& program, const std::string& text) {
   Run r;
-  const fs::path dir = fs::path(testing::TempDir()) / "gcpipe_rs274_diff";
+  const fs::path dir = work_dir();
   fs::create_directories(dir);
   const fs::path copy = dir / ("rs274_" + program.filename().string());
   std::ofstream(copy) << text << (text.empty() || text.back() == '\n' ? "" : "\n") << "M2\n";
@@ -238,7 +243,7 @@ std::vector<std::pair<std::string, std::string>> generated_programs() {
 TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
   if (rs274_path().empty())
     GTEST_SKIP() << "rs274 is absent (Debian package linuxcnc-uspace): the LinuxCNC differential test did not run";
-  const fs::path dir = fs::path(testing::TempDir()) / "gcpipe_rs274_diff";
+  const fs::path dir = work_dir();
   fs::create_directories(dir);
   int n = 0;
   for (const auto& [name, text] : generated_programs()) {
