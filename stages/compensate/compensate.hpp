@@ -72,6 +72,8 @@ using simulate::SegmentDemand;
 using simulate::Series;
 using simulate::Tick;
 using simulate::build_nominal;
+using simulate::dist3;
+using simulate::lerp;
 using simulate::evaluate;
 using simulate::load_model;
 using simulate::machine_start;

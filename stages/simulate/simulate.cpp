@@ -14,15 +14,6 @@ namespace gcpipe::simulate {
 
 namespace {
 
-double dist3(const Vec3& a, const Vec3& b) {
-  return std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
-}
-
-Axes lerp(const Axes& a, const Axes& b, double s) {
-  Axes r;
-  for (std::size_t i = 0; i < kNumAxes; ++i) r[i] = a[i] + (b[i] - a[i]) * s;
-  return r;
-}
 
 bool is_motion(Motion m) {
   return m == Motion::kRapid || m == Motion::kLinear || m == Motion::kArcCW || m == Motion::kArcCCW ||

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -19,6 +20,18 @@
 #include "servo.hpp"
 
 namespace gcpipe::simulate {
+
+/// Distance between two points [mm].
+inline double dist3(const Vec3& a, const Vec3& b) {
+  return std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+/// Joint-linear interpolation a + (b - a) s.
+inline Axes lerp(const Axes& a, const Axes& b, double s) {
+  Axes r;
+  for (std::size_t i = 0; i < kNumAxes; ++i) r[i] = a[i] + (b[i] - a[i]) * s;
+  return r;
+}
 
 /// The machine as the simulation (and the compensation) sees it. Every part comes from the config.
 struct Model {
