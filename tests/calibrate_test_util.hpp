@@ -25,20 +25,15 @@ namespace gcpipe::calibrate::test {
 inline std::vector<ResolvedBlock> parse_text(const std::string& text, const PipelineConfig& pc) {
   Parser parser(ParseOptions{}, pc.machine, "test.nc");
   std::vector<ResolvedBlock> out;
-  std::istringstream in(text);
-  std::string line;
-  LineOutput lo;
-  auto take = [&] {
-    out.insert(out.end(), lo.blocks.begin(), lo.blocks.end());
-    for (const Diagnostic& d : lo.diagnostics)
-      if (d.severity == Severity::kError) ADD_FAILURE() << format(d);
-  };
-  while (std::getline(in, line)) {
-    parser.feed(line, lo);
-    take();
-  }
-  parser.finish(lo);
-  take();
+  feed_text(parser, text,
+            {[&out](const ResolvedBlock& b) {
+               out.push_back(b);
+               return true;
+             },
+             [](const Diagnostic& d) {
+               if (d.severity == Severity::kError) ADD_FAILURE() << format(d);
+               return true;
+             }});
   return out;
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <nlohmann/json.hpp>
 
@@ -92,20 +93,17 @@ std::vector<ResolvedBlock> parse_program(const std::string& path, const Pipeline
   std::vector<ResolvedBlock> out;
   if (!in) { err << path << ": cannot open the program\n"; ok = false; return out; }
   Parser parser(load_parse_options(pc.root.section("parse")), pc.machine, path);
-  std::string line;
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   int shown = 0;
-  LineOutput lo;
-  auto take = [&] {
-    out.insert(out.end(), lo.blocks.begin(), lo.blocks.end());
-    for (const Diagnostic& d : lo.diagnostics)
-      if (d.severity == Severity::kError && shown++ < 20) err << format(d) << "\n";
-  };
-  while (std::getline(in, line)) {
-    parser.feed(line, lo);
-    take();
-  }
-  parser.finish(lo);
-  take();
+  feed_text(parser, text,
+            {[&out](const ResolvedBlock& b) {
+               out.push_back(b);
+               return true;
+             },
+             [&](const Diagnostic& d) {
+               if (d.severity == Severity::kError && shown++ < 20) err << format(d) << "\n";
+               return true;
+             }});
   return out;
 }
 

@@ -22,14 +22,7 @@ MachineConfig load_machine(const Config& m) {
   if (m.has("tools")) {
     Config tools = m.section("tools");
     for (const auto& key : tools.keys()) {
-      int number = 0;
-      try {
-        std::size_t used = 0;
-        number = std::stoi(key, &used);
-        if (used != key.size() || number < 1 || number > 9999) throw std::invalid_argument(key);
-      } catch (const std::exception&) {
-        throw tools.error(key, "tool numbers are whole numbers from 1 to 9999");
-      }
+      const int number = tool_number(tools, key);
       Config t = tools.section(key);
       t.reject_unknown({"length", "diameter", "name"});
       ToolEntry e;

@@ -73,14 +73,7 @@ std::map<int, ToolEntry> load_yaml_table(const std::filesystem::path& path) {
   std::map<int, ToolEntry> out;
   const Config tools = root.section("tools");
   for (const auto& key : tools.keys()) {
-    int number = 0;
-    try {
-      std::size_t used = 0;
-      number = std::stoi(key, &used);
-      if (used != key.size() || number < 1 || number > 9999) throw std::invalid_argument(key);
-    } catch (const std::exception&) {
-      throw tools.error(key, "tool numbers are whole numbers from 1 to 9999");
-    }
+    const int number = tool_number(tools, key);
     const Config t = tools.section(key);
     t.reject_unknown({"length", "diameter", "name"});
     ToolEntry e;
@@ -92,6 +85,18 @@ std::map<int, ToolEntry> load_yaml_table(const std::filesystem::path& path) {
 }
 
 }  // namespace
+
+int tool_number(const Config& tools, const std::string& key) {
+  int number = 0;
+  try {
+    std::size_t used = 0;
+    number = std::stoi(key, &used);
+    if (used != key.size() || number < 1 || number > 9999) throw std::invalid_argument(key);
+  } catch (const std::exception&) {
+    throw tools.error(key, "tool numbers are whole numbers from 1 to 9999");
+  }
+  return number;
+}
 
 std::map<int, ToolEntry> load_tool_table(const std::filesystem::path& path) {
   return path.extension() == ".tbl" ? load_tbl(path) : load_yaml_table(path);

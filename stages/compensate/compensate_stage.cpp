@@ -95,13 +95,7 @@ class CompensateStage final : public pipeline::Stage {
                              throw std::runtime_error("compensated.nc does not read back: " + format(d));
                            return true;
                          }};
-    std::size_t begin = 0;
-    while (begin < text.size()) {
-      const std::size_t end = std::min(text.find('\n', begin), text.size());
-      parser.feed(std::string_view(text).substr(begin, end - begin), sink);
-      begin = end + 1;
-    }
-    parser.finish(sink);
+    feed_text(parser, text, sink);
     const auto& nodes = compensation_.result->nodes;
     if (back.size() + 1 != nodes.size())
       throw std::runtime_error("compensated.nc does not read back as written (" + std::to_string(back.size()) +

@@ -138,8 +138,10 @@ nlohmann::ordered_json report_json(const ReportInput& in) {
   return j;
 }
 
-std::string report_text(const ReportInput& in) {
-  std::string s;
+namespace {
+
+// The contour error before and after, with the reduction.
+void contour_lines(const ReportInput& in, std::string& s) {
   char buf[400];
   const ErrorStats& b = in.before->contour;
   std::snprintf(buf, sizeof buf, "  contour error before: max %.2f um (line %llu, t %.3f s), RMS %.2f um\n", b.max * 1e3,
@@ -151,6 +153,11 @@ std::string report_text(const ReportInput& in) {
                   a.max * 1e3, static_cast<unsigned long long>(a.line_at_max), a.t_at_max, a.rms * 1e3, ratio(b.max, a.max));
     s += buf;
   }
+}
+
+// The compensation's note, the slowed-original baseline, the rapids, the cycle times.
+void outcome_lines(const ReportInput& in, std::string& s) {
+  char buf[400];
   if (in.result && !in.result->note.empty()) s += "  compensation: " + in.result->note + "\n";
   if (in.slowed != nullptr && in.slowed->ok) {
     std::snprintf(buf, sizeof buf,
@@ -171,6 +178,11 @@ std::string report_text(const ReportInput& in) {
                   static_cast<double>(in.nominal->raw.size()) * in.model->interp.period);
     s += buf;
   }
+}
+
+// Per segment between dwells or stops.
+void segment_lines(const ReportInput& in, std::string& s) {
+  char buf[400];
   for (std::size_t k = 0; k < in.nominal->segments.size(); ++k) {
     const Segment& g = in.nominal->segments[k];
     const ErrorStats& e0 = in.before->per_segment[k];
@@ -183,6 +195,11 @@ std::string report_text(const ReportInput& in) {
     s += buf;
     s += '\n';
   }
+}
+
+// Following error and travel margin per axis.
+void axis_lines(const ReportInput& in, std::string& s) {
+  char buf[400];
   s += "  following error max (command - actual), before";
   s += in.after ? " / after:" : ":";
   for (int i = 0; i < kNumAxes; ++i) {
@@ -200,6 +217,11 @@ std::string report_text(const ReportInput& in) {
     s += buf;
   }
   s += " (mm, deg)\n";
+}
+
+// Seed 002 eq. (20): Best K_FFP for the program and per circle segment.
+void kffp_lines(const ReportInput& in, std::string& s) {
+  char buf[400];
   if (in.best_kffp.ok) {
     std::snprintf(buf, sizeof buf, "  Best K_FFP (seed 002 eq. 20) at w = %.3f rad/s: X %.1f %%, Y %.1f %% (recommendation)\n",
                   in.best_kffp_omega, in.best_kffp.K_FFP[0], in.best_kffp.K_FFP[1]);
@@ -219,6 +241,17 @@ std::string report_text(const ReportInput& in) {
                     v.second.message.substr(0, 200).c_str());
     s += buf;
   }
+}
+
+}  // namespace
+
+std::string report_text(const ReportInput& in) {
+  std::string s;
+  contour_lines(in, s);
+  outcome_lines(in, s);
+  segment_lines(in, s);
+  axis_lines(in, s);
+  kffp_lines(in, s);
   return s;
 }
 

@@ -221,6 +221,17 @@ bool Parser::finish(LineOutput& out) {
   return finish(sink);
 }
 
+bool feed_text(Parser& parser, std::string_view text, const ParseSink& sink) {
+  for (std::size_t begin = 0; begin < text.size();) {
+    std::size_t end = std::min(text.find('\n', begin), text.size());
+    std::string_view line = text.substr(begin, end - begin);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    if (!parser.feed(line, sink)) return false;
+    begin = end + 1;
+  }
+  return parser.finish(sink);
+}
+
 bool Parser::finish(const ParseSink& sink) {
   impl_->sink = &sink;
   return impl_->finish();

@@ -121,6 +121,11 @@ class Parser {
   std::unique_ptr<Impl> impl_;
 };
 
+/// A whole program held in memory, line by line through `parser` into `sink`, then finish():
+/// for text a stage wrote (compensated.nc read back) and for tests and tools. Returns false
+/// when the sink asked to stop.
+bool feed_text(Parser& parser, std::string_view text, const ParseSink& sink);
+
 /// What one feed() or finish() handed out, in order.
 struct LineOutput {
   std::vector<ResolvedBlock> blocks;

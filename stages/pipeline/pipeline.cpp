@@ -73,9 +73,10 @@ struct Pipeline::Node final : Emitter {
   }
   bool text(std::string& gcode) override {
     bool go = true;
+    // Each sink takes its own copy (a sink empties what it is given).
     for (Emitter* s : sinks) {
-      std::string copy = sinks.size() > 1 ? gcode : std::string();
-      go = s->text(sinks.size() > 1 ? copy : gcode) && go;
+      std::string copy = gcode;
+      go = s->text(copy) && go;
     }
     gcode.clear();
     return go;

@@ -33,13 +33,11 @@ std::vector<ResolvedBlock> program(const PipelineConfig& pc, int moves) {
   p << "M30\n";
   Parser parser(ParseOptions{}, pc.machine, "bench.nc");
   std::vector<ResolvedBlock> out;
-  std::istringstream in(p.str());
-  std::string line;
-  LineOutput lo;
-  while (std::getline(in, line)) {
-    parser.feed(line, lo);
-    out.insert(out.end(), lo.blocks.begin(), lo.blocks.end());
-  }
+  feed_text(parser, p.str(), {[&out](const ResolvedBlock& b) {
+                                out.push_back(b);
+                                return true;
+                              },
+                              [](const Diagnostic&) { return true; }});
   return out;
 }
 

@@ -98,14 +98,11 @@ const std::vector<ResolvedBlock>& blocks() {
     gen.footer(text);
     Parser parser(ParseOptions{}, MachineConfig{}, "synthetic");
     std::vector<ResolvedBlock> out;
-    LineOutput lo;
-    std::size_t at = 0;
-    while (at < text.size()) {
-      const std::size_t end = std::min(text.find('\n', at), text.size());
-      parser.feed(std::string_view(text).substr(at, end - at), lo);
-      out.insert(out.end(), lo.blocks.begin(), lo.blocks.end());
-      at = end + 1;
-    }
+    feed_text(parser, text, {[&out](const ResolvedBlock& b) {
+                               out.push_back(b);
+                               return true;
+                             },
+                             [](const Diagnostic&) { return true; }});
     return out;
   }();
   return b;

@@ -45,6 +45,8 @@ MachineConfig load_machine(const Config& machine_section);
 /// as in a machine file), chosen by the extension (.tbl, else YAML). Lengths in mm. Throws
 /// ConfigError naming file:line and what is wrong.
 std::map<int, ToolEntry> load_tool_table(const std::filesystem::path& path);
+/// A key of a `tools:` mapping as a tool number 1..9999; throws ConfigError naming the key.
+int tool_number(const Config& tools, const std::string& key);
 
 /// Loads `path` and merges it into `machine.tools` (its entries replace the machine file's of the
 /// same number); messages then name the file.
