@@ -99,6 +99,7 @@ int run_simulate(const SimulateArgs& a) {
   PrintedLog log;
   ProgramRun run(a, {"simulate"}, log);
   auto& sim = dynamic_cast<SimulateStage&>(*run.pipeline().stage("simulate"));
+  sim.trace_only();
   pipeline::AtomicFile trace(a.output);
   std::unique_ptr<TickReport> report;
   if (!a.report.empty()) report = std::make_unique<TickReport>(a.report, circle);

@@ -41,64 +41,6 @@ NominalPath nominal_path(const Model& model, const Nominal& nom, std::span<const
 
 }  // namespace
 
-ContourSearch::ContourSearch(const std::vector<Vec3>& pts) : pts_(pts) {
-  for (std::size_t g = 0; g * kGroup + 1 < pts.size(); ++g) {
-    Box b;
-    const std::size_t end = std::min(pts.size() - 1, (g + 1) * kGroup);
-    for (std::size_t i = g * kGroup; i <= end; ++i) b.add(pts[i]);
-    boxes_.push_back(b);
-    if (g % kGroupsPerSuper == 0) supers_.emplace_back();
-    supers_.back().add(b);
-  }
-}
-
-void ContourSearch::Box::add(const Vec3& p) {
-  for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], p[k]), hi[k] = std::max(hi[k], p[k]);
-}
-
-void ContourSearch::Box::add(const Box& b) {
-  add(b.lo);
-  add(b.hi);
-}
-
-double ContourSearch::Box::distance_sq(const Vec3& p) const {
-  double dd = 0;
-  for (int k = 0; k < 3; ++k) {
-    const double o = std::max({lo[k] - p[k], 0.0, p[k] - hi[k]});
-    dd += o * o;
-  }
-  return dd;
-}
-
-double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& closest) {
-  const auto& pts = pts_;
-  closest = pts.empty() ? actual : pts[0];
-  if (pts.size() < 2) return pts.empty() ? 0.0 : dist3(pts[0], actual);
-  const std::size_t hi = std::min(std::max<std::size_t>(limit, 1), pts.size() - 1);  // last segment end
-  const std::size_t lo = hi > kLookBack ? hi - kLookBack : 0;
-  double best = std::numeric_limits<double>::infinity();
-  Vec3 c;
-  auto scan = [&](std::size_t a, std::size_t b) {  // segments [a, b)
-    for (std::size_t i = a; i < b; ++i) {
-      const double d = servo::segment_distance(pts[i], pts[i + 1], actual, &c);
-      if (d < best) best = d, closest = c, j_ = i;
-    }
-  };
-  // Start near the previous match: a tight bound makes the box test skip most groups.
-  if (j_ >= lo && j_ < hi) scan(j_ > lo + 2 ? j_ - 2 : lo, std::min(hi, j_ + 16));
-  // Two levels of boxes: a group of 8 segments, a super-group of 64; a box farther than the best
-  // match so far cannot hold a closer segment.
-  const std::size_t super_span = kGroup * kGroupsPerSuper;
-  for (std::size_t sg = lo / super_span; sg * super_span < hi && sg < supers_.size(); ++sg) {
-    if (supers_[sg].distance_sq(actual) >= best * best) continue;
-    for (std::size_t g = sg * kGroupsPerSuper; g < (sg + 1) * kGroupsPerSuper && g * kGroup < hi && g < boxes_.size(); ++g) {
-      if (g * kGroup + kGroup <= lo || boxes_[g].distance_sq(actual) >= best * best) continue;
-      scan(std::max(lo, g * kGroup), std::min(hi, (g + 1) * kGroup));
-    }
-  }
-  return best;
-}
-
 namespace {
 
 void add_error(ErrorStats& s, double& sum_sq, std::uint64_t& count, double e, double t, std::uint64_t line) {
@@ -273,38 +215,32 @@ RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, 
   return stats;
 }
 
-Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program, const Axes& start,
-                      double reference_smoothing, double max_machine_time) {
-  Nominal nom;
-  nom.period = model.interp.period;
-  const double max_ticks = std::floor(max_machine_time / model.interp.period);
-  nom.stats = run_program(
-      model, program, start,
-      [&](const Tick& t) {
-        nom.raw.push_back(t.raw);
-        nom.block.push_back(t.block);
-      },
-      max_ticks < 1.8e19 ? static_cast<std::uint64_t>(max_ticks) : UINT64_MAX);
-  if (nom.raw.empty() || !nom.stats.ok) return nom;
+namespace {
 
-  // Segments: a dwell or a program stop ends one (the machine is at rest or about to be).
-  nom.segment_of_block.assign(program.size(), 0);
+/// Segments of the program, from its blocks alone: a dwell or a program stop ends one (the
+/// machine is at rest or about to be), and positioning (rapids) and cutting are separate segments.
+std::vector<std::uint32_t> segment_blocks(std::span<const ResolvedBlock> program, std::size_t& count) {
+  std::vector<std::uint32_t> of_block(program.size(), 0);
   std::uint32_t seg = 0;
   bool seg_has_motion = false;
   Motion last_motion = Motion::kNone;
   for (std::size_t i = 0; i < program.size(); ++i) {
     const ResolvedBlock& b = program[i];
-    // Positioning (rapids) and cutting are separate segments: a cut starts a new one.
     if (is_motion(b.motion) && b.motion != Motion::kRapid && last_motion == Motion::kRapid && seg_has_motion) ++seg;
     if (is_motion(b.motion)) seg_has_motion = true, last_motion = b.motion;
-    nom.segment_of_block[i] = seg;
+    of_block[i] = seg;
     if ((b.motion == Motion::kDwell || b.stop != ProgramStop::kNone) && seg_has_motion) {
       ++seg;
       seg_has_motion = false;
     }
   }
-  const std::size_t nseg = static_cast<std::size_t>(seg) + 1;
-  nom.segments.assign(nseg, Segment{});
+  count = static_cast<std::size_t>(seg) + 1;
+  return of_block;
+}
+
+/// Times, lines and circles of the segments, from the recorded nominal run.
+void describe_segments(const Model& model, std::span<const ResolvedBlock> program, Nominal& nom) {
+  const std::size_t nseg = nom.segments.size();
   std::vector<bool> seen(nseg, false);
   std::vector<std::vector<Vec3>> tips(nseg);
   std::uint32_t last_block = std::numeric_limits<std::uint32_t>::max();
@@ -328,48 +264,58 @@ Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program
     if (nom.segments[s].last_line == 0) nom.segments[s].last_line = nom.segments[s].first_line;
     detect_circle(nom.segments[s], tips[s]);
   }
+}
 
-  // Reference: the nominal path re-timed by the control's own kind of acc/dec applied to the
-  // progress index, with `reference_smoothing` times the slowest axis's Ts: the starts and stops
-  // of the reference are gentler than the control's own, which leaves the learned commands
-  // headroom in acceleration and torque there. Re-timing keeps speed changes but cannot turn a corner at speed:
-  // at a sharp corner (and at the end of a rapid, where controls check in-position) the progress
-  // is held until the re-timed speed has decayed, so the reference turns the corner at rest.
-  double Ts = 0;
-  Axes vb;
-  for (std::size_t i = 0; i < kNumAxes; ++i) {
-    Ts = std::max(Ts, reference_smoothing * model.interp.smoothing_time[i]);
-    vb[i] = model.interp.max_velocity[i] > 0 ? model.interp.max_velocity[i] : 1.0;
-  }
+/// Raw ticks where the re-timed reference must come to rest: sharp corners (over 5 degrees in
+/// speed-scaled joint space), starts and stops, and the end of a rapid (controls check
+/// in-position there).
+std::vector<std::uint8_t> reference_corners(const Model& model, std::span<const ResolvedBlock> program,
+                                            const Nominal& nom, bool any_hold) {
   const std::size_t N = nom.raw.size();
-  const auto hold = static_cast<std::size_t>(std::ceil(
-      (model.interp.smoothing == interpolate::Smoothing::kExponential ? 12.0 : 1.0) * Ts / nom.period));
   std::vector<std::uint8_t> corner(N, 0);
+  if (!any_hold) return corner;
+  Axes vb;
+  for (std::size_t i = 0; i < kNumAxes; ++i) vb[i] = model.interp.max_velocity[i] > 0 ? model.interp.max_velocity[i] : 1.0;
   auto step = [&](std::size_t n) {  // per-axis step n-1 -> n, scaled by the axis speed limit
     Axes d;
     for (std::size_t i = 0; i < kNumAxes; ++i) d[i] = (nom.raw[n][i] - nom.raw[n - 1][i]) / vb[i];
     return d;
   };
-  if (hold > 0) {
-    std::size_t last_corner = 0;
-    for (std::size_t n = 1; n + 1 < N; ++n) {
-      const Axes a = step(n), b = step(n + 1);
-      double aa = 0, bb = 0, ab = 0;
-      for (std::size_t i = 0; i < kNumAxes; ++i) aa += a[i] * a[i], bb += b[i] * b[i], ab += a[i] * b[i];
-      // A start and a stop count as corners too: the raw path starts and stops dead there (a
-      // dwell, the end), and the re-timed progress must come to rest at that index, not sweep
-      // through it at speed.
-      const bool moving = aa > 1e-24, next_moving = bb > 1e-24;
-      const bool sharp = moving != next_moving ||
-                         (moving && next_moving && ab < std::cos(5.0 * M_PI / 180) * std::sqrt(aa * bb));
-      const bool rapid_end = moving && program[nom.block[n]].motion == Motion::kRapid &&
-                             program[nom.block[n + 1]].motion != Motion::kRapid;
-      if ((sharp || rapid_end) && (last_corner == 0 || n > last_corner + 2 || moving != next_moving)) {
-        corner[n] = 1;
-        last_corner = n;
-      }
+  std::size_t last_corner = 0;
+  for (std::size_t n = 1; n + 1 < N; ++n) {
+    const Axes a = step(n), b = step(n + 1);
+    double aa = 0, bb = 0, ab = 0;
+    for (std::size_t i = 0; i < kNumAxes; ++i) aa += a[i] * a[i], bb += b[i] * b[i], ab += a[i] * b[i];
+    // A start and a stop count as corners too: the raw path starts and stops dead there (a
+    // dwell, the end), and the re-timed progress must come to rest at that index, not sweep
+    // through it at speed.
+    const bool moving = aa > 1e-24, next_moving = bb > 1e-24;
+    const bool sharp = moving != next_moving ||
+                       (moving && next_moving && ab < std::cos(5.0 * M_PI / 180) * std::sqrt(aa * bb));
+    const bool rapid_end = moving && program[nom.block[n]].motion == Motion::kRapid &&
+                           program[nom.block[n + 1]].motion != Motion::kRapid;
+    if ((sharp || rapid_end) && (last_corner == 0 || n > last_corner + 2 || moving != next_moving)) {
+      corner[n] = 1;
+      last_corner = n;
     }
   }
+  return corner;
+}
+
+/// Reference: the nominal path re-timed by the control's own kind of acc/dec applied to the
+/// progress index, with `reference_smoothing` times the slowest axis's Ts: the starts and stops
+/// of the reference are gentler than the control's own, which leaves the learned commands
+/// headroom in acceleration and torque there. Re-timing keeps speed changes but cannot turn a
+/// corner at speed: at a corner (reference_corners) the progress is held until the re-timed
+/// speed has decayed, so the reference turns the corner at rest.
+void build_reference(const Model& model, std::span<const ResolvedBlock> program, double reference_smoothing,
+                     double max_ticks, Nominal& nom) {
+  double Ts = 0;
+  for (std::size_t i = 0; i < kNumAxes; ++i) Ts = std::max(Ts, reference_smoothing * model.interp.smoothing_time[i]);
+  const std::size_t N = nom.raw.size();
+  const auto hold = static_cast<std::size_t>(std::ceil(
+      (model.interp.smoothing == interpolate::Smoothing::kExponential ? 12.0 : 1.0) * Ts / nom.period));
+  const std::vector<std::uint8_t> corner = reference_corners(model, program, nom, hold > 0);
   interpolate::AxisSmoother progress(model.interp.smoothing, Ts, nom.period, 0.0);
   const double last = static_cast<double>(N - 1);
   double q = 0;          // held raw index fed to the smoother
@@ -397,6 +343,202 @@ Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program
       q = std::min(q + 1, last);
     }
   }
+}
+
+double max_ticks_of(const Model& model, double max_machine_time) {
+  return std::floor(max_machine_time / model.interp.period);
+}
+
+std::uint64_t tick_bound(double max_ticks) {
+  return max_ticks < 1.8e19 ? static_cast<std::uint64_t>(max_ticks) : UINT64_MAX;
+}
+
+/// The figures of one run against the nominal path, gathered tick by tick: contour error on
+/// cutting moves and on rapids, per segment, what the run demanded of the axes, following error,
+/// travel margin, and the decimated series for the figures.
+class RunAccumulator {
+ public:
+  RunAccumulator(const Model& model, std::size_t segments) : model_(model) {
+    ev_.per_segment.assign(segments, ErrorStats{});
+    ev_.demand.assign(std::max<std::size_t>(1, segments), SegmentDemand{});
+    seg_sq_.assign(segments, 0.0);
+    seg_n_.assign(segments, 0);
+    for (std::size_t i = 0; i < kNumAxes; ++i) ev_.axes.travel_margin[i] = std::numeric_limits<double>::infinity();
+  }
+
+  /// One tick: `b` the program block it stands for, in segment `seg`; `e` the distance of the
+  /// actual tool tip `tip` to the nominal path, whose nearest point is `nearest`.
+  /// Returns whether the tick is on a cutting move (where the contour error counts).
+  bool add(const Tick& t, const ResolvedBlock& b, std::uint32_t seg, double e, const Vec3& tip, const Vec3& nearest) {
+    const double time = static_cast<double>(t.n) * model_.interp.period;
+    // Rapids position the tool and do not cut: the contour error counts on feed moves and dwells.
+    const bool cutting = b.motion != Motion::kRapid && b.motion != Motion::kNone;
+    if (cutting) add_error(ev_.contour, sum_sq_, count_, e, time, b.line);
+    else if (b.motion == Motion::kRapid) add_error(ev_.rapid, rapid_sq_, rapid_count_, e, time, b.line);
+    if (cutting && seg < ev_.per_segment.size()) add_error(ev_.per_segment[seg], seg_sq_[seg], seg_n_[seg], e, time, b.line);
+    add_demand(t, ev_.demand[std::min<std::size_t>(seg, ev_.demand.size() - 1)]);
+    add_axes(t);
+    add_series(t, cutting ? e : 0.0, seg, tip, nearest);
+    return cutting;
+  }
+
+  /// The distance of the actual joints from the re-timed reference at the same tick.
+  void track(const Axes& reference, const Axes& actual) {
+    for (std::size_t i = 0; i < kNumAxes; ++i)
+      ev_.axes.max_tracking[i] = std::max(ev_.axes.max_tracking[i], std::abs(reference[i] - actual[i]));
+  }
+
+  Evaluation finish(const RunStats& stats) {
+    ev_.stats = stats;
+    ev_.contour.rms = rms(sum_sq_, count_);
+    ev_.rapid.rms = rms(rapid_sq_, rapid_count_);
+    for (std::size_t s = 0; s < ev_.per_segment.size(); ++s) ev_.per_segment[s].rms = rms(seg_sq_[s], seg_n_[s]);
+    for (std::size_t i = 0; i < kNumAxes; ++i) {
+      ev_.axes.rms_following[i] = rms(fe_sq_[i], ticks_);
+      ev_.axes.peak_velocity[i] = stats.interp.peak_velocity[i];
+      ev_.axes.peak_acceleration[i] = stats.interp.peak_acceleration[i];
+      ev_.axes.saturated_ticks[i] = stats.saturated_ticks[i];
+    }
+    return std::move(ev_);
+  }
+
+ private:
+  static double rms(double sum_sq, std::uint64_t n) { return n ? std::sqrt(sum_sq / static_cast<double>(n)) : 0.0; }
+
+  void add_demand(const Tick& t, SegmentDemand& dm) {
+    const double T = model_.interp.period;
+    for (std::size_t i = 0; i < kNumAxes; ++i) {
+      if (t.saturated & (1u << i)) ++dm.saturated_ticks[i];
+      if (t.n >= 2)
+        dm.peak_acceleration[i] = std::max(dm.peak_acceleration[i], std::abs(t.command[i] - 2 * c1_[i] + c2_[i]) / (T * T));
+    }
+    c2_ = c1_;
+    c1_ = t.command;
+  }
+
+  void add_axes(const Tick& t) {
+    ++ticks_;
+    for (std::size_t i = 0; i < kNumAxes; ++i) {
+      const double fe = t.command[i] - t.actual[i];
+      ev_.axes.max_following[i] = std::max(ev_.axes.max_following[i], std::abs(fe));
+      fe_sq_[i] += fe * fe;
+      const auto& tr = model_.kin.travel[i];
+      ev_.axes.travel_margin[i] = std::min(ev_.axes.travel_margin[i], std::min(t.actual[i] - tr.min, tr.max - t.actual[i]));
+    }
+  }
+
+  // The series keeps one point per bucket of ticks (the largest contour error in it, the rest
+  // at its end). The length of the run is not known in advance: when the series reaches
+  // 2 kSeriesPoints the buckets are merged in pairs and doubled, so it ends with kSeriesPoints
+  // to 2 kSeriesPoints points.
+  static constexpr std::size_t kSeriesPoints = 20000;
+
+  void add_series(const Tick& t, double e, std::uint32_t seg, const Vec3& tip, const Vec3& nearest) {
+    bucket_max_ = std::max(bucket_max_, e);
+    if ((t.n + 1) % bucket_ != 0) return;
+    Series& s = ev_.series;
+    s.t.push_back(static_cast<double>(t.n) * model_.interp.period);
+    s.contour.push_back(bucket_max_);
+    bucket_max_ = 0;
+    for (std::size_t i = 0; i < kNumAxes; ++i) s.following[i].push_back(t.command[i] - t.actual[i]);
+    for (std::size_t k = 0; k < 3; ++k) {
+      s.tip[k].push_back(tip[k]);
+      s.nominal[k].push_back(nearest[k]);
+    }
+    s.segment.push_back(seg);
+    if (s.t.size() == 2 * kSeriesPoints) halve_series();
+  }
+
+  void halve_series() {
+    Series& s = ev_.series;
+    auto keep_later = [](auto& v) {
+      for (std::size_t j = 0; 2 * j + 1 < v.size(); ++j) v[j] = v[2 * j + 1];
+      v.resize(v.size() / 2);
+    };
+    for (std::size_t j = 0; 2 * j + 1 < s.contour.size(); ++j) s.contour[j] = std::max(s.contour[2 * j], s.contour[2 * j + 1]);
+    s.contour.resize(s.contour.size() / 2);
+    keep_later(s.t);
+    keep_later(s.segment);
+    for (auto& v : s.following) keep_later(v);
+    for (auto& v : s.tip) keep_later(v);
+    for (auto& v : s.nominal) keep_later(v);
+    bucket_ *= 2;
+  }
+
+  const Model& model_;
+  Evaluation ev_;
+  std::vector<double> seg_sq_;
+  std::vector<std::uint64_t> seg_n_;
+  double sum_sq_ = 0, rapid_sq_ = 0;
+  std::uint64_t count_ = 0, rapid_count_ = 0, ticks_ = 0;
+  Axes fe_sq_{}, c1_{}, c2_{};  // c1_, c2_: the two previous smoothed commands
+  std::size_t bucket_ = 1;
+  double bucket_max_ = 0;
+};
+
+/// The program's own run, evaluated as it goes: each tick's raw sample is the nominal (pushed to
+/// the contour search), its actual is measured against the nominal path so far. With
+/// `nom.keep` the run is also recorded for the report and the compensation: raw samples,
+/// blocks, and the actual joints for the tracking error against the reference built after it.
+struct OwnRun {
+  Evaluation eval;
+  std::vector<Axes> actual;  //!< when recording
+};
+
+OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> program, const Axes& start, Nominal& nom,
+                       bool record, std::uint64_t max_ticks, const std::function<void(const Tick&)>& on_tick) {
+  OwnRun own;
+  RunAccumulator acc(model, nom.segments.size());
+  ContourSearch contour;
+  Vec3 last_nominal{};
+  nom.stats = run_program(
+      model, program, start,
+      [&](const Tick& t) {
+        const ResolvedBlock& b = program[t.block];
+        const double tool = tool_length_of(model, b);
+        const Vec3 nominal = forward_kinematics(model.kin, t.raw, tool).tip;
+        if (contour.size() == 0 || dist3(last_nominal, nominal) > 1e-9) contour.push(nominal), last_nominal = nominal;
+        const Vec3 tip = forward_kinematics(model.kin, t.actual, tool).tip;
+        Vec3 nearest;
+        const double e = contour.distance(tip, nearest);
+        const bool cutting = acc.add(t, b, nom.segment_of_block[t.block], e, tip, nearest);
+        if (record) {
+          nom.raw.push_back(t.raw);
+          nom.block.push_back(t.block);
+          own.actual.push_back(t.actual);
+        }
+        if (on_tick) {
+          Tick marked = t;
+          marked.contour = cutting ? e : 0.0;
+          marked.tip = tip;
+          on_tick(marked);
+        }
+      },
+      max_ticks);
+  own.eval = acc.finish(nom.stats);
+  return own;
+}
+
+}  // namespace
+
+Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program, const Axes& start,
+                      double reference_smoothing, double max_machine_time) {
+  Nominal nom;
+  nom.period = model.interp.period;
+  const double max_ticks = max_ticks_of(model, max_machine_time);
+  nom.stats = run_program(
+      model, program, start,
+      [&](const Tick& t) {
+        nom.raw.push_back(t.raw);
+        nom.block.push_back(t.block);
+      },
+      tick_bound(max_ticks));
+  if (nom.raw.empty() || !nom.stats.ok) return nom;
+  std::size_t nseg = 0;
+  nom.segment_of_block = segment_blocks(program, nseg);
+  nom.segments.assign(nseg, Segment{});
+  describe_segments(model, program, nom);
+  build_reference(model, program, reference_smoothing, max_ticks, nom);
   return nom;
 }
 
@@ -404,24 +546,11 @@ Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const Reso
                     std::span<const ResolvedBlock> blocks, const Axes& start,
                     const std::function<std::uint32_t(std::uint32_t)>& source_block,
                     const std::function<void(const Tick&)>& also, bool on_reference_clock) {
-  Evaluation ev;
   const NominalPath path = nominal_path(model, nom, program);
   ContourSearch contour(path.pts);
-  ev.per_segment.assign(nom.segments.size(), ErrorStats{});
-  ev.demand.assign(std::max<std::size_t>(1, nom.segments.size()), SegmentDemand{});
-  Axes c1{}, c2{};  // the two previous smoothed commands
-  std::vector<double> seg_sq(nom.segments.size(), 0.0);
-  std::vector<std::uint64_t> seg_n(nom.segments.size(), 0);
-  double sum_sq = 0, rapid_sq = 0;
-  std::uint64_t count = 0, rapid_count = 0;
-  Axes fe_sq{};
-  for (std::size_t i = 0; i < kNumAxes; ++i)
-    ev.axes.travel_margin[i] = std::numeric_limits<double>::infinity();
-  const std::size_t expected = std::max(nom.reference.size(), nom.raw.size());
-  const std::size_t bucket = std::max<std::size_t>(1, expected / 20000);
-  double bucket_max = 0;
+  RunAccumulator acc(model, nom.segments.size());
   const Axes& ref_end = nom.reference.empty() ? start : nom.reference.back();
-  ev.stats = run_program(model, blocks, start, [&](const Tick& t) {
+  const RunStats stats = run_program(model, blocks, start, [&](const Tick& t) {
     const std::uint32_t src = source_block(t.block);
     const ResolvedBlock& b = program[std::min<std::size_t>(src, program.size() - 1)];
     const Vec3 tip = forward_kinematics(model.kin, t.actual, tool_length_of(model, b)).tip;
@@ -437,62 +566,17 @@ Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const Reso
                                     : path.index_of_tick[std::min(raw_tick, path.index_of_tick.size() - 1)];
     Vec3 nearest;
     const double e = contour.distance(tip, limit, nearest);
-    const double time = static_cast<double>(t.n) * nom.period;
-    // Rapids position the tool and do not cut: the contour error counts on feed moves and dwells.
-    const bool cutting = b.motion != Motion::kRapid && b.motion != Motion::kNone;
-    if (cutting) add_error(ev.contour, sum_sq, count, e, time, b.line);
-    else if (b.motion == Motion::kRapid) add_error(ev.rapid, rapid_sq, rapid_count, e, time, b.line);
+    const std::uint32_t seg = nom.segment_of_block.empty() ? 0 : nom.segment_of_block[std::min<std::size_t>(src, nom.segment_of_block.size() - 1)];
+    const bool cutting = acc.add(t, b, seg, e, tip, nearest);
+    acc.track(n < nom.reference.size() ? nom.reference[n] : ref_end, t.actual);
     if (also) {
       Tick marked = t;
       marked.contour = cutting ? e : 0.0;
       marked.tip = tip;
       also(marked);
     }
-    const std::uint32_t seg = nom.segment_of_block.empty() ? 0 : nom.segment_of_block[std::min<std::size_t>(src, nom.segment_of_block.size() - 1)];
-    if (cutting && seg < ev.per_segment.size()) add_error(ev.per_segment[seg], seg_sq[seg], seg_n[seg], e, time, b.line);
-    SegmentDemand& dm = ev.demand[std::min<std::size_t>(seg, ev.demand.size() - 1)];
-    for (std::size_t i = 0; i < kNumAxes; ++i) {
-      if (t.saturated & (1u << i)) ++dm.saturated_ticks[i];
-      if (t.n >= 2)
-        dm.peak_acceleration[i] = std::max(dm.peak_acceleration[i], std::abs(t.command[i] - 2 * c1[i] + c2[i]) /
-                                                                        (nom.period * nom.period));
-    }
-    c2 = c1;
-    c1 = t.command;
-    const Axes& ref = n < nom.reference.size() ? nom.reference[n] : ref_end;
-    for (std::size_t i = 0; i < kNumAxes; ++i) {
-      const double fe = t.command[i] - t.actual[i];
-      ev.axes.max_following[i] = std::max(ev.axes.max_following[i], std::abs(fe));
-      fe_sq[i] += fe * fe;
-      ev.axes.max_tracking[i] = std::max(ev.axes.max_tracking[i], std::abs(ref[i] - t.actual[i]));
-      const auto& tr = model.kin.travel[i];
-      ev.axes.travel_margin[i] = std::min(ev.axes.travel_margin[i], std::min(t.actual[i] - tr.min, tr.max - t.actual[i]));
-    }
-    if (cutting) bucket_max = std::max(bucket_max, e);
-    if ((t.n + 1) % bucket == 0) {
-      Series& s = ev.series;
-      s.t.push_back(time);
-      s.contour.push_back(bucket_max);
-      bucket_max = 0;
-      for (std::size_t i = 0; i < kNumAxes; ++i) s.following[i].push_back(t.command[i] - t.actual[i]);
-      for (std::size_t k = 0; k < 3; ++k) {
-        s.tip[k].push_back(tip[k]);
-        s.nominal[k].push_back(nearest[k]);
-      }
-      s.segment.push_back(seg);
-    }
   });
-  ev.contour.rms = count ? std::sqrt(sum_sq / static_cast<double>(count)) : 0.0;
-  ev.rapid.rms = rapid_count ? std::sqrt(rapid_sq / static_cast<double>(rapid_count)) : 0.0;
-  for (std::size_t s = 0; s < ev.per_segment.size(); ++s)
-    ev.per_segment[s].rms = seg_n[s] ? std::sqrt(seg_sq[s] / static_cast<double>(seg_n[s])) : 0.0;
-  for (std::size_t i = 0; i < kNumAxes; ++i) {
-    ev.axes.rms_following[i] = count ? std::sqrt(fe_sq[i] / static_cast<double>(count)) : 0.0;
-    ev.axes.peak_velocity[i] = ev.stats.interp.peak_velocity[i];
-    ev.axes.peak_acceleration[i] = ev.stats.interp.peak_acceleration[i];
-    ev.axes.saturated_ticks[i] = ev.stats.saturated_ticks[i];
-  }
-  return ev;
+  return acc.finish(stats);
 }
 
 }  // namespace gcpipe::simulate
@@ -525,18 +609,34 @@ SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> pr
   }
   run.start = machine_start(model.kin, p[first], tool_length_of(model, p[first]));
   if (progress) progress("simulating the program (interpolator + feed drives)", 0, 1);
-  run.nominal = build_nominal(model, p, run.start, bounds.reference_smoothing, bounds.max_machine_time);
-  if (!run.nominal->stats.ok) {
-    run.note = "line " + std::to_string(run.nominal->stats.failed_line) + ": " + run.nominal->stats.message;
+  Nominal& nom = run.nominal.emplace();
+  nom.period = model.interp.period;
+  std::size_t nseg = 0;
+  nom.segment_of_block = segment_blocks(p, nseg);
+  nom.segments.assign(nseg, Segment{});
+  const double max_ticks = max_ticks_of(model, bounds.max_machine_time);
+  OwnRun own = run_own_program(model, p, run.start, nom, bounds.record_nominal, tick_bound(max_ticks), on_tick);
+  if (!nom.stats.ok) {
+    run.note = "line " + std::to_string(nom.stats.failed_line) + ": " + nom.stats.message;
     return run;
   }
-  const std::string travel = travel_error(model, run.nominal->stats.interp);
+  const std::string travel = travel_error(model, nom.stats.interp);
   if (!travel.empty()) {
     run.note = travel;
-    run.travel_line = run.nominal->stats.interp.first_violation_line;
+    run.travel_line = nom.stats.interp.first_violation_line;
     return run;
   }
-  run.before = evaluate(model, *run.nominal, p, p, run.start, [](std::uint32_t i) { return i; }, on_tick);
+  if (bounds.record_nominal) {
+    describe_segments(model, p, nom);
+    build_reference(model, p, bounds.reference_smoothing, max_ticks, nom);
+    const Axes& ref_end = nom.reference.empty() ? run.start : nom.reference.back();
+    for (std::size_t n = 0; n < own.actual.size(); ++n) {
+      const Axes& ref = n < nom.reference.size() ? nom.reference[n] : ref_end;
+      for (std::size_t i = 0; i < kNumAxes; ++i)
+        own.eval.axes.max_tracking[i] = std::max(own.eval.axes.max_tracking[i], std::abs(ref[i] - own.actual[n][i]));
+    }
+  }
+  run.before = std::move(own.eval);
   return run;
 }
 

@@ -81,27 +81,52 @@ RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, 
 /// window. Segments are grouped in two levels of bounding boxes, so that most of the window is
 /// skipped once a good match is known. The distance is to the path, not to the time-matched
 /// point: an axis that trails in time on the path has no contour error.
+///
+/// The search holds only a sliding window of the polyline (about 2 kLookBack points), so a
+/// streaming simulation needs memory for the window, not for the program: points are pushed as
+/// the nominal reaches them, or taken from a whole polyline as `limit` advances.
 class ContourSearch {
  public:
   static constexpr std::size_t kGroup = 8;
   static constexpr std::size_t kGroupsPerSuper = 8;
   static constexpr std::size_t kLookBack = 3000;
-  /// `pts`: the nominal polyline [mm], without repeated points; must outlive the search.
-  explicit ContourSearch(const std::vector<Vec3>& pts);
-  /// `limit`: the newest polyline index the nominal has reached at this tick. Returns the
-  /// distance [mm]; `closest` receives the nearest point of the path.
+  /// Streaming: the caller pushes the polyline point by point (push()).
+  ContourSearch() = default;
+  /// Over a whole polyline `pts` [mm], without repeated points; must outlive the search.
+  explicit ContourSearch(const std::vector<Vec3>& pts) : source_(&pts) {}
+  /// Appends the next polyline point (not equal to the previous one).
+  void push(const Vec3& p);
+  /// Points pushed (or taken from the whole polyline) so far.
+  std::size_t size() const { return first_ + win_.size(); }
+  /// `limit`: the newest polyline index the nominal has reached at this tick; it never
+  /// decreases from call to call. Returns the distance [mm]; `closest` receives the nearest
+  /// point of the path.
   double distance(const Vec3& actual, std::size_t limit, Vec3& closest);
+  /// Streaming form: up to the newest point pushed.
+  double distance(const Vec3& actual, Vec3& closest) { return distance(actual, size() == 0 ? 0 : size() - 1, closest); }
 
  private:
   struct Box {
     Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
     void add(const Vec3& p);
-    void add(const Box& b);
     double distance_sq(const Vec3& p) const;
+    bool within(const Vec3& p, double best) const;  //!< nearer than `best`
   };
-  const std::vector<Vec3>& pts_;
-  std::vector<Box> boxes_, supers_;
-  std::size_t j_ = 0;  //!< segment of the previous match
+  struct Match {
+    double sq = 1e300, dist = 1e300;  //!< squared distance and distance [mm^2, mm]
+    double s = 0;                     //!< along the segment, 0..1
+    std::size_t segment = 0;          //!< global index
+  };
+  static constexpr std::size_t kSuperSpan = kGroup * kGroupsPerSuper;
+  const Vec3& point(std::size_t i) const { return win_[i - first_]; }
+  void drop_old_points();
+  void scan(std::size_t a, std::size_t b, const Vec3& p, Match& m);
+
+  const std::vector<Vec3>* source_ = nullptr;
+  std::vector<Vec3> win_;          //!< points first_ .. size()-1
+  std::size_t first_ = 0;          //!< global index of win_[0]; a multiple of kSuperSpan
+  std::vector<Box> boxes_, supers_;  //!< from group first_ / kGroup, super-group first_ / kSuperSpan
+  std::size_t j_ = 0;              //!< segment of the previous match (global index)
 };
 
 /// Joints at which the machine starts, at rest, for the program's first moving block: where the
@@ -222,11 +247,17 @@ std::string travel_error(const Model& model, const interpolate::InterpolateStats
 struct RunBounds {
   double reference_smoothing = 2.0;  //!< see build_nominal
   double max_machine_time = 3600;    //!< [s]
+  /// Keep the nominal run (raw samples, segments, re-timed reference, tracking error) for the
+  /// report and the compensation. Without it the run is evaluated as it streams, in memory
+  /// bounded by the contour window: what `gcpipe simulate` needs for its trace.
+  bool record_nominal = true;
 };
 
-/// The one harness: nominal run (build_nominal) and its contour-error evaluation (evaluate) of
-/// `program`. `on_tick` sees every tick of the evaluated run (trace output). Never throws for a
-/// program the machine cannot run: the reason goes to `note`.
+/// The one harness: the program's own run in one pass, which is both the nominal (each tick's raw
+/// sample) and the evaluated run (its actual against the nominal path so far, the contour metric
+/// of `evaluate`); with `bounds.record_nominal` it is also recorded as build_nominal records it.
+/// `on_tick` sees every tick of the run (trace output). Never throws for a program the machine
+/// cannot run: the reason goes to `note`.
 SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> program, const RunBounds& bounds,
                                const std::function<void(const Tick&)>& on_tick = {}, const Progress& progress = {});
 

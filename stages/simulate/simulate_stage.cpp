@@ -34,7 +34,7 @@ bool SimulateStage::finish(bool complete, pipeline::Emitter& out) {
     return true;
   }
   result_ = std::make_shared<SimulatedProgram>();
-  simulate::RunBounds bounds{bounds_.reference_smoothing, bounds_.max_machine_time};
+  simulate::RunBounds bounds{bounds_.reference_smoothing, bounds_.max_machine_time, record_nominal_};
   result_->run = simulate::simulate_program(model_, std::move(program_), bounds, tap_, progress_);
   if (!result_->run.before) failure_ = "not simulated: " + result_->run.note;
   if (result_->run.travel_line != 0) {
@@ -52,7 +52,7 @@ bool SimulateStage::finish(bool complete, pipeline::Emitter& out) {
 }
 
 void SimulateStage::report(pipeline::ReportContext& r) const {
-  if (!reports_) return;
+  if (!reports_ || !record_nominal_) return;
   compensate::SimulationOutcome o;
   o.model = &model_;
   o.run = run();

@@ -28,6 +28,9 @@ class SimulateStage final : public pipeline::Stage {
 
   /// Called with every tick of the simulated run, in order.
   void on_tick(std::function<void(const simulate::Tick&)> tap) { tap_ = std::move(tap); }
+  /// Only the trace and the figures of the run are wanted (`gcpipe simulate`): the run streams
+  /// in bounded memory, without the nominal record the report and the compensation need.
+  void trace_only() { record_nominal_ = false; }
   const compensate::Model& model() const { return model_; }
   /// The finished simulation (null before finish() or when the program was incomplete).
   const simulate::SimulationRun* run() const { return result_ ? &result_->run : nullptr; }
@@ -39,6 +42,7 @@ class SimulateStage final : public pipeline::Stage {
   std::string file_;
   pipeline::DiagnosticLog& log_;
   bool reports_;  //!< no compensate stage follows, which would report the simulation
+  bool record_nominal_ = true;
   std::vector<ResolvedBlock> program_;
   std::string skipped_, failure_;
   std::shared_ptr<SimulatedProgram> result_;
