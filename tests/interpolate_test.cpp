@@ -52,6 +52,24 @@ TEST(Interpolate, LinearFeedSetsDurationAndPathIsStraight) {
   EXPECT_EQ(c.s.back()[kX], 30.0);
 }
 
+// One block cannot run past the machine-time bound: it is refused before its first sample, so a
+// feed of 0.001 mm/min or an arc of thousands of turns costs nothing, whatever it would run.
+TEST(Interpolate, BlockPastTheMachineTimeBoundIsRefusedBeforeItsFirstSample) {
+  InterpolateOptions o = raw_options();
+  o.max_time = 10;
+  Interpolator ip(o, Axes{});
+  Collect c;
+  ASSERT_EQ(ip.add(block(Motion::kLinear, {50, 0, 0, 0, 0}, 600), c).status, InterpolateStatus::kOk);  // 5 s
+  const std::size_t before = c.s.size();
+  const auto r = ip.add(block(Motion::kLinear, {100, 0, 0, 0, 0}, 0.001), c);  // 3e6 s
+  EXPECT_EQ(r.status, InterpolateStatus::kTooLong);
+  EXPECT_EQ(c.s.size(), before);
+  EXPECT_NE(r.message.find("past the bound of 10 s"), std::string::npos) << r.message;
+  ResolvedBlock d = block(Motion::kDwell, {0, 0, 0, 0, 0});
+  d.dwell = 6;  // 5 s + 6 s > 10 s
+  EXPECT_EQ(ip.add(d, c).status, InterpolateStatus::kTooLong);
+}
+
 TEST(Interpolate, InverseTimeRapidAndDwell) {
   Interpolator ip(raw_options(), Axes{});
   Collect c;

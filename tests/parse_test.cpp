@@ -108,6 +108,18 @@ TEST(ParseModal, InchFeedIsConverted) {
   EXPECT_DOUBLE_EQ(last(p).feed, 254);
 }
 
+// A feed per minute below parse.min_feed is a post's slip (F0.001 for F1000) that would run for
+// hours: an error at the F word. Inverse-time feeds are not feed rates and pass; 0 turns it off.
+TEST(ParseModal, FeedBelowTheMinimumIsAnErrorAtItsWord) {
+  expect_error("G21 G94\nG1 X1 F0.5\n", "feed F0.5 is below the minimum feed of 1 mm/min (parse.min_feed", 7);
+  expect_error("G20 G94\nG1 X1 F0.01\n", "feed F0.01 is below the minimum feed", 7);  // 0.254 mm/min
+  EXPECT_EQ(parse_text("G21 G93 G1 X1 F0.001\n").first_error(), nullptr) << "G93 F is 1/min, not a feed rate";
+  EXPECT_EQ(parse_text("G20 G1 X1 F0.04\n").first_error(), nullptr) << "0.04 in/min = 1.016 mm/min";
+  ParseOptions off;
+  off.min_feed = 0;
+  EXPECT_EQ(parse_text("G21 G1 X1 F0.001\n", off).first_error(), nullptr);
+}
+
 TEST(ParseModal, ToolLengthTcpSpindleCoolant) {
   Parsed p = parse_text("T1 M6\nG43 H1 S1200 M3 M8\nG43.4 H1\nG49\nM7 M8\nM9 M8\nM5 M9\n");
   ASSERT_EQ(p.blocks.size(), 7u) << format(p.diags.at(0));

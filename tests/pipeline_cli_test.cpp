@@ -147,6 +147,21 @@ TEST(Limits, TravelViolationIsAnErrorAtItsLine) {
   EXPECT_FALSE(fs::exists(dir / "trace.csv")) << "no trace for a program the machine cannot run";
 }
 
+// compensate.max_machine_time holds inside one block: an arc of 4800 turns (5 h at F1000) is
+// refused before it is interpolated, at its line, with no trace left behind.
+TEST(Limits, OneBlockPastTheMachineTimeBoundIsRefusedAtItsLine) {
+  const fs::path dir = tmpdir("longblock");
+  {
+    std::ofstream p(dir / "turns.nc");
+    p << "G21 G90 G94 G17\nG0 X10 Y0 Z5\nG1 Z0 F100\nG2 X10 Y0 I-10 J0 P4800 F1000\nM30\n";
+  }
+  Outcome s = gcpipe({"simulate", (dir / "turns.nc").string(), "-o", (dir / "trace.csv").string()});
+  EXPECT_EQ(s.status, 1) << s.err;
+  EXPECT_NE(s.err.find("line 4 (G2 X10 Y0 I-10 J0 P4800 F1000): this block takes 18095.6 s"), std::string::npos) << s.err;
+  EXPECT_NE(s.err.find("compensate.max_machine_time"), std::string::npos) << s.err;
+  EXPECT_FALSE(fs::exists(dir / "trace.csv"));
+}
+
 // A shop's tool table on the command line: T/H numbers the machine file does not know resolve
 // from it; without it they stay errors at their line that name where tools come from.
 TEST(ToolTable, CommandLineTableResolvesTheShopsTools) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 
 #include "gcpipe/config.hpp"
@@ -467,6 +468,15 @@ InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
   if (moves) tcp_space_ = tcp;
   if (res.velocity_limited) ++stats_.velocity_limited_blocks;
   const double t_end = t_block_ + duration;
+  if (t_end > opt_.max_time) {
+    char msg[200];
+    std::snprintf(msg, sizeof msg, ": this block takes %.6g s and would end at %.6g s of machine time, past the bound of %.6g s",
+                  duration, t_end, opt_.max_time);
+    res.status = InterpolateStatus::kTooLong;
+    res.message = where(b) + msg;
+    res.duration = duration;
+    return res;
+  }
   // Samples at t = n T inside (t_block_, t_end]; the tolerance keeps a sample that rounding put
   // a hair beyond the end.
   // On an arc the angle grows by the same step every period, so cos and sin follow by rotation

@@ -18,6 +18,7 @@
 #include <complex>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -54,6 +55,10 @@ struct InterpolateOptions {
   /// a block with `tcp` set is rejected kUnsupported. The tool length of a block is
   /// block.tool_length when block.tool_length_active, else kinematics->tool_length.
   const MachineKinematics* kinematics = nullptr;
+  /// Machine-time bound [s]: a block that would end after it is not interpolated (kTooLong),
+  /// checked before its first sample, so that one block (`G1 X100 F0.001`, an arc of thousands
+  /// of turns, a long dwell) cannot run for hours or fill memory.
+  double max_time = std::numeric_limits<double>::infinity();
 };
 
 /// Reads the `interpolate` section (period, smoothing); unknown keys rejected. The limits come
@@ -105,6 +110,7 @@ enum class InterpolateStatus : std::uint8_t {
                  //!< tool-centre-point block without InterpolateOptions::kinematics)
   kInvalid,      //!< zero or negative feed, non-finite target, axis with no velocity limit,
                  //!< zero tool vector, tool vector reversed by 180 deg
+  kTooLong,      //!< the block would end after InterpolateOptions::max_time
 };
 
 struct InterpolateResult {

@@ -43,6 +43,10 @@ struct ParseOptions {
   /// most 1000 times as many lines on its behalf (nested loops, recursion): no input can hang.
   std::uint64_t max_loop_passes = 100000;
   int max_call_depth = 64;  //!< subroutine calls nested deeper than this are an error
+  /// A feed per minute (G94) below this [mm/min] is an error at its F word: a slip of the post
+  /// (F0.001 for F1000) would run for hours. Inverse-time feeds (G93) are bounded by the
+  /// simulation's machine-time limit instead.
+  double min_feed = 1.0;
 };
 
 /// Reads the `parse` section of a pipeline config (every key documented in the README).

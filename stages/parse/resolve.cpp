@@ -289,6 +289,9 @@ GCPIPE_STEP bool Parser::Impl::apply_feed_speed_tool(const BlockCodes& c, ModalS
     if (f.value < 0) return fail(f.col, "feed F" + show(f.value) + " is negative");
     const double v = ns.feed_mode == FeedMode::kInverseTime ? f.value : f.value * unit;
     if (v > kMaxFeed) return fail(f.col, "feed F" + show(f.value) + " is out of range (at most 100000000 mm/min or 1/min)");
+    if (ns.feed_mode == FeedMode::kUnitsPerMinute && v > 0 && v < opt.min_feed)
+      return fail(f.col, "feed F" + show(f.value) + " is below the minimum feed of " + show(opt.min_feed) +
+                             " mm/min (parse.min_feed in the pipeline config): a mistyped feed would run for hours");
     ns.feed = v;
   } else if (c.has(kGFeedMode) && ns.feed_mode != st.feed_mode) {
     ns.feed = 0;  // switching G93/G94 invalidates the feed: it means something else now

@@ -179,6 +179,8 @@ RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, 
   RunStats stats;
   interpolate::InterpolateOptions io = model.interp;
   io.kinematics = &model.kin;  // TCP blocks: inverse kinematics per tick, feed along the tool tip
+  // The bound holds inside blocks too: one block past it is refused before its first tick.
+  if (max_ticks != UINT64_MAX) io.max_time = static_cast<double>(max_ticks) * model.interp.period;
   Sink sink(model, stats, on_tick);
   sink.max_ticks = max_ticks;
   interpolate::Interpolator interp(io, start);
@@ -194,6 +196,7 @@ RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, 
     if (r.status != interpolate::InterpolateStatus::kOk) {
       stats.ok = false;
       stats.message = r.message;
+      if (r.status == interpolate::InterpolateStatus::kTooLong) stats.message += " (compensate.max_machine_time)";
       stats.failed_line = b.line;
       break;
     }
@@ -617,7 +620,9 @@ SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> pr
   const double max_ticks = max_ticks_of(model, bounds.max_machine_time);
   OwnRun own = run_own_program(model, p, run.start, nom, bounds.record_nominal, tick_bound(max_ticks), on_tick);
   if (!nom.stats.ok) {
-    run.note = "line " + std::to_string(nom.stats.failed_line) + ": " + nom.stats.message;
+    // The interpolator's messages name the block already ("line 4 (G1 X100 F1.5): ...").
+    const bool named = nom.stats.message.rfind("line ", 0) == 0;
+    run.note = named ? nom.stats.message : "line " + std::to_string(nom.stats.failed_line) + ": " + nom.stats.message;
     return run;
   }
   const std::string travel = travel_error(model, nom.stats.interp);
