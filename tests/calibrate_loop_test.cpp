@@ -20,7 +20,7 @@ namespace fs = std::filesystem;
 ContourFigures compensated_on_machine(const compensate::Model& model, const compensate::Model& machine,
                                       const test::Scenario& sc) {
   const compensate::CompensateOptions options;
-  const auto simulated = simulate::simulate_program(model, sc.program, {options.reference_smoothing, options.max_machine_time});
+  const auto simulated = simulate::simulate_program(model, sc.program, compensate::run_bounds(options));
   const auto pcomp = compensate::compensate_program(model, options, WriteOptions{}, simulated, {});
   EXPECT_FALSE(pcomp.text.empty()) << pcomp.note;
   const auto blocks = test::parse_text(pcomp.text, sc.pc);

@@ -14,12 +14,15 @@ namespace gcpipe::compensate {
 
 
 CompensateOptions load_compensate_options(const Config& s) {
-  s.reject_unknown({"enabled", "node_period", "reference_smoothing", "linearisation_tolerance", "max_iterations", "gain",
+  s.reject_unknown({"enabled", "node_period", "path_tolerance", "blend_time", "reference_acceleration", "reference_smoothing", "linearisation_tolerance", "max_iterations", "gain",
                     "max_machine_time", "max_blocks", "slowed_baseline"});
   CompensateOptions o;
   o.enabled = s.boolean("enabled", o.enabled);
   o.node_period = s.number("node_period", o.node_period, "s", 1e-4, 0.1);
-  o.reference_smoothing = s.number("reference_smoothing", o.reference_smoothing, "x Ts", 1.0, 10.0);
+  o.reference.tolerance = s.number("path_tolerance", o.reference.tolerance, "mm", 1e-5, 1.0);
+  o.reference.blend_time = s.number("blend_time", o.reference.blend_time, "s", 0.002, 0.2);
+  o.reference.acceleration = s.number("reference_acceleration", o.reference.acceleration, "", 0.05, 1.0);
+  o.reference.smoothing = s.number("reference_smoothing", o.reference.smoothing, "x Ts", 0.5, 10.0);
   o.linearisation_tolerance = s.number("linearisation_tolerance", o.linearisation_tolerance, "mm", 1e-6, 1.0);
   o.max_iterations = static_cast<int>(s.integer("max_iterations", o.max_iterations, 0, 1000));
   o.gain = s.number("gain", o.gain, "", 0.01, 1.0);
@@ -27,6 +30,13 @@ CompensateOptions load_compensate_options(const Config& s) {
   o.max_blocks = static_cast<std::uint64_t>(s.integer("max_blocks", static_cast<std::int64_t>(o.max_blocks), 1, 100000000));
   o.slowed_baseline = s.boolean("slowed_baseline", o.slowed_baseline);
   return o;
+}
+
+simulate::RunBounds run_bounds(const CompensateOptions& o) {
+  simulate::RunBounds b;
+  b.plan = o.reference;
+  b.max_machine_time = o.max_machine_time;
+  return b;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -119,7 +129,7 @@ void project_speed(std::vector<Node>& nodes, const Axes& vmax, double period) {
   }
 }
 
-// Where a tick of the re-timed reference is in the program, and its reference tool tip.
+// Where a tick of the planned reference is in the program, and its reference tool tip.
 struct ReferenceClock {
   const Model& model;
   const Nominal& nom;
@@ -228,7 +238,7 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
                   const Progress& progress) {
   Result res;
   if (nom.reference_too_long) {
-    res.note = "not compensated: the re-timed reference (which stops at every corner) would run longer than compensate.max_machine_time";
+    res.note = "not compensated: the planned reference would run longer than compensate.max_machine_time";
     return res;
   }
   if (nom.reference.empty() || program.empty()) {

@@ -45,8 +45,7 @@ struct CompensateOptions {
   bool enabled = true;                  //!< false: batch simulates and reports, writes no nodes
   double node_period = 0.004;           //!< [s] time between points of the compensated program
   double linearisation_tolerance = 0.001;  //!< [mm] tool-tip deviation of joint-linear motion
-  double reference_smoothing = 2.0;     //!< acc/dec time of the re-timed reference, in units of
-                                        //!< the slowest axis's Ts (>= 1)
+  simulate::ReferencePlan reference;    //!< path_tolerance, blend_time, reference_acceleration
   int max_iterations = 25;              //!< ILC iterations after the model-inverse start
   double gain = 1.0;                    //!< ILC learning gain (0, 1]
   double max_machine_time = 3600;       //!< [s] longer programs are simulated but not compensated
@@ -57,6 +56,9 @@ struct CompensateOptions {
 
 /// Reads the `compensate` section; unknown keys rejected; throws ConfigError.
 CompensateOptions load_compensate_options(const Config& section);
+
+/// The simulation bounds and reference plan of these options.
+simulate::RunBounds run_bounds(const CompensateOptions& options);
 
 // The simulation (model, run, nominal, evaluation) lives in stages/simulate: one harness and one
 // contour metric for `gcpipe simulate`, the compensation and the report.

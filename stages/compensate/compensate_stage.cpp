@@ -71,8 +71,7 @@ class CompensateStage final : public pipeline::Stage {
 
   void simulate_here() {
     auto s = std::make_shared<SimulatedProgram>();
-    s->run = simulate::simulate_program(model_, std::move(blocks_), {options_.reference_smoothing, options_.max_machine_time},
-                                        {}, progress_);
+    s->run = simulate::simulate_program(model_, std::move(blocks_), compensate::run_bounds(options_), {}, progress_);
     simulated_ = s;
   }
 
@@ -113,7 +112,7 @@ class CompensateStage final : public pipeline::Stage {
     if (progress_) progress_("simulating the original slowed to the compensated cycle time", 0, 0);
     const double target = static_cast<double>(compensation_.result->nodes.back().tick) * model_.interp.period;
     slowed_ = simulate::slowed_original(model_, simulated_->run.program, target,
-                                        {options_.reference_smoothing, options_.max_machine_time});
+                                        compensate::run_bounds(options_));
   }
 
   compensate::Model model_;

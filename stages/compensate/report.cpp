@@ -115,6 +115,9 @@ nlohmann::ordered_json report_json(const ReportInput& in) {
   j["note"] = in.result ? in.result->note : std::string();
   const double T = in.model->interp.period;
   j["cycle_time_before_s"] = static_cast<double>(in.nominal->raw.size()) * T;
+  // The original as a look-ahead control runs it to compensate.path_tolerance: the reference.
+  if (!in.nominal->reference.empty())
+    j["cycle_time_planned_s"] = static_cast<double>(in.nominal->reference.size()) * T;
   if (in.result && !in.result->nodes.empty() && in.after)
     j["cycle_time_after_s"] = static_cast<double>(in.result->nodes.back().tick) * T;
   j["contour_error_before"] = contour_json(*in.before);
@@ -173,9 +176,12 @@ void outcome_lines(const ReportInput& in, std::string& s) {
   }
   s += "\n";
   if (in.result && !in.result->nodes.empty()) {
-    std::snprintf(buf, sizeof buf, "  compensated program runs %.3f s (original %.3f s: the reference stops at corners, starts and stops)\n",
+    std::snprintf(buf, sizeof buf,
+                  "  compensated program runs %.3f s (original %.3f s as the control runs it, %.3f s planned to "
+                  "compensate.path_tolerance)\n",
                   static_cast<double>(in.result->nodes.back().tick) * in.model->interp.period,
-                  static_cast<double>(in.nominal->raw.size()) * in.model->interp.period);
+                  static_cast<double>(in.nominal->raw.size()) * in.model->interp.period,
+                  static_cast<double>(in.nominal->reference.size()) * in.model->interp.period);
     s += buf;
   }
 }

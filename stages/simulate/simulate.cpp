@@ -8,25 +8,10 @@
 #include <limits>
 
 #include "contour.hpp"
+#include "nominal_path.hpp"
 #include "gcpipe/config.hpp"
 
 namespace gcpipe::simulate {
-
-namespace {
-
-
-bool is_motion(Motion m) {
-  return m == Motion::kRapid || m == Motion::kLinear || m == Motion::kArcCW || m == Motion::kArcCCW ||
-         m == Motion::kTrochoidSlot;
-}
-
-/// The nominal tool-tip path as a polyline without repeated points, and the polyline index of
-/// every tick, so that the contour error can be searched near the previous match (a dwell or a
-/// stop adds many identical points that would otherwise stall the search).
-struct NominalPath {
-  std::vector<Vec3> pts;
-  std::vector<std::uint32_t> index_of_tick;
-};
 
 NominalPath nominal_path(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program) {
   NominalPath p;
@@ -37,6 +22,14 @@ NominalPath nominal_path(const Model& model, const Nominal& nom, std::span<const
     p.index_of_tick.push_back(static_cast<std::uint32_t>(p.pts.size() - 1));
   }
   return p;
+}
+
+namespace {
+
+
+bool is_motion(Motion m) {
+  return m == Motion::kRapid || m == Motion::kLinear || m == Motion::kArcCW || m == Motion::kArcCCW ||
+         m == Motion::kTrochoidSlot;
 }
 
 }  // namespace
@@ -269,85 +262,6 @@ void describe_segments(const Model& model, std::span<const ResolvedBlock> progra
   }
 }
 
-/// Raw ticks where the re-timed reference must come to rest: sharp corners (over 5 degrees in
-/// speed-scaled joint space), starts and stops, and the end of a rapid (controls check
-/// in-position there).
-std::vector<std::uint8_t> reference_corners(const Model& model, std::span<const ResolvedBlock> program,
-                                            const Nominal& nom, bool any_hold) {
-  const std::size_t N = nom.raw.size();
-  std::vector<std::uint8_t> corner(N, 0);
-  if (!any_hold) return corner;
-  Axes vb;
-  for (std::size_t i = 0; i < kNumAxes; ++i) vb[i] = model.interp.max_velocity[i] > 0 ? model.interp.max_velocity[i] : 1.0;
-  auto step = [&](std::size_t n) {  // per-axis step n-1 -> n, scaled by the axis speed limit
-    Axes d;
-    for (std::size_t i = 0; i < kNumAxes; ++i) d[i] = (nom.raw[n][i] - nom.raw[n - 1][i]) / vb[i];
-    return d;
-  };
-  std::size_t last_corner = 0;
-  for (std::size_t n = 1; n + 1 < N; ++n) {
-    const Axes a = step(n), b = step(n + 1);
-    double aa = 0, bb = 0, ab = 0;
-    for (std::size_t i = 0; i < kNumAxes; ++i) aa += a[i] * a[i], bb += b[i] * b[i], ab += a[i] * b[i];
-    // A start and a stop count as corners too: the raw path starts and stops dead there (a
-    // dwell, the end), and the re-timed progress must come to rest at that index, not sweep
-    // through it at speed.
-    const bool moving = aa > 1e-24, next_moving = bb > 1e-24;
-    const bool sharp = moving != next_moving ||
-                       (moving && next_moving && ab < std::cos(5.0 * M_PI / 180) * std::sqrt(aa * bb));
-    const bool rapid_end = moving && program[nom.block[n]].motion == Motion::kRapid &&
-                           program[nom.block[n + 1]].motion != Motion::kRapid;
-    if ((sharp || rapid_end) && (last_corner == 0 || n > last_corner + 2 || moving != next_moving)) {
-      corner[n] = 1;
-      last_corner = n;
-    }
-  }
-  return corner;
-}
-
-/// Reference: the nominal path re-timed by the control's own kind of acc/dec applied to the
-/// progress index, with `reference_smoothing` times the slowest axis's Ts: the starts and stops
-/// of the reference are gentler than the control's own, which leaves the learned commands
-/// headroom in acceleration and torque there. Re-timing keeps speed changes but cannot turn a
-/// corner at speed: at a corner (reference_corners) the progress is held until the re-timed
-/// speed has decayed, so the reference turns the corner at rest.
-void build_reference(const Model& model, std::span<const ResolvedBlock> program, double reference_smoothing,
-                     double max_ticks, Nominal& nom) {
-  double Ts = 0;
-  for (std::size_t i = 0; i < kNumAxes; ++i) Ts = std::max(Ts, reference_smoothing * model.interp.smoothing_time[i]);
-  const std::size_t N = nom.raw.size();
-  const auto hold = static_cast<std::size_t>(std::ceil(
-      (model.interp.smoothing == interpolate::Smoothing::kExponential ? 12.0 : 1.0) * Ts / nom.period));
-  const std::vector<std::uint8_t> corner = reference_corners(model, program, nom, hold > 0);
-  interpolate::AxisSmoother progress(model.interp.smoothing, Ts, nom.period, 0.0);
-  const double last = static_cast<double>(N - 1);
-  double q = 0;          // held raw index fed to the smoother
-  std::size_t held = 0;  // ticks held at the current corner
-  for (std::size_t n = 0;; ++n) {
-    const double p = std::min(progress.filter(q), last);
-    const auto i0 = static_cast<std::size_t>(std::floor(p));
-    const std::size_t i1 = std::min(i0 + 1, N - 1);
-    nom.reference.push_back(lerp(nom.raw[i0], nom.raw[i1], p - static_cast<double>(i0)));
-    nom.progress.push_back(p);
-    if (q >= last && last - p < 1e-6) break;
-    if (static_cast<double>(n) >= max_ticks) {
-      // Every corner adds a hold: a program of many short corners re-times far longer than it
-      // runs. Bounded like the run itself; the compensation then says why it did not run.
-      nom.reference.clear();
-      nom.progress.clear();
-      nom.reference_too_long = true;
-      break;
-    }
-    const auto qi = static_cast<std::size_t>(q);
-    if (qi < N && corner[qi] && held < hold) {
-      ++held;
-    } else {
-      held = 0;
-      q = std::min(q + 1, last);
-    }
-  }
-}
-
 double max_ticks_of(const Model& model, double max_machine_time) {
   return std::floor(max_machine_time / model.interp.period);
 }
@@ -525,7 +439,7 @@ OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> progra
 }  // namespace
 
 Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program, const Axes& start,
-                      double reference_smoothing, double max_machine_time) {
+                      const ReferencePlan& plan, double max_machine_time) {
   Nominal nom;
   nom.period = model.interp.period;
   const double max_ticks = max_ticks_of(model, max_machine_time);
@@ -541,7 +455,7 @@ Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program
   nom.segment_of_block = segment_blocks(program, nseg);
   nom.segments.assign(nseg, Segment{});
   describe_segments(model, program, nom);
-  build_reference(model, program, reference_smoothing, max_ticks, nom);
+  plan_reference(model, program, plan, max_ticks, nom);
   return nom;
 }
 
@@ -633,7 +547,7 @@ SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> pr
   }
   if (bounds.record_nominal) {
     describe_segments(model, p, nom);
-    build_reference(model, p, bounds.reference_smoothing, max_ticks, nom);
+    plan_reference(model, p, bounds.plan, max_ticks, nom);
     const Axes& ref_end = nom.reference.empty() ? run.start : nom.reference.back();
     for (std::size_t n = 0; n < own.actual.size(); ++n) {
       const Axes& ref = n < nom.reference.size() ? nom.reference[n] : ref_end;

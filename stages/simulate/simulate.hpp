@@ -177,12 +177,22 @@ struct Series {
 
 
 
+/// How the compensation's reference is planned (the `compensate` section; derivation in
+/// stages/compensate/README.md, "Reference").
+struct ReferencePlan {
+  double tolerance = 0.02;    //!< [mm] largest tool-tip deviation of the reference from the path
+  double blend_time = 0.01;   //!< [s] first moving average of the blend (the second is half of it)
+  double acceleration = 0.3;  //!< planned acceleration, a fraction of every axis's limit (0.5 left the
+                              //!< compensation too little headroom on the seed 002 circle test)
+  double smoothing = 2.0;     //!< speed-profile smoothing, in units of the slowest axis's Ts
+};
+
 /// The nominal run of the original program.
 struct Nominal {
   double period = 0.001;
   std::vector<Axes> raw;               //!< R_n, n = 0..N-1
   std::vector<std::uint32_t> block;    //!< block index of each raw sample
-  std::vector<Axes> reference;         //!< r_n (re-timed path), n = 0..E-1 (E >= N)
+  std::vector<Axes> reference;         //!< r_n (planned and blended path), n = 0..E-1
   std::vector<double> progress;        //!< p_n, fractional raw index of r_n
   bool reference_too_long = false;     //!< the reference would exceed max_machine_time (empty)
   std::vector<std::uint32_t> segment_of_block;  //!< per program block
@@ -214,7 +224,16 @@ using Progress = std::function<void(const char* what, std::uint64_t done, std::u
 /// Runs the original program and builds the nominal path and reference.
 /// Programs longer than `max_machine_time` [s] stop the run (Nominal::stats.ok false).
 Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program, const Axes& start,
-                      double reference_smoothing = 2.0, double max_machine_time = 3600);
+                      const ReferencePlan& plan = {}, double max_machine_time = 3600);
+
+/// The compensation's reference for a recorded nominal run (raw samples and blocks): the path
+/// planned with look-ahead (speed limited where the direction changes and where the path stops,
+/// reached with the plan's path acceleration, never faster than programmed), then blended by
+/// two moving averages; where the blend leaves the path by more than `plan.tolerance` the speed
+/// is lowered and the plan made again. Fills reference and progress, or sets
+/// reference_too_long when the plan would run past `max_ticks`.
+void plan_reference(const Model& model, std::span<const ResolvedBlock> program, const ReferencePlan& plan,
+                    double max_ticks, Nominal& nom);
 
 /// Runs `blocks` and measures them against the nominal path. `source_block(i)` is the program
 /// block that block i of `blocks` stands for (its tool length and segment); `also` sees every tick.
@@ -245,7 +264,7 @@ std::string travel_error(const Model& model, const interpolate::InterpolateStats
 
 /// Bounds of a simulation run (from the `compensate` section, whose reference it builds).
 struct RunBounds {
-  double reference_smoothing = 2.0;  //!< see build_nominal
+  ReferencePlan plan;                //!< see plan_reference
   double max_machine_time = 3600;    //!< [s]
   /// Keep the nominal run (raw samples, segments, re-timed reference, tracking error) for the
   /// report and the compensation. Without it the run is evaluated as it streams, in memory

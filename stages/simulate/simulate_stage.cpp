@@ -34,7 +34,8 @@ bool SimulateStage::finish(bool complete, pipeline::Emitter& out) {
     return true;
   }
   result_ = std::make_shared<SimulatedProgram>();
-  simulate::RunBounds bounds{bounds_.reference_smoothing, bounds_.max_machine_time, record_nominal_};
+  simulate::RunBounds bounds = compensate::run_bounds(bounds_);
+  bounds.record_nominal = record_nominal_;
   result_->run = simulate::simulate_program(model_, std::move(program_), bounds, tap_, progress_);
   if (!result_->run.before) failure_ = "not simulated: " + result_->run.note;
   if (result_->run.travel_line != 0) {
