@@ -22,7 +22,7 @@ TEST(CalibrateRun, CircleWithYBacklashWritesEveryOutput) {
   const fs::path dir = test::scratch("run_backlash");
   test::write_csv(test::trace_of(sc, 3), dir / "trace.csv");
   const fs::path cfg = test::write_config(sc.config.drives, dir, "config");
-  CalibrateRequest q{{(dir / "trace.csv").string()}, cfg.string(), (dir / "out").string(), std::nullopt, false, true};
+  CalibrateRequest q{{(dir / "trace.csv").string()}, cfg.string(), (dir / "out").string(), std::nullopt, false, true, {}, 0};
   std::ostringstream out, err;
   ASSERT_EQ(run_calibrate(q, out, err), 0) << err.str();
   std::cout << out.str();
@@ -71,7 +71,7 @@ TEST(CalibrateRun, CircleWithXFrictionShowsTheQuadrantGlitches) {
   const fs::path dir = test::scratch("run_friction");
   test::write_csv(test::trace_of(sc, 8), dir / "trace.csv");
   const fs::path cfg = test::write_config(sc.config.drives, dir, "config");
-  CalibrateRequest q{{(dir / "trace.csv").string()}, cfg.string(), (dir / "out").string(), std::nullopt, false, true};
+  CalibrateRequest q{{(dir / "trace.csv").string()}, cfg.string(), (dir / "out").string(), std::nullopt, false, true, {}, 0};
   std::ostringstream out, err;
   ASSERT_EQ(run_calibrate(q, out, err), 0) << err.str();
   const auto j = test::read_json(dir / "out" / "calibration.json");
@@ -90,7 +90,7 @@ TEST(CalibrateRun, UsageAndBadConfigAreReported) {
   const fs::path dir = test::scratch("bad_config");
   std::ofstream(dir / "bad.yaml") << "machine: nowhere.yaml\n";
   std::ostringstream e2;
-  CalibrateRequest q{{"x.csv"}, (dir / "bad.yaml").string(), (dir / "out").string(), std::nullopt, false, false};
+  CalibrateRequest q{{"x.csv"}, (dir / "bad.yaml").string(), (dir / "out").string(), std::nullopt, false, false, {}, 0};
   EXPECT_EQ(run_calibrate(q, out, e2), 1);
   EXPECT_FALSE(e2.str().empty());
 }

@@ -15,6 +15,8 @@ int run_calibrate(const CalibrateArgs& a) {
   q.config = a.config.empty() ? default_pipeline_config().string() : a.config;
   q.outdir = a.outdir;
   if (!a.format.empty()) q.format = a.format;
+  q.columns = a.columns;
+  q.period = a.period;
   q.skip_bad_rows = a.skip_bad_rows;
   q.plots = !a.no_plots;
   return calibrate::run_calibrate(q, std::cout, std::cerr);
@@ -26,6 +28,8 @@ int run_evaluate(const EvaluateArgs& a) {
   q.program = a.program;
   q.config = a.config.empty() ? default_pipeline_config().string() : a.config;
   if (!a.format.empty()) q.format = a.format;
+  q.columns = a.columns;
+  q.period = a.period;
   q.skip_bad_rows = a.skip_bad_rows;
   if (!a.json.empty()) q.json = a.json;
   return calibrate::run_evaluate(q, std::cout, std::cerr);
