@@ -48,6 +48,9 @@ struct EvaluateRequest {
 
 int run_evaluate(const EvaluateRequest& request, std::ostream& out, std::ostream& err);
 
+/// Why traces cannot be calibrated together (their sampling periods differ), or nullopt.
+std::optional<std::string> mixed_periods(const std::vector<MeasuredTrace>& traces);
+
 /// ReadOptions from a request's format, column map and period; false (and why, on err) when
 /// the format name is unknown.
 bool read_options(const std::optional<std::string>& format, const std::vector<std::string>& columns, double period,

@@ -257,6 +257,14 @@ void write_outputs(const Calibration& c, const compensate::Model& model, const s
   if (plots) write_plots(c, outdir);
 }
 
+std::optional<std::string> mixed_periods(const std::vector<MeasuredTrace>& traces) {
+  for (const auto& t : traces)
+    if (std::abs(t.period - traces.front().period) > 1e-3 * traces.front().period)
+      return t.file + ": period " + std::to_string(t.period) + " s differs from " + traces.front().file + " (" +
+             std::to_string(traces.front().period) + " s); calibrate traces of one sampling period together";
+  return std::nullopt;
+}
+
 bool read_options(const std::optional<std::string>& format, const std::vector<std::string>& columns, double period,
                   bool skip_bad_rows, ReadOptions& o, std::ostream& err) {
   o.skip_bad_rows = skip_bad_rows;
@@ -286,11 +294,10 @@ bool read_all(const CalibrateRequest& q, std::vector<MeasuredTrace>& traces, std
     skipped = skipped || r.trace->rows_skipped > 0 || r.trace->rows_unused > 0;
     traces.push_back(std::move(*r.trace));
   }
-  for (const auto& t : traces)
-    if (std::abs(t.period - traces.front().period) > 1e-3 * traces.front().period) {
-      err << t.file << ": period " << t.period << " s differs from " << traces.front().file << " (" << traces.front().period << " s); calibrate traces of one sampling period together\n";
-      ok = false;
-    }
+  if (auto why = mixed_periods(traces)) {
+    err << *why << "\n";
+    ok = false;
+  }
   return ok && !traces.empty();
 }
 
