@@ -56,7 +56,11 @@ TEST(CalibrateLoop, EvaluateAgreesWithTheSimulatorsOwnContourError) {
   std::ofstream(dir / "machine_drives.yaml") << drives_text(sc.machine.drives, "# the machine\n");
   const auto cfg = test::write_config(sc.machine.drives, dir, "machine");
   std::ostringstream out, err;
-  EvaluateRequest q{(dir / "run.csv").string(), (dir / "circle.nc").string(), cfg.string(), std::nullopt, false, (dir / "e.json").string()};
+  EvaluateRequest q;
+  q.trace = (dir / "run.csv").string();
+  q.program = (dir / "circle.nc").string();
+  q.config = cfg.string();
+  q.json = (dir / "e.json").string();
   ASSERT_EQ(run_evaluate(q, out, err), 0) << err.str();
   std::cout << out.str();
   const auto j = test::read_json(dir / "e.json");
@@ -66,10 +70,35 @@ TEST(CalibrateLoop, EvaluateAgreesWithTheSimulatorsOwnContourError) {
   const Axes start = compensate::machine_start(sc.machine.kin, prog[first], compensate::tool_length_of(sc.machine, prog[first]));
   const auto nom = compensate::build_nominal(sc.machine, prog, start);
   const auto ev = compensate::evaluate(sc.machine, nom, prog, prog, start, [](std::uint32_t i) { return i; });
-  EXPECT_NEAR(j["cutting"]["max_um"].get<double>(), ev.contour.max * 1000, 0.02 * ev.contour.max * 1000 + 0.5);
+  // One metric (simulate::ContourSearch) and one cutting/rapid rule: the same figures.
+  EXPECT_NEAR(j["cutting"]["max_um"].get<double>(), ev.contour.max * 1000, 1e-3 * ev.contour.max * 1000 + 0.01);
+  EXPECT_NEAR(j["cutting"]["rms_um"].get<double>(), ev.contour.rms * 1000, 1e-3 * ev.contour.rms * 1000 + 0.01);
+  EXPECT_NEAR(j["rapid"]["max_um"].get<double>(), ev.rapid.max * 1000, 1e-3 * ev.rapid.max * 1000 + 0.01);
   EXPECT_GT(j["cutting"]["samples"].get<int>(), 1000);
   std::ostringstream e2;
   EXPECT_EQ(run_evaluate(EvaluateRequest{}, out, e2), 2);
+}
+
+TEST(CalibrateLoop, EvaluateAlignsATraceRecordedBeforeTheProgramStarted) {
+  // The recording starts 2 s before the program: the samples at rest are not scored and the
+  // figures are those of the run alone (the trace's first commanded motion is the program's).
+  test::Scenario sc = test::circle_scenario();
+  const MeasuredTrace run = simulate_trace(sc.machine, sc.program, {}, "run");
+  MeasuredTrace early = run;
+  const std::size_t idle = 2000;
+  early.t.clear();
+  for (std::size_t k = 0; k < run.size() + idle; ++k) early.t.push_back(static_cast<double>(k) * run.period);
+  for (int a = 0; a < kNumAxes; ++a) {
+    early.command[a].insert(early.command[a].begin(), idle, run.command[a].front());
+    early.actual[a].insert(early.actual[a].begin(), idle, run.actual[a].front());
+  }
+  const ContourFigures f = measured_contour_error(sc.machine, sc.program, run);
+  const ContourFigures g = measured_contour_error(sc.machine, sc.program, early);
+  EXPECT_NEAR(g.cutting_max, f.cutting_max, 1e-9);
+  EXPECT_NEAR(g.cutting_rms, f.cutting_rms, 1e-9);
+  EXPECT_EQ(g.cutting_samples, f.cutting_samples);
+  EXPECT_GE(g.idle_samples, idle);
+  EXPECT_GT(f.cutting_max, 1e-3);  // the machine's servo lag: a contour error to measure
 }
 
 }  // namespace

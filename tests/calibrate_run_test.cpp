@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
+#include <sys/wait.h>
 
 #include "calibrate_test_util.hpp"
 #include "gcpipe/pipeline_config.hpp"
@@ -22,7 +23,7 @@ TEST(CalibrateRun, CircleWithYBacklashWritesEveryOutput) {
   const fs::path dir = test::scratch("run_backlash");
   test::write_csv(test::trace_of(sc, 3), dir / "trace.csv");
   const fs::path cfg = test::write_config(sc.config.drives, dir, "config");
-  CalibrateRequest q{{(dir / "trace.csv").string()}, cfg.string(), (dir / "out").string(), std::nullopt, false, true};
+  CalibrateRequest q{{(dir / "trace.csv").string()}, cfg.string(), (dir / "out").string(), std::nullopt, false, true, {}, 0};
   std::ostringstream out, err;
   ASSERT_EQ(run_calibrate(q, out, err), 0) << err.str();
   std::cout << out.str();
@@ -64,6 +65,50 @@ TEST(CalibrateRun, CircleWithYBacklashWritesEveryOutput) {
   EXPECT_TRUE(fs::exists(dir / "batch" / "compensated.nc"));
 }
 
+/// Runs a gcpipe command line; returns its exit status (WEXITSTATUS) and stdout+stderr.
+int run_gcpipe(const std::string& args, std::string& output) {
+  const std::string cmd = std::string(GCPIPE_EXE) + " " + args + " 2>&1";
+  FILE* pipe = ::popen(cmd.c_str(), "r");
+  if (pipe == nullptr) return -1;
+  char buf[4096];
+  for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, pipe)) > 0;) output.append(buf, n);
+  const int status = ::pclose(pipe);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+TEST(CalibrateRun, TheCommandRunsTheRegisteredStageThroughThePipeline) {
+  std::string listed;
+  ASSERT_EQ(run_gcpipe("stages", listed), 0);
+  EXPECT_NE(listed.find("calibrate   -           program  -"), std::string::npos) << listed;
+
+  // The command (pipeline runner + calibrate stage) and the library entry point agree.
+  test::Scenario sc = test::circle_scenario();
+  sc.machine.drives.axes[kY].effects.push_back(test::effect("backlash", {{"width", 0.010}}));
+  const fs::path dir = test::scratch("run_stage");
+  test::write_csv(test::trace_of(sc, 5), dir / "trace.csv");
+  const fs::path cfg = test::write_config(sc.config.drives, dir, "config");
+  CalibrateRequest q{{(dir / "trace.csv").string()}, cfg.string(), (dir / "library").string(), std::nullopt, false, false, {}, 0};
+  std::ostringstream out, err;
+  ASSERT_EQ(run_calibrate(q, out, err), 0) << err.str();
+  std::string said;
+  ASSERT_EQ(run_gcpipe("calibrate " + (dir / "trace.csv").string() + " --config " + cfg.string() + " -o " +
+                           (dir / "command").string() + " --no-plots", said), 0) << said;
+  const auto lib = test::read_json(dir / "library" / "calibration.json");
+  const auto cmd = test::read_json(dir / "command" / "calibration.json");
+  EXPECT_EQ(cmd["effects"], lib["effects"]);
+  EXPECT_EQ(cmd["prediction_error"], lib["prediction_error"]);
+  EXPECT_TRUE(fs::exists(dir / "command" / "calibrated.yaml"));
+
+  // A rejected trace: the stage's failure, exit status 1, nothing written.
+  std::ofstream(dir / "short.csv") << "t,X_cmd,Y_cmd,Z_cmd,A_cmd,C_cmd,X,Y,Z,A,C\n0,1,2\n";
+  said.clear();
+  EXPECT_EQ(run_gcpipe("calibrate " + (dir / "short.csv").string() + " --config " + cfg.string() + " -o " +
+                           (dir / "rejected").string(), said), 1);
+  EXPECT_NE(said.find("short.csv:2:6: error: row has 3 of 11 columns (truncated?)"), std::string::npos) << said;
+  EXPECT_NE(said.find("gcpipe calibrate: "), std::string::npos) << said;
+  EXPECT_FALSE(fs::exists(dir / "rejected" / "calibration.json"));
+}
+
 TEST(CalibrateRun, CircleWithXFrictionShowsTheQuadrantGlitches) {
   // The figures of stages/calibrate/README.md for friction come from this run.
   test::Scenario sc = test::circle_scenario();
@@ -71,7 +116,7 @@ TEST(CalibrateRun, CircleWithXFrictionShowsTheQuadrantGlitches) {
   const fs::path dir = test::scratch("run_friction");
   test::write_csv(test::trace_of(sc, 8), dir / "trace.csv");
   const fs::path cfg = test::write_config(sc.config.drives, dir, "config");
-  CalibrateRequest q{{(dir / "trace.csv").string()}, cfg.string(), (dir / "out").string(), std::nullopt, false, true};
+  CalibrateRequest q{{(dir / "trace.csv").string()}, cfg.string(), (dir / "out").string(), std::nullopt, false, true, {}, 0};
   std::ostringstream out, err;
   ASSERT_EQ(run_calibrate(q, out, err), 0) << err.str();
   const auto j = test::read_json(dir / "out" / "calibration.json");
@@ -90,7 +135,7 @@ TEST(CalibrateRun, UsageAndBadConfigAreReported) {
   const fs::path dir = test::scratch("bad_config");
   std::ofstream(dir / "bad.yaml") << "machine: nowhere.yaml\n";
   std::ostringstream e2;
-  CalibrateRequest q{{"x.csv"}, (dir / "bad.yaml").string(), (dir / "out").string(), std::nullopt, false, false};
+  CalibrateRequest q{{"x.csv"}, (dir / "bad.yaml").string(), (dir / "out").string(), std::nullopt, false, false, {}, 0};
   EXPECT_EQ(run_calibrate(q, out, e2), 1);
   EXPECT_FALSE(e2.str().empty());
 }

@@ -26,9 +26,11 @@ struct CalibrateRequest {
   std::vector<std::string> traces;    //!< one or more traces of the same machine
   std::string config;                 //!< pipeline config (machine, interpolate, servo.drives)
   std::string outdir;                 //!< created if missing; files written as NAME.part, renamed
-  std::optional<std::string> format;  //!< "csv" | "umich"; detected from the header when absent
+  std::optional<std::string> format;  //!< "csv" | "umich" | "halsampler" | "shdr"; detected when absent
   bool skip_bad_rows = false;         //!< use the usable rest of a trace and count what was dropped
   bool plots = true;                  //!< write plots/*.png
+  std::vector<std::string> columns;   //!< halsampler column map / SHDR item map (ReadOptions::columns)
+  double period = 0;                  //!< halsampler without a time column [s]
 };
 
 int run_calibrate(const CalibrateRequest& request, std::ostream& out, std::ostream& err);
@@ -40,15 +42,27 @@ struct EvaluateRequest {
   std::optional<std::string> format;
   bool skip_bad_rows = false;
   std::optional<std::string> json;    //!< also write the figures as JSON here
+  std::vector<std::string> columns;   //!< halsampler column map / SHDR item map
+  double period = 0;                  //!< halsampler without a time column [s]
 };
 
 int run_evaluate(const EvaluateRequest& request, std::ostream& out, std::ostream& err);
 
+/// Why traces cannot be calibrated together (their sampling periods differ), or nullopt.
+std::optional<std::string> mixed_periods(const std::vector<MeasuredTrace>& traces);
+
+/// ReadOptions from a request's format, column map and period; false (and why, on err) when
+/// the format name is unknown.
+bool read_options(const std::optional<std::string>& format, const std::vector<std::string>& columns, double period,
+                  bool skip_bad_rows, ReadOptions& options, std::ostream& err);
+
 // --- pieces, exposed for the tests and the benchmark ---
 
 /// Contour error of a measured run: distance of the measured tool tip (FK of the actual joints)
-/// to the program's nominal tool-tip path (FK of the raw interpolated joints), cutting moves
-/// (G1 G2 G3, TCP) and rapids (G0) apart. Units mm.
+/// to the program's nominal tool-tip path (FK of the raw interpolated joints), by the simulate
+/// stage's one metric (simulate::ContourSearch, searched up to where the nominal has got by the
+/// sample's time) and its classification: rapids (G0) apart from feed moves and dwells. The trace's
+/// time is aligned with the program's at the first commanded motion. Units mm.
 struct ContourFigures {
   double cutting_max = 0, cutting_rms = 0, rapid_max = 0, rapid_rms = 0;
   double t_at_cutting_max = 0;       //!< [s] trace time

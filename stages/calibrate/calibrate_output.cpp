@@ -257,18 +257,30 @@ void write_outputs(const Calibration& c, const compensate::Model& model, const s
   if (plots) write_plots(c, outdir);
 }
 
+std::optional<std::string> mixed_periods(const std::vector<MeasuredTrace>& traces) {
+  for (const auto& t : traces)
+    if (std::abs(t.period - traces.front().period) > 1e-3 * traces.front().period)
+      return t.file + ": period " + std::to_string(t.period) + " s differs from " + traces.front().file + " (" +
+             std::to_string(traces.front().period) + " s); calibrate traces of one sampling period together";
+  return std::nullopt;
+}
+
+bool read_options(const std::optional<std::string>& format, const std::vector<std::string>& columns, double period,
+                  bool skip_bad_rows, ReadOptions& o, std::ostream& err) {
+  o.skip_bad_rows = skip_bad_rows;
+  o.columns = columns;
+  o.period = period;
+  if (!format) return true;
+  o.format = parse_format(*format);
+  if (!o.format) err << "unknown --format '" << *format << "' (use csv, umich, halsampler or shdr)\n";
+  return o.format.has_value();
+}
+
 namespace {
 
 bool read_all(const CalibrateRequest& q, std::vector<MeasuredTrace>& traces, std::ostream& err, bool& skipped) {
   ReadOptions o;
-  o.skip_bad_rows = q.skip_bad_rows;
-  if (q.format) {
-    o.format = parse_format(*q.format);
-    if (!o.format) {
-      err << "gcpipe calibrate: unknown --format '" << *q.format << "' (use csv or umich)\n";
-      return false;
-    }
-  }
+  if (!read_options(q.format, q.columns, q.period, q.skip_bad_rows, o, err)) return false;
   bool ok = true;
   for (const auto& path : q.traces) {
     ReadResult r = read_trace_file(path, o);
@@ -282,11 +294,10 @@ bool read_all(const CalibrateRequest& q, std::vector<MeasuredTrace>& traces, std
     skipped = skipped || r.trace->rows_skipped > 0 || r.trace->rows_unused > 0;
     traces.push_back(std::move(*r.trace));
   }
-  for (const auto& t : traces)
-    if (std::abs(t.period - traces.front().period) > 1e-3 * traces.front().period) {
-      err << t.file << ": period " << t.period << " s differs from " << traces.front().file << " (" << traces.front().period << " s); calibrate traces of one sampling period together\n";
-      ok = false;
-    }
+  if (auto why = mixed_periods(traces)) {
+    err << *why << "\n";
+    ok = false;
+  }
   return ok && !traces.empty();
 }
 
@@ -294,7 +305,7 @@ bool read_all(const CalibrateRequest& q, std::vector<MeasuredTrace>& traces, std
 
 int run_calibrate(const CalibrateRequest& q, std::ostream& out, std::ostream& err) {
   if (q.traces.empty() || q.config.empty() || q.outdir.empty()) {
-    err << "usage: gcpipe calibrate TRACE... --config CFG -o OUTDIR [--format csv|umich] [--skip-bad-rows]\n";
+    err << "usage: gcpipe calibrate TRACE... --config CFG -o OUTDIR [--format csv|umich|halsampler|shdr] [--columns LIST] [--period S] [--skip-bad-rows]\n";
     return 2;
   }
   compensate::Model model;

@@ -4,11 +4,10 @@
 #include <cmath>
 #include <fstream>
 #include <iterator>
-#include <limits>
 #include <nlohmann/json.hpp>
 
 #include "calibrate.hpp"
-#include "contour.hpp"
+#include "simulate.hpp"
 #include "gcpipe/kinematics.hpp"
 #include "gcpipe/pipeline_config.hpp"
 #include "parse.hpp"
@@ -17,9 +16,14 @@ namespace gcpipe::calibrate {
 
 namespace {
 
+/// The program's nominal tool-tip path as the simulate stage builds it: one raw interpolated
+/// tick after another, repeated points dropped, with the path index each tick has reached.
 struct NominalPath {
-  std::vector<Vec3> tip;
-  std::vector<std::uint32_t> block;
+  std::vector<Vec3> pts;                     //!< polyline for simulate::ContourSearch
+  std::vector<std::uint32_t> index_of_tick;  //!< newest polyline index reached at tick n
+  std::vector<std::uint32_t> block;          //!< program block of tick n
+  std::vector<Axes> raw;                     //!< raw joints of tick n
+  double period = 0;
 };
 
 NominalPath nominal_path(const compensate::Model& model, std::span<const ResolvedBlock> program) {
@@ -28,27 +32,64 @@ NominalPath nominal_path(const compensate::Model& model, std::span<const Resolve
   if (first == program.size()) throw std::runtime_error("the program moves nothing");
   const Axes start = compensate::machine_start(model.kin, program[first], compensate::tool_length_of(model, program[first]));
   NominalPath p;
+  p.period = model.interp.period;
   const auto st = compensate::run_program(model, program, start, [&](const compensate::Tick& t) {
     const Vec3 tip = forward_kinematics(model.kin, t.raw, compensate::tool_length_of(model, program[t.block])).tip;
-    if (!p.tip.empty() && tip == p.tip.back()) return;  // dwells add nothing to the path
-    p.tip.push_back(tip);
+    if (p.pts.empty() || simulate::dist3(p.pts.back(), tip) > 1e-9) p.pts.push_back(tip);  // as simulate's nominal
+    p.index_of_tick.push_back(static_cast<std::uint32_t>(p.pts.size() - 1));
     p.block.push_back(t.block);
+    p.raw.push_back(t.raw);
   });
   if (!st.ok) throw std::runtime_error("line " + std::to_string(st.failed_line) + ": " + st.message);
+  if (p.pts.size() < 2) throw std::runtime_error("the program's tool tip does not move");
   return p;
 }
 
-/// Nearest segment to `q` among [from, from + window), and a few behind; returns its index.
-std::size_t nearest(const NominalPath& p, const Vec3& q, std::size_t from, std::size_t window, double& dist) {
-  const std::size_t lo = from > 50 ? from - 50 : 0, hi = std::min(p.tip.size() - 1, from + window);
-  std::size_t best = lo;
-  dist = std::numeric_limits<double>::infinity();
-  for (std::size_t i = lo; i < std::max(hi, lo + 1) && i + 1 < p.tip.size(); ++i) {
-    const double d = servo::segment_distance(p.tip[i], p.tip[i + 1], q);
-    if (d < dist) { dist = d; best = i; }
+/// First sample at which any commanded axis has left its first value; `size` when none does.
+template <typename At>
+std::size_t first_motion(std::size_t size, const At& at) {
+  for (std::size_t k = 1; k < size; ++k)
+    for (int a = 0; a < kNumAxes; ++a)
+      if (std::abs(at(k, a) - at(0, a)) > 1e-9) return k;
+  return size;
+}
+
+/// Which nominal tick a trace sample stands for: the trace's first commanded motion is the
+/// program's first interpolated motion, and time runs on from there. (A run recorded on another
+/// clock than the program's own, e.g. with the feed override off 100 %, is not aligned.)
+struct Clock {
+  std::size_t trace_start = 0, nominal_start = 0;
+  double t0 = 0, period = 0;
+  std::size_t tick(const MeasuredTrace& tr, std::size_t k) const {
+    if (k <= trace_start) return nominal_start;
+    return nominal_start + static_cast<std::size_t>(std::llround((tr.t[k] - t0) / period));
   }
-  if (p.tip.size() == 1) dist = std::sqrt(std::pow(q[0] - p.tip[0][0], 2) + std::pow(q[1] - p.tip[0][1], 2) + std::pow(q[2] - p.tip[0][2], 2));
-  return best;
+};
+
+Clock align(const NominalPath& p, const MeasuredTrace& tr) {
+  Clock c;
+  c.period = p.period;
+  c.trace_start = first_motion(tr.size(), [&](std::size_t k, int a) { return tr.command[a][k]; });
+  if (c.trace_start == tr.size()) throw std::runtime_error(tr.file + ": the commanded positions never move");
+  c.trace_start -= 1;  // the last sample at rest
+  c.nominal_start = first_motion(p.raw.size(), [&](std::size_t n, int a) { return p.raw[n][a]; }) - 1;
+  c.t0 = tr.t[c.trace_start];
+  return c;
+}
+
+void add_sample(ContourFigures& f, double& sc, double& sr, const ResolvedBlock& b, double d, double t) {
+  // The simulate stage's rule: rapids position the tool and do not cut; feed moves and dwells do.
+  if (b.motion == Motion::kRapid) {
+    ++f.rapid_samples;
+    sr += d * d;
+    f.rapid_max = std::max(f.rapid_max, d);
+  } else if (b.motion == Motion::kNone) {
+    ++f.idle_samples;
+  } else {
+    ++f.cutting_samples;
+    sc += d * d;
+    if (d > f.cutting_max) { f.cutting_max = d; f.t_at_cutting_max = t; f.line_at_cutting_max = b.line; }
+  }
 }
 
 }  // namespace
@@ -56,30 +97,26 @@ std::size_t nearest(const NominalPath& p, const Vec3& q, std::size_t from, std::
 ContourFigures measured_contour_error(const compensate::Model& model, std::span<const ResolvedBlock> program,
                                       const MeasuredTrace& trace) {
   const NominalPath path = nominal_path(model, program);
+  const Clock clock = align(path, trace);
+  // The actual may run slightly ahead of the aligned nominal (a trace clock a little fast): the
+  // search may look this far ahead, as the simulate stage does for a re-timed run.
+  const auto ahead = static_cast<std::size_t>(std::ceil(0.3 / path.period));
+  simulate::ContourSearch search(path.pts);
   ContourFigures f;
   double sc = 0, sr = 0;
-  std::size_t at = 0;
   for (std::size_t k = 0; k < trace.size(); ++k) {
+    if (k < clock.trace_start) {  // at rest before the program's first motion: not part of the run
+      ++f.idle_samples;
+      continue;
+    }
+    const std::size_t n = std::min(clock.tick(trace, k), path.block.size() - 1);
+    const ResolvedBlock& b = program[path.block[n]];
     Axes j{};
     for (int a = 0; a < kNumAxes; ++a) j[a] = trace.actual[a][k];
-    // The tool tip with the tool length in force where the run was one sample ago (G43 H..):
-    // the measured joints alone do not say which tool is in the spindle.
-    const double tool = compensate::tool_length_of(model, program[path.block[at]]);
-    const Vec3 q = forward_kinematics(model.kin, j, tool).tip;
-    double d = 0;
-    // The first sample searches the whole path (where the run starts); afterwards the match
-    // moves forward with the run, so a path passing close by elsewhere is never taken.
-    at = nearest(path, q, k == 0 ? 0 : at, k == 0 ? path.tip.size() : 2000, d);
-    const Motion m = program[path.block[at]].motion;
-    if (m == Motion::kRapid) {
-      ++f.rapid_samples;
-      sr += d * d;
-      f.rapid_max = std::max(f.rapid_max, d);
-    } else {
-      ++f.cutting_samples;
-      sc += d * d;
-      if (d > f.cutting_max) { f.cutting_max = d; f.t_at_cutting_max = trace.t[k]; f.line_at_cutting_max = program[path.block[at]].line; }
-    }
+    const Vec3 q = forward_kinematics(model.kin, j, compensate::tool_length_of(model, b)).tip;
+    Vec3 nearest;
+    const std::size_t limit = path.index_of_tick[std::min(n + ahead, path.index_of_tick.size() - 1)];
+    add_sample(f, sc, sr, b, search.distance(q, limit, nearest), trace.t[k]);
   }
   f.cutting_rms = std::sqrt(sc / static_cast<double>(std::max<std::size_t>(1, f.cutting_samples)));
   f.rapid_rms = std::sqrt(sr / static_cast<double>(std::max<std::size_t>(1, f.rapid_samples)));
@@ -111,7 +148,7 @@ std::vector<ResolvedBlock> parse_program(const std::string& path, const Pipeline
 
 int run_evaluate(const EvaluateRequest& q, std::ostream& out, std::ostream& err) {
   if (q.trace.empty() || q.program.empty() || q.config.empty()) {
-    err << "usage: gcpipe evaluate --trace MEASURED.csv --program PROG.nc --config CFG [--format csv|umich] [--skip-bad-rows] [--json OUT.json]\n";
+    err << "usage: gcpipe evaluate --trace MEASURED.csv --program PROG.nc --config CFG [--format csv|umich|halsampler|shdr] [--columns LIST] [--period S] [--skip-bad-rows] [--json OUT.json]\n";
     return 2;
   }
   try {
@@ -121,8 +158,7 @@ int run_evaluate(const EvaluateRequest& q, std::ostream& out, std::ostream& err)
     const auto program = parse_program(q.program, pc, err, ok);
     if (!ok) return 1;
     ReadOptions o;
-    o.skip_bad_rows = q.skip_bad_rows;
-    if (q.format) o.format = parse_format(*q.format);
+    if (!read_options(q.format, q.columns, q.period, q.skip_bad_rows, o, err)) return 2;
     ReadResult r = read_trace_file(q.trace, o);
     for (std::size_t i = 0; i < r.diagnostics.size() && i < 20; ++i) err << format(r.diagnostics[i]) << "\n";
     if (!r.trace) { err << q.trace << ": trace rejected\n"; return 1; }

@@ -1,8 +1,10 @@
 // Measured traces for the calibration: commanded and actual axis positions at the control's
 // sampling period, read from the shared trace CSV (stages/servo/trace.hpp, plus optional per-axis
-// torque or current columns and optional [unit] suffixes) or the University of Michigan CSV
-// (100 ms, velocities and currents). Every rejected row is a Diagnostic file:line:col with the
-// reason; with skip_bad_rows the usable rest is kept and the dropped rows are counted.
+// torque or current columns and optional [unit] suffixes), the University of Michigan CSV
+// (100 ms, velocities and currents), LinuxCNC halsampler output (no header: the user gives the
+// column map) or an MTConnect SHDR stream (records on change, grouped into rows per adapter
+// cycle). Every rejected row is a Diagnostic file:line:col with the reason; with skip_bad_rows
+// the usable rest is kept and the dropped rows are counted.
 #pragma once
 
 #include <array>
@@ -19,9 +21,9 @@
 
 namespace gcpipe::calibrate {
 
-enum class TraceFormat : std::uint8_t { kSharedCsv, kUmichCsv };
+enum class TraceFormat : std::uint8_t { kSharedCsv, kUmichCsv, kHalsampler, kShdr };
 
-/// "csv" / "shared" -> kSharedCsv, "umich" -> kUmichCsv; nullopt for anything else.
+/// "csv" / "shared", "umich", "halsampler", "shdr"; nullopt for anything else.
 std::optional<TraceFormat> parse_format(std::string_view name);
 std::string_view format_name(TraceFormat f);
 
@@ -49,6 +51,15 @@ struct ReadOptions {
   bool skip_bad_rows = false;         //!< keep the usable rest instead of rejecting the file
   std::size_t min_rows = 200;         //!< fewer usable rows: rejected (a fit needs transients)
   double max_gap = 1.5;               //!< a spacing above max_gap x period is a gap
+  /// halsampler: one name per column, in the order of the sampler's cfg string (with `n` first
+  /// when halsampler ran with -t): n, t, X_cmd..C_cmd, X..C, <axis>_torque, <axis>_current, or
+  /// `-` to ignore a pin. SHDR: QUANTITY=ITEM pairs overriding the default item names
+  /// (X=Xposition .. C=Cposition, X_cmd=Xcommanded .. C_cmd=Ccommanded).
+  std::vector<std::string> columns;
+  double period = 0;                  //!< halsampler without a `t` column: the thread period [s]
+  /// SHDR records within this time [s] of a cycle's first record form one row: an adapter writes
+  /// one poll cycle's changes within a millisecond (NIST GF Agie: 0.2 ms), polls far apart.
+  double shdr_cycle = 0.002;
 };
 
 struct ReadResult {

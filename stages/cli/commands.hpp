@@ -73,12 +73,16 @@ int run_train_ik(const TrainIkArgs& args);
 struct CalibrateArgs {
   std::vector<std::string> traces;
   std::string config, outdir, format;
+  std::vector<std::string> columns;  // halsampler column map / SHDR item map
+  double period = 0;                 // halsampler without a time column [s]
   bool skip_bad_rows = false, no_plots = false;
 };
 int run_calibrate(const CalibrateArgs& args);
 
 struct EvaluateArgs {
   std::string trace, program, config, format, json;
+  std::vector<std::string> columns;
+  double period = 0;
   bool skip_bad_rows = false;
 };
 int run_evaluate(const EvaluateArgs& args);

@@ -116,13 +116,25 @@ void add_train_ik(CLI::App& app, TrainIkArgs& a) {
   s->add_flag("--quiet", a.quiet, "no progress");
 }
 
+/// The trace-reading options calibrate and evaluate share (stages/calibrate/README.md §1).
+void add_trace_format_options(CLI::App* s, std::string& format, std::vector<std::string>& columns, double& period) {
+  s->add_option("--format", format, "csv, umich, halsampler or shdr (default: detected from the first line)")
+      ->check(CLI::IsMember({"csv", "umich", "halsampler", "shdr"}));
+  s->add_option("--columns", columns,
+                "halsampler: the pin of every column in order (n, t, X_cmd..C_cmd, X..C, <axis>_torque, "
+                "<axis>_current, - to ignore); shdr: QUANTITY=ITEM pairs (default X=Xposition, X_cmd=Xcommanded, ...)")
+      ->delimiter(',');
+  s->add_option("--period", period, "halsampler without a t column: the sampler thread's period [s]")
+      ->check(CLI::PositiveNumber);
+}
+
 void add_calibrate(CLI::App& app, CalibrateArgs& a) {
   auto* s = app.add_subcommand("calibrate", "find where the machine differs from its model in measured traces");
-  s->add_option("traces", a.traces, "measured traces of one machine (shared trace CSV, or UMich CSV)")->required()->check(CLI::ExistingFile);
+  s->add_option("traces", a.traces, "measured traces of one machine (shared trace CSV, UMich CSV, halsampler, SHDR)")->required()->check(CLI::ExistingFile);
   s->add_option("--config", a.config, "pipeline config of the model (default: pipeline_configs/default.yaml)");
   s->add_option("-o,--output-dir", a.outdir, "output folder: calibration.json, calibrated.yaml, report.txt, plots/")
       ->required()->check(kNonEmpty);
-  s->add_option("--format", a.format, "csv or umich (default: detected from the header)")->check(CLI::IsMember({"csv", "umich"}));
+  add_trace_format_options(s, a.format, a.columns, a.period);
   s->add_flag("--skip-bad-rows", a.skip_bad_rows, "use the usable rest of a trace with bad rows, and count what was dropped");
   s->add_flag("--no-plots", a.no_plots, "write no figures");
   s->footer("Replays the traces' commands through the model, refits the declared drive parameters, names\n"
@@ -137,7 +149,7 @@ void add_evaluate(CLI::App& app, EvaluateArgs& a) {
   s->add_option("--trace", a.trace, "the measured trace of a run of the program")->required()->check(CLI::ExistingFile);
   s->add_option("--program", a.program, "the G-code that was run")->required()->check(CLI::ExistingFile);
   s->add_option("--config", a.config, "pipeline config (machine kinematics; default: pipeline_configs/default.yaml)");
-  s->add_option("--format", a.format, "csv or umich (default: detected from the header)")->check(CLI::IsMember({"csv", "umich"}));
+  add_trace_format_options(s, a.format, a.columns, a.period);
   s->add_flag("--skip-bad-rows", a.skip_bad_rows, "use the usable rest of a trace with bad rows");
   s->add_option("--json", a.json, "also write the figures as JSON to this file")->check(kNonEmpty);
   s->footer("Cutting moves and rapids apart. Exit status: 0 done, 3 rows skipped, 1 stopped, 2 usage.");

@@ -163,6 +163,7 @@ struct StageNode::Impl {
       case Port::kProgram: return MessageType::kProgramChunk;
       case Port::kBlocks: return MessageType::kBlockBatch;
       case Port::kGcode: return MessageType::kGcodeChunk;
+      case Port::kNone: break;  // a product and a report only: nothing to put on the wire
     }
     throw std::logic_error("no wire type");
   }
@@ -365,7 +366,7 @@ struct StageNode::Impl {
 StageNode::StageNode(Participant& participant, const PipelineConfig& config, StageNodeOptions options)
     : impl_(std::make_unique<Impl>(participant, config, std::move(options))) {
   const Port in = impl_->info.input, out = impl_->info.output;
-  if (in == Port::kGcode || out == Port::kProgram)
+  if (in == Port::kGcode || out == Port::kProgram || out == Port::kNone)
     throw std::runtime_error("stage '" + impl_->options.stage + "' has no DDS node: its ports have no wire type");
 }
 

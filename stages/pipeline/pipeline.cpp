@@ -16,6 +16,7 @@ const char* to_string(Port port) {
     case Port::kProgram: return "program";
     case Port::kBlocks: return "blocks";
     case Port::kGcode: return "gcode";
+    case Port::kNone: return "-";
   }
   return "?";
 }

@@ -24,9 +24,11 @@
 
 namespace gcpipe::pipeline {
 
-/// What travels on an edge. kProgram: source text, line by line; kBlocks: resolved blocks and the
-/// diagnostics of lines that produced none, in source order; kGcode: written program text.
-enum class Port : std::uint8_t { kProgram, kBlocks, kGcode };
+/// What travels on an edge. kProgram: source text, line by line (a G-code program; for the
+/// calibrate stage the rows of a measured trace); kBlocks: resolved blocks and the diagnostics of
+/// lines that produced none, in source order; kGcode: written program text; kNone: nothing — the
+/// stage's result is its product and its report (calibrate), so no stage can hang off it.
+enum class Port : std::uint8_t { kProgram, kBlocks, kGcode, kNone };
 const char* to_string(Port port);
 
 /// A result too large or too rich for an edge's items that a stage hands to the next one in the
