@@ -10,7 +10,8 @@ namespace {
 
 ToolSpec load_tool(const Config& c) {
   ToolSpec t;
-  t.diameter = c.number("tool_diameter", t.diameter, "mm", 0.1, 200);
+  // Absent: 0, the stage takes the diameter of the tool in the spindle from the tool table.
+  t.diameter = c.has("tool_diameter") ? c.number("tool_diameter", "mm", 0.1, 200) : 0.0;
   t.flutes = static_cast<int>(c.integer("flutes", t.flutes, 1, 12));
   t.flute_length = c.number("flute_length", t.flute_length, "mm", 0.1, 500);
   t.stickout = c.number("stickout", t.stickout, "mm", 1, 1000);

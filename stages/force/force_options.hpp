@@ -13,7 +13,7 @@ class Config;
 namespace gcpipe::force {
 
 struct ToolSpec {
-  double diameter = 20;               //!< D [mm]
+  double diameter = 20;               //!< D [mm]; the config's 0 = the tool table's (stage)
   int flutes = 3;                     //!< N
   double flute_length = 30;           //!< longest edge length in cut [mm]
   double stickout = 60;               //!< holder face to tip, the cantilever length L [mm]
