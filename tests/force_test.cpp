@@ -178,8 +178,9 @@ TEST(ForceStock, QuarterImmersionClimbCutAlongAWallGivesTheClosedFormForce) {
   for (const ForceSample& s : p.samples) {
     if (s.x < 20 || s.x > 55) continue;
     ++steady;
-    // The probe one node outside the circle reads ae at most one node spacing large.
-    EXPECT_NEAR(s.radial_depth, 5.0, o.cell + 1e-9);
+    // The probe one node inside the circle reads ae short by one node spacing, +- the rounding
+    // of the wall's nodes (half a diagonal).
+    EXPECT_NEAR(s.radial_depth, 5.0, 1.75 * o.cell);
     EXPECT_NEAR(s.mean_force, closed, 0.02 * closed) << "at x " << s.x;
   }
   EXPECT_GT(steady, 100);

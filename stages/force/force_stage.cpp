@@ -57,13 +57,13 @@ class ForceStage final : public pipeline::Stage {
     force::ForceOptions o = options_;
     if (planning_ && o.sample_spacing == 0) o.sample_spacing = 0.1;  // README sec. 6
     auto stock = force::make_stock(moves, o);
-    before_ = force::sweep_path(moves, o, stock);
+    before_ = force::sweep_path(moves, o, std::move(stock));
     if (!planning_) return true;
     const auto planned = force::apply_feeds(program_, moves, force::plan_feeds(moves, before_, o));
     const auto moves_after = force::moves_from_blocks(planned);
     o.target_force = 0;
     auto stock_after = force::make_stock(moves_after, o);
-    after_ = force::sweep_path(moves_after, o, stock_after);
+    after_ = force::sweep_path(moves_after, o, std::move(stock_after));
     return release(planned, out);
   }
 

@@ -56,11 +56,11 @@ double limit_peak(const CuttingCoefficients& k, int flutes, const AxialProfile& 
 }
 
 /// Everything one revolution at (x, y, z) moving along (ux, uy) gives.
-ForceSample sample_at(const HeightField& stock, const ForceOptions& o, const Move& m, double x, double y,
+ForceSample sample_at(const SweptStock& stock, const ForceOptions& o, const Move& m, double x, double y,
                       double z, double ux, double uy) {
   const ToolSpec& t = o.tool;
   const int steps = samples_per_revolution(t.flutes);
-  const Engagement e = engagement_at(stock, x, y, z, ux, uy, 0.5 * t.diameter, t.flute_length, steps);
+  const Engagement e = engagement_at(stock, x, y, z, ux, uy, t.flute_length, steps);
   const AxialProfile profile = [&](double phi) {
     const auto i = static_cast<std::size_t>(phi / (2 * kPi) * steps);
     return e.depth[std::min(i, e.depth.size() - 1)];
@@ -132,19 +132,10 @@ HeightField make_stock(const std::vector<Move>& moves, const ForceOptions& o) {
   return HeightField(x0 - margin, y0 - margin, x1 + margin, y1 + margin, top, o.cell);
 }
 
-PathForce sweep_path(const std::vector<Move>& moves, const ForceOptions& o, HeightField& stock) {
+PathForce sweep_path(const std::vector<Move>& moves, const ForceOptions& o, HeightField field) {
   PathForce out;
-  const double r = 0.5 * o.tool.diameter;
-  double carry = 0, ux = 1, uy = 0;
-  bool have_cut = false;
-  double cut_x = 0, cut_y = 0, cut_z = 0;
-  const auto cut = [&](double x, double y, double z) {
-    // Only the crescent when the last disc is at or below this one (a descending helix re-cuts).
-    if (have_cut && cut_z <= z) stock.cut_disc_after(cut_x, cut_y, x, y, r, z);
-    else stock.cut_disc(x, y, r, z);
-    have_cut = true;
-    cut_x = x; cut_y = y; cut_z = z;
-  };
+  SweptStock stock(std::move(field), 0.5 * o.tool.diameter);
+  double carry = 0, ux = 1, uy = 0, path = 0;
   for (std::size_t i = 0; i < moves.size(); ++i) {
     const Move& m = moves[i];
     if (!m.cutting || m.feed <= 0 || m.spindle <= 0) continue;
@@ -163,14 +154,14 @@ PathForce sweep_path(const std::vector<Move>& moves, const ForceOptions& o, Heig
       fs.time = t0 + 60 * s / m.feed;
       fs.move = i;
       out.samples.push_back(fs);
-      cut(x, y, z);
+      stock.cut(x, y, z, path + s);
     }
     carry = s - len;
+    path += len;
     out.cutting_time += 60 * len / m.feed;
-    const bool run_ends = i + 1 == moves.size() || !moves[i + 1].cutting;
-    if (run_ends) {
-      cut(m.to[0], m.to[1], m.to[2]);
-      have_cut = false;  // a rapid follows: the next cut starts elsewhere
+    if (i + 1 == moves.size() || !moves[i + 1].cutting) {  // a rapid follows: the run ends here
+      stock.cut(m.to[0], m.to[1], m.to[2], path);
+      stock.end_run();
     }
   }
   for (const ForceSample& fs : out.samples) {

@@ -55,8 +55,9 @@ struct PathForce {
 /// margin) topped at the highest point of any feed move.
 HeightField make_stock(const std::vector<Move>& moves, const ForceOptions& o);
 
-/// Sweeps the moves through `stock` (which it cuts), one sample per spindle revolution.
-PathForce sweep_path(const std::vector<Move>& moves, const ForceOptions& o, HeightField& stock);
+/// Sweeps the moves through (a copy of) `stock`, one sample per spindle revolution of travel or
+/// per o.sample_spacing.
+PathForce sweep_path(const std::vector<Move>& moves, const ForceOptions& o, HeightField stock);
 
 /// Feed per move [mm/min] holding each revolution's predicted mean force at o.target_force and
 /// its instantaneous peak under o.peak_force, within [o.min_feed, o.max_feed_factor * programmed].

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <utility>
 
 namespace gcpipe::force {
 
@@ -57,36 +58,59 @@ void HeightField::cut_disc_after(double px, double py, double x, double y, doubl
   }
 }
 
-double HeightField::depth_at(double x, double y, double z, double ux, double uy, double r, double phi,
-                             double flute_length) const {
-  // n = u turned +90 deg: with an M3 (clockwise) spindle phi runs from n towards u.
-  // The probe sits one node spacing outside the tool circle: the nearest node to a point on the
-  // circle itself may lie inside the disc cut one step back (the walls would flicker), and one
-  // spacing out it cannot; the radial depth is read at most one spacing too large.
-  const double nx = -uy, ny = ux;
-  const double s = std::sin(phi), c = std::cos(phi);
-  const double rp = r + h_;
-  const double px = x + rp * (s * ux + c * nx), py = y + rp * (s * uy + c * ny);
-  return std::clamp(height(px, py) - z, 0.0, flute_length);
+SweptStock::SweptStock(HeightField field, double tool_radius, double recent)
+    : field_(std::move(field)), r_(tool_radius), rp_(tool_radius - field_.cell()), recent_(recent) {}
+
+void SweptStock::flush_before(double s) {
+  std::size_t n = 0;
+  for (; n < trail_.size() && trail_[n].s < s; ++n) {
+    const Disc& d = trail_[n];
+    // Only the crescent when the last disc on the grid is at or below this one (a descending
+    // helix re-cuts the whole disc).
+    if (have_last_ && last_.z <= d.z) field_.cut_disc_after(last_.x, last_.y, d.x, d.y, r_, d.z);
+    else field_.cut_disc(d.x, d.y, r_, d.z);
+    last_ = d;
+    have_last_ = true;
+  }
+  trail_.erase(trail_.begin(), trail_.begin() + static_cast<std::ptrdiff_t>(n));
 }
 
-Engagement engagement_at(const HeightField& stock, double x, double y, double z, double ux, double uy,
-                         double tool_radius, double flute_length, int samples) {
+void SweptStock::cut(double x, double y, double z, double s) {
+  trail_.push_back({x, y, z, s});
+  flush_before(s - recent_);
+}
+
+void SweptStock::end_run() {
+  flush_before(std::numeric_limits<double>::infinity());
+  have_last_ = false;
+}
+
+double SweptStock::top_at(double x, double y) const {
+  double top = field_.height(x, y);
+  for (const Disc& d : trail_)
+    if ((x - d.x) * (x - d.x) + (y - d.y) * (y - d.y) < rp_ * rp_) top = std::min(top, d.z);
+  return top;
+}
+
+Engagement engagement_at(const SweptStock& stock, double x, double y, double z, double ux, double uy,
+                         double flute_length, int samples) {
   Engagement e;
-  e.depth.resize(static_cast<std::size_t>(samples));
+  e.depth.assign(static_cast<std::size_t>(samples), 0.0);
   const double dphi = 2 * std::numbers::pi / samples;
+  const double rp = stock.probe_radius();
+  const double nx = -uy, ny = ux;  // n = u turned +90 deg: with M3 phi runs from n towards u
   int engaged = 0;
-  for (int i = 0; i < samples; ++i) {
-    // Only the front half can cut: behind the feed normal h = c sin(phi) < 0 (the tool moves
-    // away from whatever is there).
-    if ((i + 0.5) * dphi > std::numbers::pi) break;
-    const double a = stock.depth_at(x, y, z, ux, uy, tool_radius, (i + 0.5) * dphi, flute_length);
+  for (int i = 0; i < samples && (i + 0.5) * dphi < std::numbers::pi; ++i) {
+    const double phi = (i + 0.5) * dphi, s = std::sin(phi), c = std::cos(phi);
+    const double top = stock.top_at(x + rp * (s * ux + c * nx), y + rp * (s * uy + c * ny));
+    const double a = std::clamp(top - z, 0.0, flute_length);
     e.depth[static_cast<std::size_t>(i)] = a;
     if (a > 0) ++engaged;
     e.axial_depth = std::max(e.axial_depth, a);
   }
+  const double r = rp + stock.field().cell();
   e.angle = engaged * dphi;
-  e.radial_depth = e.angle >= std::numbers::pi ? 2 * tool_radius : tool_radius * (1 - std::cos(e.angle));
+  e.radial_depth = e.angle >= std::numbers::pi ? 2 * r : r * (1 - std::cos(e.angle));
   return e;
 }
 
