@@ -39,6 +39,14 @@ TEST(ForceStage, BatchPlansTheSeed000SlotAndReportsIt) {
   EXPECT_GT(after.at("max_deflection_um").get<double>(), 0.0);
   EXPECT_TRUE(fs::exists(dir / "plots" / "force_path.png"));
   EXPECT_TRUE(fs::exists(dir / "plots" / "force_time.png"));
+  // The deflection beside the servo contour error: every simulated bucket placed on a force
+  // sample (frames agree), both maxima reported, the figure drawn.
+  const auto& budget = report.at("error_budget");
+  EXPECT_GT(budget.at("matched_fraction").get<double>(), 0.9);
+  EXPECT_NEAR(budget.at("max_contour_error_um").get<double>(),
+              1e3 * report.at("simulation").at("contour_error_before").at("max_mm").get<double>(), 1e-6);
+  EXPECT_GT(budget.at("max_deflection_um").get<double>(), 0.0);
+  EXPECT_TRUE(fs::exists(dir / "plots" / "error_budget.png"));
   // output.nc is the expansion as programmed (write hangs off trochoid); compensated.nc is
   // written from the planned program, whose feeds now vary beyond the programmed 600/1200/2400.
   const auto planned = feeds_of(slurp(dir / "compensated.nc"));

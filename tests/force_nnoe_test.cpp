@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "force_report.hpp"
 #include "nnoe_force.hpp"
 #include "umich_force.hpp"
 
@@ -51,6 +52,13 @@ TEST(ForceNnoe, Table1StructuresTrainAndVerify) {
   // The stated bound on held-out data: the best structure's verification FPE under 10 % of the
   // force variance (seed 003's best: 9.4 %). Noise alone (2 % of the mean) is a floor of ~0.1 %.
   EXPECT_LT(best, 10.0);
+  const auto& eq13 = scores[4];
+  const auto predicted = calibrate::nnoe_simulate(eq13.model, calibrate::Channels{verify.feed, verify.depth}, verify.force.size());
+  char note[160];
+  std::snprintf(note, sizeof note, "eq. (13), 12 tanh units; verification run (seed 12): FPE %.2f %% (training %.2f %%)",
+                eq13.verification_fpe, eq13.training_fpe);
+  write_prediction_png(std::filesystem::path(GCPIPE_BINARY_DIR) / "force_nnoe_verification.png", verify.force, predicted,
+                       p.period, "NNOE on the mechanistic slot force: verification run", note, "mean force [N]");
   // The finding of README sec. 7, kept: the second-order structure of eq. (13) wins here too.
   EXPECT_EQ(scores[4].verification_fpe, best) << "eq. (13) no longer has the lowest verification FPE";
   for (const auto& s : scores) EXPECT_GT(s.training_fpe, 0.0);
@@ -78,6 +86,15 @@ TEST(ForceNnoe, UmichSpindlePowerTrainOnSomeVerifyOnOthers) {
       best = std::min(best, s.verification_fpe);
     }
     EXPECT_LT(best, 100.0);
+    const auto& first = scores[0];
+    const auto predicted = calibrate::nnoe_simulate(first.model, calibrate::Channels{v.feed, v.spindle, v.cutting}, v.power.size());
+    char note[160];
+    std::snprintf(note, sizeof note, "%s: verification FPE %.1f %% (training %.1f %%)", first.regressors.c_str(),
+                  first.verification_fpe, first.training_fpe);
+    write_prediction_png(std::filesystem::path(GCPIPE_BINARY_DIR) / (current ? "force_nnoe_umich_current.png" : "force_nnoe_umich_power.png"),
+                         current ? v.current : v.power, predicted, 0.1,
+                         std::string("UMich experiments 4-6 (verification), spindle ") + (current ? "current" : "power"), note,
+                         current ? "S1_CurrentFeedback [A]" : "S1_OutputPower");
   }
 }
 

@@ -67,4 +67,19 @@ void write_force_time_png(const std::filesystem::path& png, const PathForce& p, 
   plot::write_png(png, both);
 }
 
+void write_prediction_png(const std::filesystem::path& png, const std::vector<double>& reference,
+                          const std::vector<double>& predicted, double period, const std::string& title,
+                          const std::string& note, const std::string& ylabel) {
+  plot::Figure f;
+  f.title(title);
+  f.note(note);
+  f.xlabel("time [s]");
+  f.ylabel(ylabel);
+  std::vector<double> t(reference.size());
+  for (std::size_t i = 0; i < t.size(); ++i) t[i] = static_cast<double>(i) * period;
+  f.line(t, reference, plot::palette(0), 1, "reference (measured / simulated with noise)");
+  f.line(t, predicted, plot::palette(1), 2, "NNOE, parallel (output-error) run");
+  f.save_png(png);
+}
+
 }  // namespace gcpipe::force

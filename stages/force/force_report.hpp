@@ -14,4 +14,9 @@ void write_force_path_png(const std::filesystem::path& png, const PathForce& p, 
 /// Two panels against time: mean and peak force [N]; radial depth ae and axial depth ap [mm].
 void write_force_time_png(const std::filesystem::path& png, const PathForce& p, const std::string& title);
 
+/// A model's prediction against its reference series, sampled every `period` seconds.
+void write_prediction_png(const std::filesystem::path& png, const std::vector<double>& reference,
+                          const std::vector<double>& predicted, double period, const std::string& title,
+                          const std::string& note, const std::string& ylabel);
+
 }  // namespace gcpipe::force

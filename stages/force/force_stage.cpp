@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "force_options.hpp"
+#include "force_product.hpp"
 #include "force_report.hpp"
 #include "path_force.hpp"
 #include "stage.hpp"
@@ -58,12 +59,16 @@ class ForceStage final : public pipeline::Stage {
     if (planning_ && o.sample_spacing == 0) o.sample_spacing = 0.1;  // README sec. 6
     auto stock = force::make_stock(moves, o);
     before_ = force::sweep_path(moves, o, std::move(stock));
-    if (!planning_) return true;
+    if (!planning_) {
+      hand_on(before_, out);
+      return true;
+    }
     const auto planned = force::apply_feeds(program_, moves, force::plan_feeds(moves, before_, o));
     const auto moves_after = force::moves_from_blocks(planned);
     o.target_force = 0;
     auto stock_after = force::make_stock(moves_after, o);
     after_ = force::sweep_path(moves_after, o, std::move(stock_after));
+    hand_on(after_, out);
     return release(planned, out);
   }
 
@@ -102,6 +107,13 @@ class ForceStage final : public pipeline::Stage {
       return false;
     }
     return true;  // nothing cuts
+  }
+
+  /// The force of the program as emitted, for the compensate stage's error budget.
+  static void hand_on(const force::PathForce& p, Emitter& out) {
+    auto profile = std::make_shared<force::ForceProfile>();
+    profile->force = p;
+    out.product(profile);
   }
 
   /// Emits what was held back, in order, with the blocks of `blocks` (the program, or planned).

@@ -93,11 +93,18 @@ std::vector<StructureScore> compare_on_umich(const UmichRun& fit, const UmichRun
   norm.u_offset = {mean_of(fit.feed), mean_of(fit.spindle), mean_of(fit.cutting)};
   norm.u_scale = {stdev_of(fit.feed), stdev_of(fit.spindle), stdev_of(fit.cutting)};
   const calibrate::Channels u_fit{fit.feed, fit.spindle, fit.cutting}, u_ver{verify.feed, verify.spindle, verify.cutting};
-  std::vector<StructureScore> out;
+  std::vector<calibrate::NnoeStructure> structures;
   for (auto st : table1_structures(8)) {
     // Table 1's lags of the feed and of the depth; the spindle speed gets the feed's, the cutting
     // flag stands where the depth of cut stood.
     st.channel_lags = {st.channel_lags[0], st.channel_lags[0], st.channel_lags[1]};
+    structures.push_back(st);
+  }
+  // The ablation that says whether the feed matters at all: the first structure without it.
+  structures.push_back(structures.front());
+  structures.back().channel_lags[0] = 0;
+  std::vector<StructureScore> out;
+  for (const auto& st : structures) {
     StructureScore s;
     s.structure = st;
     s.regressors = regressor_text(st, {use_current ? "I" : "P", "f", "S", "cut"});

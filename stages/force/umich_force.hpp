@@ -30,7 +30,8 @@ UmichRun read_umich_run(const std::filesystem::path& csv);
 UmichRun concatenate(const std::vector<UmichRun>& runs);
 
 /// Table-1-style comparison on power (`use_current` false) or current: structures over the three
-/// channels (feed, spindle, cutting), trained on `fit`, FPE on `verify` [% of the fit variance].
+/// channels (feed, spindle, cutting), trained on `fit`, FPE on `verify` [% of the fit variance];
+/// a sixth row is the first structure without the feed (does the feed explain anything?).
 std::vector<StructureScore> compare_on_umich(const UmichRun& fit, const UmichRun& verify, bool use_current,
                                              const calibrate::NnoeOptions& options = {});
 
