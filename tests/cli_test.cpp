@@ -120,7 +120,7 @@ TEST(Cli, BatchExpandsTrochoidCyclesAndDrawsTheirFigure) {
   const fs::path out = tmpdir("troch");
   Outcome r = gcpipe({"batch", std::string(GCPIPE_SOURCE_DIR) + "/samples/trochoid_slot_seed000.nc", "-o", out.string()});
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_NE(r.out.find("parse -> trochoid -> write -> ik -> simulate -> compensate"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("parse -> trochoid -> write -> force -> ik -> simulate -> compensate"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("1 G275 cycles expanded, 0 rejected"), std::string::npos) << r.out;
   ASSERT_TRUE(fs::exists(out / "plots" / "trochoid_engagement.png"));
   EXPECT_GT(fs::file_size(out / "plots" / "trochoid_engagement.png"), 20000u);  // a drawn figure, not an empty canvas

@@ -7,6 +7,7 @@
 
 #include "gcpipe/config.hpp"
 #include "gcpipe/pipeline_config.hpp"
+#include "force_options.hpp"
 #include "ik.hpp"
 #include "interpolate.hpp"
 #include "parse.hpp"
@@ -29,6 +30,7 @@ TEST(ShippedConfigs, EverySectionLoadsInItsStage) {
     EXPECT_NO_THROW(load_trochoid_options(pc.root.section("trochoid")));
     EXPECT_NO_THROW(load_ik_options(pc.root.section("ik")));
     EXPECT_NO_THROW(interpolate::load_interpolate_options(pc.root.section("interpolate")));
+    if (pc.root.has("force")) EXPECT_NO_THROW(force::load_force_options(pc.root.section("force")));
     if (pc.root.has("servo")) {
       const Config servo = pc.root.section("servo");
       EXPECT_NO_THROW(servo::load_drives(Config::load_file(servo.resolve(servo.string("drives", "")))));

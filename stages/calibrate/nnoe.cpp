@@ -10,7 +10,13 @@
 namespace gcpipe::calibrate {
 
 std::string NnoeStructure::text() const {
-  return "na=" + std::to_string(na) + " nb=" + std::to_string(nb) + " hidden=" + std::to_string(hidden);
+  std::string b = std::to_string(nb);
+  if (!channel_lags.empty()) {
+    b = "[";
+    for (std::size_t i = 0; i < channel_lags.size(); ++i) b += (i ? "," : "") + std::to_string(channel_lags[i]);
+    b += "]";
+  }
+  return "na=" + std::to_string(na) + " nb=" + b + " hidden=" + std::to_string(hidden);
 }
 
 void differentiate(std::span<const double> y, double period, std::vector<double>& v, std::vector<double>& a) {
@@ -25,15 +31,26 @@ void differentiate(std::span<const double> y, double period, std::vector<double>
 
 namespace {
 
-int inputs_of(const NnoeStructure& s) { return s.na + 2 * s.nb; }
+int inputs_of(const NnoeStructure& s, std::size_t channels) {
+  int n = s.na;
+  for (std::size_t c = 0; c < channels; ++c) n += s.lags(c);
+  return n;
+}
 
-/// Regressor of sample t: r(t-1..t-na), v(t-1..t-nb), a(t-1..t-nb), normalised.
-void regressor(const NnoeModel& m, const std::vector<double>& r, std::span<const double> v, std::span<const double> a,
-               std::size_t t, double* x) {
+/// Largest lag of the regressor: the first sample with a whole regressor.
+std::size_t lag_of(const NnoeStructure& s, std::size_t channels) {
+  int lag = s.na;
+  for (std::size_t c = 0; c < channels; ++c) lag = std::max(lag, s.lags(c));
+  return static_cast<std::size_t>(lag);
+}
+
+/// Regressor of sample t: y(t-1..t-na), then per channel u_c(t-1..t-lags(c)), normalised.
+void regressor(const NnoeModel& m, const std::vector<double>& y, const Channels& u, std::size_t t, double* x) {
   int j = 0;
-  for (int i = 1; i <= m.structure.na; ++i) x[j++] = r[t - static_cast<std::size_t>(i)] / m.y_scale;
-  for (int i = 1; i <= m.structure.nb; ++i) x[j++] = v[t - static_cast<std::size_t>(i)] / m.u_scale[0];
-  for (int i = 1; i <= m.structure.nb; ++i) x[j++] = a[t - static_cast<std::size_t>(i)] / m.u_scale[1];
+  for (int i = 1; i <= m.structure.na; ++i) x[j++] = (y[t - static_cast<std::size_t>(i)] - m.y_offset) / m.y_scale;
+  for (std::size_t c = 0; c < u.size(); ++c)
+    for (int i = 1; i <= m.structure.lags(c); ++i)
+      x[j++] = (u[c][t - static_cast<std::size_t>(i)] - m.u_offset[c]) / m.u_scale[c];
 }
 
 /// One network evaluation on one regressor (eq. 2), without the batch machinery.
@@ -50,29 +67,28 @@ double eval(const neural::Mlp& net, const double* x, std::vector<double>& h) {
   return out;
 }
 
-/// Parallel simulation over [0, end): r^(t) from its own past (eq. 12); held at +-20 scales so an
+/// Parallel simulation over [0, end): y^(t) from its own past (eq. 12); held at +-20 scales so an
 /// unstable candidate shows as a large error instead of overflowing.
-std::vector<double> simulate_range(const NnoeModel& m, std::span<const double> v, std::span<const double> a, std::size_t end) {
-  const std::size_t lag = static_cast<std::size_t>(std::max(m.structure.na, m.structure.nb));
-  std::vector<double> r(end, 0.0), x(static_cast<std::size_t>(inputs_of(m.structure))), h;
+std::vector<double> simulate_range(const NnoeModel& m, const Channels& u, std::size_t end) {
+  const std::size_t lag = lag_of(m.structure, u.size());
+  std::vector<double> y(end, m.y_offset), x(static_cast<std::size_t>(inputs_of(m.structure, u.size()))), h;
   for (std::size_t t = lag; t < end; ++t) {
-    regressor(m, r, v, a, t, x.data());
-    r[t] = std::clamp(eval(m.net, x.data(), h), -20.0, 20.0) * m.y_scale;
+    regressor(m, y, u, t, x.data());
+    y[t] = std::clamp(eval(m.net, x.data(), h), -20.0, 20.0) * m.y_scale + m.y_offset;
   }
-  return r;
+  return y;
 }
-
 
 /// Training set of samples [b, e): regressors built from `past` (measured residual for the
 /// series-parallel start, the model's own output for the output-error passes).
 neural::Dataset dataset(const NnoeModel& m, const std::vector<double>& past, std::span<const double> target,
-                        std::span<const double> v, std::span<const double> a, std::size_t b, std::size_t e) {
+                        const Channels& u, std::size_t b, std::size_t e) {
   neural::Dataset d;
-  d.inputs.resize(inputs_of(m.structure), static_cast<Eigen::Index>(e - b));
+  d.inputs.resize(inputs_of(m.structure, u.size()), static_cast<Eigen::Index>(e - b));
   d.targets.resize(1, static_cast<Eigen::Index>(e - b));
   for (std::size_t t = b; t < e; ++t) {
-    regressor(m, past, v, a, t, d.inputs.col(static_cast<Eigen::Index>(t - b)).data());
-    d.targets(0, static_cast<Eigen::Index>(t - b)) = target[t] / m.y_scale;
+    regressor(m, past, u, t, d.inputs.col(static_cast<Eigen::Index>(t - b)).data());
+    d.targets(0, static_cast<Eigen::Index>(t - b)) = (target[t] - m.y_offset) / m.y_scale;
   }
   return d;
 }
@@ -93,26 +109,28 @@ double stdev(std::span<const double> x, std::size_t b, std::size_t e) {
 /// column-major, b1, W2, b2. Everything in normalised units.
 struct OutputError {
   const NnoeModel& m;
-  std::span<const double> r, v, a;
+  std::span<const double> r;
+  const Channels& u;
   std::size_t b, e;
 
   double run(const Eigen::VectorXd& theta, Eigen::MatrixXd* jtj, Eigen::VectorXd* jte) const {
-    const int H = m.structure.hidden, na = m.structure.na, n_in = inputs_of(m.structure);
+    const int H = m.structure.hidden, na = m.structure.na, n_in = inputs_of(m.structure, u.size());
     const Eigen::Index p = theta.size();
     const Eigen::Map<const Eigen::MatrixXd> W1(theta.data(), H, n_in);
     const double* b1 = theta.data() + static_cast<Eigen::Index>(H) * n_in;
     const double* W2 = b1 + H;
     const double b2 = W2[H];
-    const std::size_t lag = static_cast<std::size_t>(std::max(m.structure.na, m.structure.nb));
+    const std::size_t lag = lag_of(m.structure, u.size());
     std::vector<double> rh(e, 0.0), x(static_cast<std::size_t>(n_in)), h(static_cast<std::size_t>(H)), dx(static_cast<std::size_t>(na));
     std::vector<Eigen::VectorXd> psi(static_cast<std::size_t>(na) + 1, Eigen::VectorXd::Zero(p));
     Eigen::VectorXd g(p);
     if (jtj) { jtj->setZero(p, p); jte->setZero(p); }
     NnoeModel unit = m;
     unit.y_scale = 1;  // rh is kept normalised here
+    unit.y_offset = 0;
     double half = 0;
     for (std::size_t t = lag; t < e; ++t) {
-      regressor(unit, rh, v, a, t, x.data());
+      regressor(unit, rh, u, t, x.data());
       double y = b2;
       for (int i = 0; i < H; ++i) {
         double z = b1[i];
@@ -144,7 +162,7 @@ struct OutputError {
             if (t >= lag + static_cast<std::size_t>(j) + 1) pt += dx[static_cast<std::size_t>(j)] * psi[(t - 1 - static_cast<std::size_t>(j)) % psi.size()];
         }
         if (t >= b) {
-          const double err = r[t] / m.y_scale - rh[t];
+          const double err = (r[t] - m.y_offset) / m.y_scale - rh[t];
           half += 0.5 * err * err;
           if (jtj) {
             jtj->selfadjointView<Eigen::Lower>().rankUpdate(pt);
@@ -157,46 +175,65 @@ struct OutputError {
   }
 };
 
-/// Trains one structure: a series-parallel start (measured past residuals as regressors, the
+double v_mse_of(const OutputError& oe, const Eigen::VectorXd& theta) {
+  return 2 * oe.run(theta, nullptr, nullptr) / static_cast<double>(oe.e - oe.b);
+}
+
+/// FPE = V (N + d) / (N - d) (Akaike), V the simulated mean square in normalised units.
+double fpe_of(double v_mse, double n, const neural::Mlp& net) {
+  const double d = static_cast<double>(net.parameter_count());
+  return v_mse * (n + d) / std::max(n - d, 1.0);
+}
+
+}  // namespace
+
+/// Trains one structure: a series-parallel start (measured past outputs as regressors, the
 /// static LM of the MLP), then the output-error criterion itself by the same LM with the
 /// recurrent Jacobian (OutputError).
-NnoeModel train_structure(const NnoeStructure& st, std::span<const double> r, std::span<const double> v,
-                          std::span<const double> a, std::size_t b, std::size_t e, const NnoeOptions& o,
-                          double ys, double vs, double as) {
+NnoeModel train_nnoe(const NnoeStructure& st, std::span<const double> r, const Channels& u, std::size_t b,
+                     std::size_t e, const NnoeOptions& o, const NnoeModel& norm) {
   NnoeModel m;
   m.structure = st;
-  m.y_scale = ys;
-  m.u_scale[0] = vs;
-  m.u_scale[1] = as;
-  m.net = neural::Mlp({inputs_of(st), st.hidden, 1});
+  m.y_scale = norm.y_scale;
+  m.y_offset = norm.y_offset;
+  m.u_scale = norm.u_scale;
+  m.u_offset = norm.u_offset;
+  m.u_scale.resize(u.size(), 1.0);
+  m.u_offset.resize(u.size(), 0.0);
+  m.net = neural::Mlp({inputs_of(st, u.size()), st.hidden, 1});
   std::mt19937_64 rng(o.seed);
   m.net.initialise(rng);
   neural::LevenbergMarquardtOptions lm;
   lm.max_iterations = o.max_iterations / 2;
   const std::vector<double> measured(r.begin(), r.end());
-  (void)neural::train_levenberg_marquardt(m.net, dataset(m, measured, r, v, a, b, e), {}, lm);
-  const OutputError oe{m, r, v, a, b, e};
+  (void)neural::train_levenberg_marquardt(m.net, dataset(m, measured, r, u, b, e), {}, lm);
+  const OutputError oe{m, r, u, b, e};
   neural::LevenbergMarquardtProblem problem;
   problem.count = static_cast<double>(e - b);
   problem.normal_equations = [&](const Eigen::VectorXd& th, Eigen::MatrixXd& jtj, Eigen::VectorXd& jte) { return oe.run(th, &jtj, &jte); };
   problem.half_sse = [&](const Eigen::VectorXd& th) { return oe.run(th, nullptr, nullptr); };
   Eigen::VectorXd theta = m.net.parameters();
   // A diverging series-parallel start would make the first OE step meaningless: start from
-  // zero output weights then (the model predicts 0, the residual itself).
-  if (!(2 * oe.run(theta, nullptr, nullptr) / problem.count < 4)) theta.tail(st.hidden + 1).setZero();
+  // zero output weights then (the model predicts the offset).
+  if (!(v_mse_of(oe, theta) < 4)) theta.tail(st.hidden + 1).setZero();
   lm.max_iterations = o.max_iterations;
   const auto res = neural::levenberg_marquardt(theta, problem, lm);
   m.net.set_parameters(theta);
-  const double v_mse = 2 * oe.run(theta, nullptr, nullptr) / problem.count;
+  const double v_mse = v_mse_of(oe, theta);
   if (std::getenv("GCPIPE_CALIBRATE_DEBUG"))
     std::fprintf(stderr, "  %s: output-error mse %.5f after %d LM steps (%s)\n", st.text().c_str(), v_mse, res.iterations, res.stop_reason.c_str());
-  // FPE = V (N + d) / (N - d) (Akaike), V the simulated mean square in normalised units.
-  const double N = problem.count, d = static_cast<double>(m.net.parameter_count());
-  m.fpe = v_mse * (N + d) / std::max(N - d, 1.0);
+  m.fpe = fpe_of(v_mse, problem.count, m.net);
   return m;
 }
 
-}  // namespace
+std::vector<double> nnoe_simulate(const NnoeModel& m, const Channels& u, std::size_t end) {
+  return simulate_range(m, u, end);
+}
+
+double nnoe_fpe(const NnoeModel& m, std::span<const double> y, const Channels& u, std::size_t b, std::size_t e) {
+  const OutputError oe{m, y, u, b, e};
+  return fpe_of(v_mse_of(oe, m.net.parameters()), static_cast<double>(e - b), m.net);
+}
 
 namespace {
 
@@ -231,13 +268,14 @@ std::vector<double> expand(const std::vector<double>& y, int d, std::size_t n) {
 double nnoe_output_error(const NnoeModel& m, std::span<const double> r, std::span<const double> v,
                          std::span<const double> a, std::size_t b, std::size_t e, const Eigen::VectorXd& theta,
                          Eigen::MatrixXd* jtj, Eigen::VectorXd* jte) {
-  const OutputError oe{m, r, v, a, b, e};
+  const Channels u{v, a};
+  const OutputError oe{m, r, u, b, e};
   return oe.run(theta, jtj, jte);
 }
 
 std::vector<double> NnoeModel::simulate(std::span<const double> velocity, std::span<const double> accel) const {
   const auto v = decimate(velocity, decimation), a = decimate(accel, decimation);
-  return expand(simulate_range(*this, v, a, v.size()), decimation, velocity.size());
+  return expand(simulate_range(*this, Channels{v, a}, v.size()), decimation, velocity.size());
 }
 
 std::optional<NnoeModel> fit_nnoe(std::span<const double> r_full, std::span<const double> v_full, std::span<const double> a_full,
@@ -260,7 +298,10 @@ std::optional<NnoeModel> fit_nnoe(std::span<const double> r_full, std::span<cons
   std::optional<NnoeModel> best;
   std::vector<std::pair<NnoeStructure, double>> tried;
   for (const auto& st : grid) {
-    NnoeModel m = train_structure(st, r, v, a, b, e, o, ys, vs, as);
+    NnoeModel norm;
+    norm.y_scale = ys;
+    norm.u_scale = {vs, as};
+    NnoeModel m = train_nnoe(st, r, Channels{v, a}, b, e, o, norm);
     tried.emplace_back(st, m.fpe);
     if (!best || m.fpe < best->fpe) best = std::move(m);
   }

@@ -5,10 +5,13 @@
 // acceptance ratio) with the Jacobian taken through the recurrence, regressor structure chosen
 // by the final prediction error as in its Table 1.
 //
-// Here the output is the residual r = measured - calibrated prediction of one axis, the inputs
-// the commanded velocity and acceleration (what excites a structural mode or a friction the
-// catalogue lacks). The result is a correction added to the physical model's
-// prediction: y = model + NNOE(velocity, acceleration).
+// One implementation for every use: the regressor holds na past model outputs and, per input
+// channel, its own number of past inputs (train_nnoe, nnoe_simulate on any channels). Two uses:
+// - calibrate: the output is the residual r = measured - calibrated prediction of one axis, the
+//   inputs the commanded velocity and acceleration (what excites a structural mode or a friction
+//   the catalogue lacks); y = model + NNOE(velocity, acceleration) (fit_nnoe).
+// - force (stages/force/nnoe_force.hpp): seed 003's own case, the mean cutting force from past
+//   feed and depth of cut (eq. 13), its Table 1 structures compared by FPE.
 #pragma once
 
 #include <cstddef>
@@ -23,16 +26,23 @@ namespace gcpipe::calibrate {
 
 struct NnoeStructure {
   int na = 2;      //!< past model outputs r^(t-1..t-na)
-  int nb = 2;      //!< past inputs per channel u(t-1..t-nb)
+  int nb = 2;      //!< past inputs per channel u(t-1..t-nb), unless channel_lags is given
   int hidden = 6;  //!< tanh units
-  std::string text() const;  //!< "na=2 nb=2 hidden=6"
+  std::vector<int> channel_lags;  //!< past inputs of each channel (empty: nb for every channel)
+  int lags(std::size_t channel) const { return channel_lags.empty() ? nb : channel_lags[channel]; }
+  std::string text() const;  //!< "na=2 nb=2 hidden=6", or "na=2 nb=[2,1] hidden=12"
 };
+
+/// Input series, one span per channel, all as long as the output series.
+using Channels = std::vector<std::span<const double>>;
 
 struct NnoeModel {
   NnoeStructure structure;
   neural::Mlp net;
-  double y_scale = 1;       //!< residual normalisation [mm or deg]
-  double u_scale[2] = {1, 1};  //!< velocity, acceleration normalisation
+  double y_scale = 1;       //!< output normalisation (residual: mm or deg; force: N)
+  double y_offset = 0;      //!< output centre: the network sees (y - y_offset) / y_scale
+  std::vector<double> u_scale = {1, 1};   //!< per channel (calibrate: velocity, acceleration)
+  std::vector<double> u_offset = {0, 0};  //!< per channel centre
   int decimation = 1;       //!< the model steps every `decimation` samples (about 4 ms)
   double fpe = 0;           //!< final prediction error (normalised units) of the chosen structure
   double explained_fraction = 0;  //!< 1 - MSE(r - r^) / MSE(r) on the held-out samples
@@ -47,6 +57,20 @@ struct NnoeOptions {
   int max_iterations = 60;        //!< LM iterations of the output-error training
   std::uint64_t seed = 1;
 };
+
+/// Trains one structure on y[b, e) from the channels (series-parallel start, then the output-error
+/// criterion by LM through the recurrence); scales and offsets as given in `norm` (its net and
+/// structure are ignored). m.fpe: Akaike's FPE = V (N + d) / (N - d), V the simulated mean square
+/// error in normalised units (so a fraction of the output variance when y_scale is its stdev).
+NnoeModel train_nnoe(const NnoeStructure& structure, std::span<const double> y, const Channels& u, std::size_t b,
+                     std::size_t e, const NnoeOptions& options, const NnoeModel& norm);
+
+/// Runs the model in parallel (output-error) mode over [0, end): y^ per sample, the first
+/// max(na, lags) samples 0 + offset. Each step is one evaluation of eq. (2).
+std::vector<double> nnoe_simulate(const NnoeModel& m, const Channels& u, std::size_t end);
+
+/// FPE of the model's parallel run on samples [b, e) of y: V (N + d) / (N - d) in normalised units.
+double nnoe_fpe(const NnoeModel& m, std::span<const double> y, const Channels& u, std::size_t b, std::size_t e);
 
 /// Fits the NNOE on residual samples [begin, split) and scores it on [split, N). nullopt when
 /// there are too few samples.

@@ -21,7 +21,8 @@ using Json = nlohmann::ordered_json;
 const std::vector<std::string> kOutputs = {
     "output.nc", "compensated.nc", "report.json", "report.txt", "summary.json", "diagnostics.txt",
     "plots/toolpath.png", "plots/ballbar.png", "plots/contour_error.png", "plots/following_error.png",
-    "plots/ik_divergence.png", "plots/ik_tip_error.png", "plots/trochoid_engagement.png"};
+    "plots/ik_divergence.png", "plots/ik_tip_error.png", "plots/trochoid_engagement.png",
+    "plots/force_path.png", "plots/force_time.png", "plots/error_budget.png"};
 
 // Simulation and compensation need the config's servo section; without it (or with
 // --no-simulate) the batch runs the streaming stages only, in memory independent of the length.

@@ -8,7 +8,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& path) {
   PipelineConfig pc;
   pc.root = Config::load_file(path);
   // One section per stage; anything else is a typo that would otherwise be silently ignored.
-  pc.root.reject_unknown({"machine", "parse", "trochoid", "write", "ik", "interpolate", "servo", "compensate"});
+  pc.root.reject_unknown({"machine", "parse", "trochoid", "write", "ik", "interpolate", "servo", "compensate", "force"});
   if (!pc.root.has("machine"))
     throw pc.root.error("machine", "missing: name the machine file, e.g. 'machine: machines/mx330.yaml'");
   const auto machine_path = pc.root.file_path("machine", "the machine file, e.g. machines/mx330.yaml");

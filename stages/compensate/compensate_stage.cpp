@@ -8,6 +8,8 @@
 #include <nlohmann/json.hpp>
 
 #include "compensate_program.hpp"
+#include "error_budget.hpp"
+#include "force_product.hpp"
 #include "parse.hpp"
 #include "simulate_stage.hpp"
 #include "simulation_report.hpp"
@@ -36,6 +38,7 @@ class CompensateStage final : public pipeline::Stage {
   bool diagnostic(const Diagnostic&, DiagnosticKind, Emitter&) override { return true; }
   void product(const std::shared_ptr<const pipeline::Product>& p, Emitter&) override {
     if (auto s = std::dynamic_pointer_cast<const SimulatedProgram>(p)) simulated_ = s;
+    if (auto f = std::dynamic_pointer_cast<const force::ForceProfile>(p)) force_ = f;
   }
 
   bool finish(bool complete, Emitter& out) override {
@@ -60,10 +63,27 @@ class CompensateStage final : public pipeline::Stage {
     o.slowed = slowed_ ? &*slowed_ : nullptr;
     o.skipped = failure_;
     compensate::report_simulation(r, o);
+    report_error_budget(r);
   }
   std::string failure() const override { return failure_; }
 
  private:
+  /// With a force stage upstream: its deflection beside the contour error (error_budget.hpp).
+  void report_error_budget(pipeline::ReportContext& r) const {
+    if (!force_ || !simulated_ || !simulated_->run.before || simulated_->run.program.empty()) return;
+    const Axes& w = simulated_->run.program.front().work_origin;
+    const auto b = compensate::error_budget(simulated_->run.before->series, force_->force, {w[0], w[1], w[2]});
+    (*r.json)["error_budget"] = compensate::error_budget_json(b);
+    char line[200];
+    std::snprintf(line, sizeof line, "  error budget: tool deflection above the servo contour error in %.0f %% of the cutting time\n",
+                  100 * b.deflection_dominates);
+    *r.text += line;
+    if (r.dir.empty()) return;
+    compensate::plot_error_budget(r.dir / "plots" / "error_budget.png", b,
+                                  r.input_base + ": servo contour error and tool deflection");
+    r.files->push_back("plots/error_budget.png");
+  }
+
   bool fail(std::string why) {
     failure_ = std::move(why);
     return true;
@@ -115,6 +135,7 @@ class CompensateStage final : public pipeline::Stage {
                                         compensate::run_bounds(options_));
   }
 
+  std::shared_ptr<const force::ForceProfile> force_;
   compensate::Model model_;
   compensate::CompensateOptions options_;
   WriteOptions write_options_;

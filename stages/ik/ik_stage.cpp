@@ -121,7 +121,7 @@ void IkPipelineStage::Sampler::thin() {
 }
 
 pipeline::StageInfo ik_stage() {
-  return {"ik", "trochoid", "analytic and neural inverse kinematics side by side, with divergence flags",
+  return {"ik", "force", "analytic and neural inverse kinematics side by side, with divergence flags",
           pipeline::Port::kBlocks, pipeline::Port::kBlocks,
           [](const pipeline::StageContext& c) -> std::unique_ptr<pipeline::Stage> {
             return std::make_unique<IkPipelineStage>(c);

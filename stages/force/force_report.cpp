@@ -1,0 +1,85 @@
+#include "force_report.hpp"
+
+#include <algorithm>
+#include <cstdio>
+
+#include <opencv2/core.hpp>
+
+#include "plot.hpp"
+#include "png.hpp"
+
+namespace gcpipe::force {
+
+namespace {
+
+std::string stats_note(const PathForce& p) {
+  char buf[240];
+  std::snprintf(buf, sizeof buf,
+                "%zu revolutions, cutting time %.1f s; max mean force %.0f N, max peak %.0f N, max deflection %.1f um",
+                p.samples.size(), p.cutting_time, p.max_mean_force, p.max_peak_force, 1e3 * p.max_deflection);
+  return buf;
+}
+
+}  // namespace
+
+void write_force_path_png(const std::filesystem::path& png, const PathForce& p, const std::string& title) {
+  plot::Figure f;
+  f.title(title);
+  f.note(stats_note(p));
+  f.xlabel("X [mm]");
+  f.ylabel("Y [mm]");
+  f.equal_aspect(true);
+  std::vector<double> x, y, v;
+  for (const ForceSample& s : p.samples) {
+    x.push_back(s.x);
+    y.push_back(s.y);
+    v.push_back(s.mean_force);
+  }
+  f.colourbar("mean force [N]", 0, std::max(1.0, p.max_mean_force), plot::ColourMap::kTurbo);
+  f.coloured_line(std::move(x), std::move(y), std::move(v), 2);
+  f.save_png(png);
+}
+
+void write_force_time_png(const std::filesystem::path& png, const PathForce& p, const std::string& title) {
+  plot::FigureStyle style;
+  style.height = 520;
+  std::vector<double> t, mean, peak, ae, ap;
+  for (const ForceSample& s : p.samples) {
+    t.push_back(s.time);
+    mean.push_back(s.mean_force);
+    peak.push_back(s.peak_force);
+    ae.push_back(s.radial_depth);
+    ap.push_back(s.axial_depth);
+  }
+  plot::Figure force(style);
+  force.title(title);
+  force.note(stats_note(p));
+  force.ylabel("force [N]");
+  force.line(t, peak, plot::palette(1), 1, "peak |F| in the revolution");
+  force.line(t, mean, plot::palette(0), 2, "mean |F| over the revolution");
+  plot::Figure engagement(style);
+  engagement.xlabel("cutting time [s] (feed moves at the programmed feed, no acceleration)");
+  engagement.ylabel("depth [mm]");
+  engagement.line(t, ae, plot::palette(2), 2, "radial ae");
+  engagement.line(t, ap, plot::palette(3), 2, "axial ap");
+  cv::Mat both;
+  cv::vconcat(force.render(), engagement.render(), both);
+  plot::write_png(png, both);
+}
+
+void write_prediction_png(const std::filesystem::path& png, const std::vector<double>& reference,
+                          const std::vector<double>& predicted, double period, const std::string& title,
+                          const std::string& note, const std::string& ylabel) {
+  plot::Figure f;
+  f.title(title);
+  f.note(note);
+  f.xlabel("time [s]");
+  f.ylabel(ylabel);
+  std::vector<double> t(reference.size());
+  for (std::size_t i = 0; i < t.size(); ++i) t[i] = static_cast<double>(i) * period;
+  f.line(t, reference, plot::palette(0), 1, "reference (measured / simulated with noise)");
+  f.line(t, predicted, plot::palette(1), 2, "NNOE, parallel (output-error) run");
+  f.save_png(png);
+}
+
+}  // namespace gcpipe::force

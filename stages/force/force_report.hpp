@@ -1,0 +1,22 @@
+// Figures of the force along a program: the tool path coloured by the mean force, and the force
+// and the engagement against time.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include "path_force.hpp"
+
+namespace gcpipe::force {
+
+/// Tool-tip path in XY, each revolution's segment coloured by its mean force [N].
+void write_force_path_png(const std::filesystem::path& png, const PathForce& p, const std::string& title);
+/// Two panels against time: mean and peak force [N]; radial depth ae and axial depth ap [mm].
+void write_force_time_png(const std::filesystem::path& png, const PathForce& p, const std::string& title);
+
+/// A model's prediction against its reference series, sampled every `period` seconds.
+void write_prediction_png(const std::filesystem::path& png, const std::vector<double>& reference,
+                          const std::vector<double>& predicted, double period, const std::string& title,
+                          const std::string& note, const std::string& ylabel);
+
+}  // namespace gcpipe::force

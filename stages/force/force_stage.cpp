@@ -1,0 +1,187 @@
+// The force stage in the pipeline (between trochoid and ik, so that the compensation works on the
+// program it plans): without a `force:` section in the config it hands every block on untouched
+// and reports nothing. With one, it keeps the program, and at its end sweeps it through the
+// stock (stages/force/README.md): report.json's `force` object and two figures. With
+// `target_force` set it plans the feeds: it then holds the program back (the feed of a block
+// depends on the engagement ahead of it) and emits it at the end with each feed block's F set.
+#include <cstdio>
+#include <variant>
+
+#include <nlohmann/json.hpp>
+
+#include "force_options.hpp"
+#include "force_product.hpp"
+#include "force_report.hpp"
+#include "path_force.hpp"
+#include "stage.hpp"
+
+namespace gcpipe {
+namespace {
+
+using pipeline::Emitter;
+
+struct HeldDiagnostic {
+  Diagnostic diag;
+  DiagnosticKind kind;
+};
+
+class ForceStage final : public pipeline::Stage {
+ public:
+  explicit ForceStage(const pipeline::StageContext& c) : machine_(c.config->machine) {
+    enabled_ = c.config->root.has("force");
+    if (!enabled_) return;
+    section_ = c.config->root.section("force");
+    options_ = force::load_force_options(section_);
+    planning_ = options_.target_force > 0;
+  }
+
+  bool block(const ResolvedBlock& b, Emitter& out) override {
+    if (!enabled_) return out.block(b);
+    program_.push_back(b);
+    if (planning_) {
+      held_.emplace_back(program_.size() - 1);
+      return true;
+    }
+    return out.block(b);
+  }
+
+  bool diagnostic(const Diagnostic& d, DiagnosticKind kind, Emitter& out) override {
+    if (!planning_) return out.diagnostic(d, kind);
+    held_.emplace_back(HeldDiagnostic{d, kind});
+    return true;
+  }
+
+  bool finish(bool complete, Emitter& out) override {
+    if (!enabled_ || !complete) return release(program_, out);
+    if (!resolve_tool()) return release(program_, out);
+    const auto moves = force::moves_from_blocks(program_);
+    force::ForceOptions o = options_;
+    if (planning_ && o.sample_spacing == 0) o.sample_spacing = 0.1;  // README sec. 6
+    auto stock = force::make_stock(moves, o);
+    before_ = force::sweep_path(moves, o, std::move(stock));
+    if (!planning_) {
+      hand_on(before_, out);
+      return true;
+    }
+    const auto planned = force::apply_feeds(program_, moves, force::plan_feeds(moves, before_, o));
+    const auto moves_after = force::moves_from_blocks(planned);
+    o.target_force = 0;
+    auto stock_after = force::make_stock(moves_after, o);
+    after_ = force::sweep_path(moves_after, o, std::move(stock_after));
+    hand_on(after_, out);
+    return release(planned, out);
+  }
+
+  void report(pipeline::ReportContext& r) const override {
+    if (!enabled_) return;
+    if (!failure_.empty()) {
+      (*r.json)["force"] = {{"failure", failure_}};
+      return;
+    }
+    (*r.json)["force"] = report_json();
+    *r.text += report_line();
+    if (r.dir.empty() || before_.samples.empty()) return;
+    const force::PathForce& shown = planning_ ? after_ : before_;
+    const std::string what = r.input_base + (planning_ ? ": force with the planned feeds" : ": cutting force");
+    force::write_force_path_png(r.dir / "plots" / "force_path.png", shown, what);
+    force::write_force_time_png(r.dir / "plots" / "force_time.png", shown, what);
+    r.files->push_back("plots/force_path.png");
+    r.files->push_back("plots/force_time.png");
+  }
+
+  std::string failure() const override { return failure_; }
+
+ private:
+  /// The tool's diameter from the tool table when the config leaves it out.
+  bool resolve_tool() {
+    if (options_.tool.diameter > 0) return true;
+    for (const ResolvedBlock& b : program_) {
+      if (b.motion != Motion::kLinear && b.motion != Motion::kArcCW && b.motion != Motion::kArcCCW) continue;
+      const auto it = machine_.tools.find(b.tool_in_spindle);
+      if (it != machine_.tools.end() && it->second.diameter > 0) {
+        options_.tool.diameter = it->second.diameter;
+        return true;
+      }
+      failure_ = "force: no tool_diameter in " + section_.file() + " and tool T" + std::to_string(b.tool_in_spindle) +
+                 " has no diameter in the tool table";
+      return false;
+    }
+    return true;  // nothing cuts
+  }
+
+  /// The force of the program as emitted, for the compensate stage's error budget.
+  static void hand_on(const force::PathForce& p, Emitter& out) {
+    auto profile = std::make_shared<force::ForceProfile>();
+    profile->force = p;
+    out.product(profile);
+  }
+
+  /// Emits what was held back, in order, with the blocks of `blocks` (the program, or planned).
+  bool release(const std::vector<ResolvedBlock>& blocks, Emitter& out) {
+    bool go = true;
+    for (const auto& item : held_) {
+      if (const auto* i = std::get_if<std::size_t>(&item)) go = out.block(blocks[*i]) && go;
+      else {
+        const auto& d = std::get<HeldDiagnostic>(item);
+        go = out.diagnostic(d.diag, d.kind) && go;
+      }
+    }
+    held_.clear();
+    return go;
+  }
+
+  nlohmann::ordered_json summary(const force::PathForce& p) const {
+    double mean = 0, ae = 0, ap = 0;
+    for (const auto& s : p.samples) { mean += s.mean_force; ae = std::max(ae, s.radial_depth); ap = std::max(ap, s.axial_depth); }
+    if (!p.samples.empty()) mean /= static_cast<double>(p.samples.size());
+    return {{"samples", p.samples.size()}, {"cutting_time_s", p.cutting_time}, {"max_mean_force_N", p.max_mean_force},
+            {"average_mean_force_N", mean}, {"max_peak_force_N", p.max_peak_force}, {"max_ae_mm", ae},
+            {"max_ap_mm", ap}, {"max_deflection_um", 1e3 * p.max_deflection}};
+  }
+
+  nlohmann::ordered_json report_json() const {
+    nlohmann::ordered_json j = {{"material", options_.coefficients.source},
+                                {"tool", {{"diameter_mm", options_.tool.diameter}, {"flutes", options_.tool.flutes},
+                                          {"stickout_mm", options_.tool.stickout},
+                                          {"effective_diameter_mm", options_.tool.effective_diameter()}}},
+                                {"programmed", summary(before_)}};
+    if (planning_)
+      j["planned"] = summary(after_), j["target_force_N"] = options_.target_force;
+    return j;
+  }
+
+  std::string report_line() const {
+    char buf[320];
+    std::snprintf(buf, sizeof buf, "  force: max mean %.0f N, peak %.0f N, deflection %.1f um, cutting %.1f s\n",
+                  before_.max_mean_force, before_.max_peak_force, 1e3 * before_.max_deflection, before_.cutting_time);
+    std::string s = buf;
+    if (planning_) {
+      std::snprintf(buf, sizeof buf, "  force-aware feed (target %.0f N): max mean %.0f N, peak %.0f N, cutting %.1f s\n",
+                    options_.target_force, after_.max_mean_force, after_.max_peak_force, after_.cutting_time);
+      s += buf;
+    }
+    return s;
+  }
+
+  MachineConfig machine_;
+  bool enabled_ = false, planning_ = false;
+  Config section_;
+  force::ForceOptions options_;
+  std::vector<ResolvedBlock> program_;
+  std::vector<std::variant<std::size_t, HeldDiagnostic>> held_;
+  force::PathForce before_, after_;
+  std::string failure_;
+};
+
+}  // namespace
+
+pipeline::StageInfo force_stage() {
+  return {"force", "trochoid",
+          "cutting force along the path (mechanistic model on a height-field stock), deflection, force-aware feed",
+          pipeline::Port::kBlocks, pipeline::Port::kBlocks,
+          [](const pipeline::StageContext& c) -> std::unique_ptr<pipeline::Stage> {
+            return std::make_unique<ForceStage>(c);
+          }};
+}
+
+}  // namespace gcpipe
