@@ -139,7 +139,7 @@ TEST(CalibrateModel, NnoeRecurrentJacobianEqualsFiniteDifferences) {
     r[k] = 0.5 * std::sin(0.05 * static_cast<double>(k)) + 0.05 * normal01(rng);
   }
   NnoeModel m;
-  m.structure = {2, 2, 5};
+  m.structure = {2, 2, 5, {}};
   m.net = neural::Mlp({6, 5, 1});
   m.net.initialise(rng);
   const Eigen::VectorXd th = m.net.parameters();

@@ -294,7 +294,7 @@ std::optional<NnoeModel> fit_nnoe(std::span<const double> r_full, std::span<cons
   // Table 1 of seed 003 compares regressor sets of one and two past outputs and inputs; a
   // lightly damped mode needs two past outputs (a second-order recursion), so the grid spans
   // first to third order and two network sizes.
-  const NnoeStructure grid[] = {{1, 1, 4}, {2, 2, 4}, {2, 2, 8}, {3, 3, 8}};
+  const NnoeStructure grid[] = {{1, 1, 4, {}}, {2, 2, 4, {}}, {2, 2, 8, {}}, {3, 3, 8, {}}};
   std::optional<NnoeModel> best;
   std::vector<std::pair<NnoeStructure, double>> tried;
   for (const auto& st : grid) {
