@@ -797,3 +797,18 @@ TEST(ParseIssue14, MachineFileToolTableKey) {
   std::ofstream(dir / "bad.yaml") << base << "\ntool_table: missing.tbl\n";
   EXPECT_THROW(load_machine(Config::load_file(dir / "bad.yaml")), ConfigError);
 }
+
+// Bug: an unclosed loop, branch or definition counted its opening line twice (emitted or
+// skipped when it ran, and again as rejected at the end of input).
+TEST(ParseIssue14, UnclosedStructuresCountTheirOpeningLineOnce) {
+  for (const char* text : {"G0 X1\no1 while [1]\nG0 X2\n", "G0 X1\no1 if [1]\nG0 X2\n", "G0 X1\no1 if [0]\nG0 X2\n",
+                           "G0 X1\no<s> sub\nG0 X2\n", "G0 X1\no1 do\nG0 X2\n", "G0 X1\no1 repeat [2]\nG0 X2\n"}) {
+    SCOPED_TRACE(text);
+    Parsed p = parse_text(text, linuxcnc());
+    ASSERT_NE(p.first_error(), nullptr);
+    EXPECT_EQ(p.first_error()->line, 2u);
+    EXPECT_EQ(p.summary.lines_read, 3u);
+    EXPECT_EQ(p.summary.lines_rejected, 1u);
+    EXPECT_EQ(p.summary.lines_read, p.summary.blocks_emitted + p.summary.lines_rejected + p.summary.lines_deleted);
+  }
+}
