@@ -716,7 +716,7 @@ TEST(ParseIssue14, FanucG10L2ByHand) {
   // later stage and the writer see one frame.
   EXPECT_DOUBLE_EQ(p.blocks[3].work_origin[kX], 100);
   expect_error("G10 L20 P1 X0\n", "extended work offsets", 5);
-  expect_error("G10 L1 P1 Z10\n", "belong in the tool table", 5);
+  expect_error("G10 L1 P1 Z10\n", "G10 L1 is not supported", 5);
   expect_error("G10 L2 P7 X0\n", "must be 1..6", 8);
 }
 
@@ -811,4 +811,31 @@ TEST(ParseIssue14, UnclosedStructuresCountTheirOpeningLineOnce) {
     EXPECT_EQ(p.summary.lines_rejected, 1u);
     EXPECT_EQ(p.summary.lines_read, p.summary.blocks_emitted + p.summary.lines_rejected + p.summary.lines_deleted);
   }
+}
+
+// G10 tool entries, worked by hand from the manuals. LinuxCNC (G-code reference, "G10 L1" and
+// "G10 L10"): L1 P Z R sets tool P's length and radius; L10 sets the length such that the
+// current Z reads as the word after G43 reloads it (length = Z now + length in force - Z word).
+// Fanuc (0i-MF operator's manual B-64604EN, "Tool compensation values input by program (G10)",
+// tool compensation memory C): L10 P R = length geometry, L12 P R = radius geometry, and in
+// G91 R is added to the value stored.
+TEST(ParseIssue14, G10ToolEntriesFromTheProgram) {
+  Parsed l = parse_text("T1 M6\nG10 L1 P1 Z42 R3\nG43 H1\nG0 Z5\nG10 L10 P1 Z2\nG43 H1\n"
+                        "G1 F800 X0\nG275 X10 Z-1 R5 W12 K1\n",
+                        linuxcnc());
+  ASSERT_EQ(l.first_error(), nullptr) << format(*l.first_error());
+  EXPECT_DOUBLE_EQ(l.blocks[2].tool_length, 42);  // L1 is in force for the next G43
+  EXPECT_DOUBLE_EQ(l.blocks[5].tool_length, 45);  // 5 + 42 - 2
+  EXPECT_DOUBLE_EQ(l.blocks.back().slot.tool_diameter, 6);  // R is the radius
+  expect_error("G10 L1 P7 Z5\n", "tool 7 is not in", 8, linuxcnc());
+  expect_error("G10 L1 P1\n", "without Z or R has no effect", 1, linuxcnc());
+  expect_error("G10 L1 P1 X5\n", "not X", 11, linuxcnc());
+  expect_error("G10 L2 P1 R5\n", "rotated coordinate system", 11, linuxcnc());
+  Parsed f = parse_text("T1 M6\nG10 L10 P1 R120.\nG43 H1\nG91 G10 L10 P1 R-5.\nG90 G43 H1\nG10 L12 P7 R4.\n"
+                        "T7 M6\nG1 F800 X0\nG275 X10 Z-1 R5 W12 K1\n");
+  ASSERT_EQ(f.first_error(), nullptr) << format(*f.first_error());
+  EXPECT_DOUBLE_EQ(f.blocks[2].tool_length, 120);
+  EXPECT_DOUBLE_EQ(f.blocks[4].tool_length, 115);  // G91: R added
+  EXPECT_DOUBLE_EQ(f.blocks.back().slot.tool_diameter, 8);  // a new offset number P7, radius 4
+  expect_error("G10 L11 P1 R0.1\n", "wear offsets (L11, L13) are not modelled", 5);
 }

@@ -320,6 +320,7 @@ struct Parser::Impl {
   bool coordinate_shift(const BlockCodes& c, ModalState& ns, std::uint8_t mask);
   void update_origin(ModalState& ns) const;
   bool set_offsets(const BlockCodes& c, ModalState& ns, std::uint8_t mask);
+  bool set_tool_entry(const BlockCodes& c, ModalState& ns, std::uint8_t mask);
 
   // -- cycles.cpp
   bool cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, std::uint8_t mask);

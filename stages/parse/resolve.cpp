@@ -438,8 +438,12 @@ GCPIPE_STEP bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalSt
   const bool arc_mode = !c.g4 && !c.g275 && c.non_modal == 0 && ns.cycle == 0 &&
                         (ns.motion == Motion::kArcCW || ns.motion == Motion::kArcCCW);
   const bool cycle_block = ns.cycle != 0 && c.non_modal == 0 && !c.g4;
-  if (c.non_modal == 100 && s.has('R'))
-    return fail(s.w('R').col, "G10 with R: a rotated coordinate system (LinuxCNC) or a tool radius is not supported");
+  // R of G10 is a tool radius (LinuxCNC L1/L10) or an offset value (Fanuc L10..L13); on work
+  // offsets (L2/L20) it would rotate the coordinate system, which is not supported.
+  const double g10_l = c.non_modal == 100 && s.has('L') ? s.w('L').value : 0;
+  const bool g10_tool = opt.dialect == Dialect::kFanuc ? g10_l >= 10 && g10_l <= 13 : g10_l == 1 || g10_l == 10;
+  if (c.non_modal == 100 && s.has('R') && !g10_tool)
+    return fail(s.w('R').col, "G10 with R: a rotated coordinate system (LinuxCNC) is not supported");
   const int look = c.has(kGLookAhead) ? c.group_code[kGLookAhead] : -1;
   const bool path = c.has(kGPathMode) && c.group_code[kGPathMode] == 640;
   for (char L : {'D', 'W', 'Q', 'K', 'I', 'J', 'R', 'P', 'L'}) {
@@ -449,7 +453,7 @@ GCPIPE_STEP bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalSt
     const bool arc_word = L == 'I' || L == 'J' || L == 'K' || L == 'R' || L == 'P';
     const bool cycle_word = L == 'R' || L == 'Q' || L == 'P' || L == 'L' ||
                             (L == 'K' && opt.dialect == Dialect::kFanuc);  // Fanuc repeats: K
-    const bool g10_word = c.non_modal == 100 && (L == 'L' || L == 'P');
+    const bool g10_word = c.non_modal == 100 && (L == 'L' || L == 'P' || (L == 'R' && g10_tool));
     const bool m98_word = c.m_code[kMSubprogram] == 980 && (L == 'P' || L == 'L');
     const bool look_word = (look == 50 || look == 80) ? L == 'P' : look == 51 ? (L == 'Q' || L == 'R') : false;
     if ((c.g275 && slot_word) || (arc_mode && arc_word) || (L == 'P' && c.g4) || (path && (L == 'P' || L == 'Q')) ||
