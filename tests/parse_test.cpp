@@ -839,3 +839,31 @@ TEST(ParseIssue14, G10ToolEntriesFromTheProgram) {
   EXPECT_DOUBLE_EQ(f.blocks.back().slot.tool_diameter, 8);  // a new offset number P7, radius 4
   expect_error("G10 L11 P1 R0.1\n", "wear offsets (L11, L13) are not modelled", 5);
 }
+
+// Fanuc Custom Macro B system variables (0i-MF operator's manual B-64604EN, "System variables"):
+// #5001..#5005 read the end position of the last block in work coordinates (X Y Z A C here),
+// #3000 = n stops the program with alarm 3000 + n and the comment as its message.
+TEST(ParseIssue14, FanucPositionVariablesAndAlarm) {
+  Parsed p = parse_text("G55 G0 X10 Y20 Z5\n#1 = #5001 + #5002\nG0 X#1 Z[#5003 - 1]\nG91 G0 X1\nG0 Y#5001\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  const auto e = ends(p);
+  ASSERT_EQ(e.size(), 4u);
+  // ends() gives work coordinates: #5001 + #5002 = 10 + 20 (G55's origin X100 Y50 is not in it)
+  EXPECT_DOUBLE_EQ(e[1][kX], 30);
+  EXPECT_DOUBLE_EQ(e[1][kZ], 4);
+  EXPECT_DOUBLE_EQ(e[3][kY], 20 + 31);  // G91: Y moves by the X read, 31
+  expect_error("#5002 = 3\n", "read only", 1);
+  Parsed a = parse_text("G0 X1\n#1 = 0\nWHILE [#1 LT 3] DO 1\n#1 = #1 + 1\nIF [#1 EQ 2] THEN #3000 = 12 (TOOL BROKEN)\n"
+                        "G0 X#1\nEND 1\nG0 X9\nM30\n");
+  ASSERT_NE(a.first_error(), nullptr);
+  EXPECT_EQ(a.first_error()->line, 5u);
+  EXPECT_NE(a.first_error()->message.find("macro alarm 3012: TOOL BROKEN"), std::string::npos) << a.first_error()->message;
+  EXPECT_DOUBLE_EQ(ends(a).back()[kX], 1);  // the loop's first pass moved to X1; nothing after
+  EXPECT_EQ(a.summary.lines_read, a.summary.blocks_emitted + a.summary.lines_rejected + a.summary.lines_deleted);
+  EXPECT_EQ(a.summary.lines_not_run, 2u);  // G0 X9 and M30
+  Parsed m = parse_text("G0 X1\n#3000 = 1 (STOP)\nG0 X2\n");
+  ASSERT_NE(m.first_error(), nullptr);
+  EXPECT_EQ(m.first_error()->column, 1u);
+  EXPECT_EQ(m.blocks.size(), 1u);
+  EXPECT_EQ(m.summary.lines_not_run, 1u);
+}

@@ -230,6 +230,7 @@ struct Parser::Impl {
   ResolvedBlock expanded;                 // one move of an expansion
   const ParseSink* sink = nullptr;
   bool stopped = false;  // the sink asked to stop
+  std::uint64_t alarm_line = 0;  // a Fanuc #3000 alarm stopped the program on this line (0: none)
 
   // -- flow control (flow.cpp)
   std::deque<parse_detail::SourceLine> window;  // main-program lines kept for loops and waits
@@ -289,6 +290,7 @@ struct Parser::Impl {
   bool read_expression_number(std::string_view s, std::size_t& p, char letter, Word& w);
   bool read_code(std::string_view s, std::size_t& p, char letter, int& code, std::uint32_t col);
   void refresh_system_parameters();
+  bool fanuc_system_assignment(std::string_view s, std::size_t p, const Assignment& a, std::uint32_t col);
 
   // -- resolve.cpp
   bool resolve(ResolvedBlock& b, ModalState& ns);
@@ -328,6 +330,7 @@ struct Parser::Impl {
   // -- flow.cpp
   bool feed(std::string_view line, std::size_t overlong);
   bool finish();
+  bool skip_after_alarm(std::uint64_t n);
   bool run_ready();
   bool step(parse_detail::Frame& f, const parse_detail::SourceLine& l);
   bool statement(parse_detail::Frame& f, const parse_detail::SourceLine& l, const parse_detail::Statement& s);
