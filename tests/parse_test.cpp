@@ -867,3 +867,54 @@ TEST(ParseIssue14, FanucPositionVariablesAndAlarm) {
   EXPECT_EQ(m.blocks.size(), 1u);
   EXPECT_EQ(m.summary.lines_not_run, 1u);
 }
+
+namespace {
+struct Expected {
+  Motion motion;
+  double x, y, z;
+  Spindle spindle;
+  double dwell = 0;
+  bool stop = false;
+};
+void expect_moves(const Parsed& p, std::uint64_t line, const std::vector<Expected>& want) {
+  std::vector<const ResolvedBlock*> got;
+  for (const auto& b : p.blocks)
+    if (b.line == line) got.push_back(&b);
+  ASSERT_EQ(got.size(), want.size()) << "line " << line;
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    SCOPED_TRACE("line " + std::to_string(line) + " move " + std::to_string(i));
+    EXPECT_EQ(got[i]->motion, want[i].motion);
+    EXPECT_DOUBLE_EQ(got[i]->target[kX], want[i].x);
+    EXPECT_DOUBLE_EQ(got[i]->target[kY], want[i].y);
+    EXPECT_DOUBLE_EQ(got[i]->target[kZ], want[i].z);
+    EXPECT_EQ(got[i]->spindle, want[i].spindle);
+    EXPECT_DOUBLE_EQ(got[i]->dwell, want[i].dwell);
+    EXPECT_EQ(got[i]->stop == ProgramStop::kStop, want[i].stop);
+  }
+}
+}  // namespace
+
+// Fanuc boring cycles, worked by hand from the 0i-MF operator's manual (B-64604EN), canned
+// cycles section (G76 fine boring, G87 back boring, G88 boring): the shift direction is the
+// machine's (parameter 5101 RD2 RD1; parse.boring_shift), Q the shift, P the dwell in ms.
+TEST(ParseIssue14, FanucBoringCyclesByHand) {
+  const auto R = Motion::kRapid, F = Motion::kLinear, D = Motion::kDwell;
+  const auto on = Spindle::kCW, off = Spindle::kOff;
+  Parsed p = parse_text("G17 G90 G0 X0 Y0 Z50 S500 M3 F100\nG98 G76 X10 Y5 Z-20 R2 Q1.5 P500\nG80\n"
+                        "G99 G88 X30 Y0 Z-10 R2 P1000\nG80\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  expect_moves(p, 2, {{R, 10, 5, 50, on}, {R, 10, 5, 2, on}, {F, 10, 5, -20, on}, {D, 10, 5, -20, on, 0.5},
+                      {R, 11.5, 5, -20, off}, {R, 11.5, 5, 50, off}, {R, 10, 5, 50, off}});
+  expect_moves(p, 4, {{R, 30, 0, 50, on}, {R, 30, 0, 2, on}, {F, 30, 0, -10, on}, {D, 30, 0, -10, on, 1},
+                      {D, 30, 0, -10, off, 0, true}, {R, 30, 0, 2, off}});
+  EXPECT_EQ(p.blocks.back().spindle, on);  // the spindle turns again after the cycle
+  ParseOptions minus_y;
+  minus_y.boring_shift = 3;  // RD2 RD1 = 1 1: -Y in G17
+  Parsed b = parse_text("G17 G90 G0 X0 Y0 Z50 S500 M3 F100\nG98 G87 X20 Y5 Z-5 R-25 Q2\nG80\n", minus_y);
+  ASSERT_EQ(b.first_error(), nullptr) << format(*b.first_error());
+  expect_moves(b, 2, {{R, 20, 5, 50, on}, {R, 20, 3, 50, off}, {R, 20, 3, -25, off}, {R, 20, 5, -25, off},
+                      {F, 20, 5, -5, on}, {R, 20, 3, -5, off}, {R, 20, 3, 50, off}, {R, 20, 5, 50, off}});
+  expect_error("G0 Z50\nG99 G87 X1 Z-5 R-25 Q2 F100\n", "use G98", 5);
+  expect_error("G0 Z50\nG76 X1 Z-5 R2 F100\n", "positive shift Q", 1);
+  expect_error("G87 X1 Z-5 R-25 Q2 F100\n", "not LinuxCNC G-code", 1, linuxcnc());
+}

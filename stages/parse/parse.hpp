@@ -43,6 +43,10 @@ struct ParseOptions {
   /// most 1000 times as many lines on its behalf (nested loops, recursion): no input can hang.
   std::uint64_t max_loop_passes = 100000;
   int max_call_depth = 64;  //!< subroutine calls nested deeper than this are an error
+  /// Fanuc G76/G87: the direction of the shift Q at the oriented spindle stop, as the control's
+  /// parameter 5101 bits RD2 RD1 (0..3): 0 + first axis of the plane (G17 +X, G18 +Z, G19 +Y),
+  /// 1 - first axis, 2 + second axis (G17 +Y, G18 +X, G19 +Z), 3 - second axis.
+  int boring_shift = 0;
 };
 
 /// Reads the `parse` section of a pipeline config (every key documented in the README).

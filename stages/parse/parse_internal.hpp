@@ -138,6 +138,7 @@ struct Move {
   Axes target{};
   double dwell = 0;
   int spindle = -1;  // -1: the modal spindle; else a Spindle value for this move (G84 reversal)
+  bool stop = false;  // a program stop after this move (G88: the operator retracts by hand)
 };
 
 // What an arc block needs to place its centre, shared by the two formats.

@@ -60,7 +60,8 @@ int g_group(int code, Dialect d) {
     // mode, so there they stay unsupported.
     case 50: case 51: case 80: return d == Dialect::kFanuc ? kGLookAhead : kGUnsupported;
     default:
-      if (is_cycle(code) && code != 760 && code != 870 && code != 880)
+      // G76/G87/G88 are Fanuc boring cycles; in LinuxCNC G76 threads, G87/G88 do not exist.
+      if (is_cycle(code) && (d == Dialect::kFanuc || (code != 760 && code != 870 && code != 880)))
         return kGCycleCancel;
       if (is_non_modal_action(code)) return kGNonModal;
       return kGUnsupported;
@@ -80,10 +81,8 @@ std::string unsupported_g(int code, Dialect d) {
     case 760:
       return d == Dialect::kLinuxCnc
                  ? "G76 in LinuxCNC is the lathe threading cycle: not supported on this milling machine"
-                 : "G76 (fine boring) is not supported: its shift at the bottom follows the control's spindle "
-                   "orientation parameters, which the program does not state; expand it in CAM";
-    case 870: return "G87 (back boring) is not supported: it needs the spindle orientation and shift of the control's parameters; expand it in CAM";
-    case 880: return "G88 (boring with manual retract) is not supported: its retract is jogged by hand, so it has no path";
+                 : g + " is not a supported G code";
+    case 870: case 880: return g + " is a Fanuc boring cycle, not LinuxCNC G-code: parse the program with dialect fanuc";
     case 381: case 382: case 383: case 384: return g + " (probing) is not supported";
     case 431: return "G43.1 (dynamic tool length) is not supported: use G43 H with the tool table";
     case 50: case 51: case 52:
