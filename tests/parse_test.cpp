@@ -802,7 +802,9 @@ TEST(ParseIssue14, MachineFileToolTableKey) {
 // skipped when it ran, and again as rejected at the end of input).
 TEST(ParseIssue14, UnclosedStructuresCountTheirOpeningLineOnce) {
   for (const char* text : {"G0 X1\no1 while [1]\nG0 X2\n", "G0 X1\no1 if [1]\nG0 X2\n", "G0 X1\no1 if [0]\nG0 X2\n",
-                           "G0 X1\no<s> sub\nG0 X2\n", "G0 X1\no1 do\nG0 X2\n", "G0 X1\no1 repeat [2]\nG0 X2\n"}) {
+                           "G0 X1\no<s> sub\nG0 X2\n", "G0 X1\no1 do\nG0 X2\n", "G0 X1\no1 repeat [2]\nG0 X2\n",
+                           // a loop that runs zero times and never ends was passed over silently
+                           "G0 X1\no1 while [0]\nG0 X2\n", "G0 X1\no1 repeat [0]\nG0 X2\n"}) {
     SCOPED_TRACE(text);
     Parsed p = parse_text(text, linuxcnc());
     ASSERT_NE(p.first_error(), nullptr);
@@ -811,6 +813,11 @@ TEST(ParseIssue14, UnclosedStructuresCountTheirOpeningLineOnce) {
     EXPECT_EQ(p.summary.lines_rejected, 1u);
     EXPECT_EQ(p.summary.lines_read, p.summary.blocks_emitted + p.summary.lines_rejected + p.summary.lines_deleted);
   }
+  Parsed f = parse_text("#1 = 0\nWHILE [#1 LT 0] DO 1\nG0 X1\n");  // Fanuc, zero passes, no END 1
+  ASSERT_NE(f.first_error(), nullptr);
+  EXPECT_EQ(f.first_error()->line, 2u);
+  EXPECT_EQ(f.summary.lines_rejected, 1u);
+  EXPECT_EQ(f.summary.lines_read, f.summary.blocks_emitted + f.summary.lines_rejected + f.summary.lines_deleted);
 }
 
 // G10 tool entries, worked by hand from the manuals. LinuxCNC (G-code reference, "G10 L1" and

@@ -17,6 +17,7 @@
 // everything run on its behalf (a call's body, a loop's later passes) are its own. An error inside
 // an expansion abandons that expansion (the call returns, the loop ends), as LinuxCNC would stop
 // the program, and rejects the owner with the failing line's place in the diagnostic.
+#include <algorithm>
 #include <cmath>
 
 #include "parse_internal.hpp"
@@ -968,6 +969,11 @@ bool Parser::Impl::finish() {
                               " follows it in the program", false);
   if (m.skip == Skip::kSubDefinition)
     unclosed(m.skip_from, olabel(m.skip_label) + " sub has no " + olabel(m.skip_label) + " endsub before the end of the program", true);
+  // A loop whose condition failed at once is passed over to its end, with no control open.
+  const bool loop_open = std::any_of(m.controls.begin(), m.controls.end(),
+                                     [&](const Control& c) { return c.label == m.skip_label; });
+  if (m.skip == Skip::kToLoopEnd && !loop_open)
+    unclosed(m.skip_from, olabel(m.skip_label) + " loop has no end before the end of the program", false);
   for (const Control& c : m.controls)
     unclosed(c.start, olabel(c.label) + (c.kind == Control::kIf ? " if has no endif" : " loop has no end") +
                           " before the end of the program", false);
