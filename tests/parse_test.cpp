@@ -728,7 +728,7 @@ TEST(ParseIssue14, FanucG10L2ByHand) {
   // later stage and the writer see one frame.
   EXPECT_DOUBLE_EQ(p.blocks[3].work_origin[kX], 100);
   expect_error("G10 L20 P1 X0\n", "extended work offsets", 5);
-  expect_error("G10 L1 P1 Z10\n", "belong in the tool table", 5);
+  expect_error("G10 L1 P1 Z10\n", "G10 L1 is not supported", 5);
   expect_error("G10 L2 P7 X0\n", "must be 1..6", 8);
 }
 
@@ -808,4 +808,132 @@ TEST(ParseIssue14, MachineFileToolTableKey) {
   EXPECT_DOUBLE_EQ(m.reference_positions[0][kZ], 250);
   std::ofstream(dir / "bad.yaml") << base << "\ntool_table: missing.tbl\n";
   EXPECT_THROW(load_machine(Config::load_file(dir / "bad.yaml")), ConfigError);
+}
+
+// Bug: an unclosed loop, branch or definition counted its opening line twice (emitted or
+// skipped when it ran, and again as rejected at the end of input).
+TEST(ParseIssue14, UnclosedStructuresCountTheirOpeningLineOnce) {
+  for (const char* text : {"G0 X1\no1 while [1]\nG0 X2\n", "G0 X1\no1 if [1]\nG0 X2\n", "G0 X1\no1 if [0]\nG0 X2\n",
+                           "G0 X1\no<s> sub\nG0 X2\n", "G0 X1\no1 do\nG0 X2\n", "G0 X1\no1 repeat [2]\nG0 X2\n",
+                           // a loop that runs zero times and never ends was passed over silently
+                           "G0 X1\no1 while [0]\nG0 X2\n", "G0 X1\no1 repeat [0]\nG0 X2\n"}) {
+    SCOPED_TRACE(text);
+    Parsed p = parse_text(text, linuxcnc());
+    ASSERT_NE(p.first_error(), nullptr);
+    EXPECT_EQ(p.first_error()->line, 2u);
+    EXPECT_EQ(p.summary.lines_read, 3u);
+    EXPECT_EQ(p.summary.lines_rejected, 1u);
+    EXPECT_EQ(p.summary.lines_read, p.summary.blocks_emitted + p.summary.lines_rejected + p.summary.lines_deleted);
+  }
+  Parsed f = parse_text("#1 = 0\nWHILE [#1 LT 0] DO 1\nG0 X1\n");  // Fanuc, zero passes, no END 1
+  ASSERT_NE(f.first_error(), nullptr);
+  EXPECT_EQ(f.first_error()->line, 2u);
+  EXPECT_EQ(f.summary.lines_rejected, 1u);
+  EXPECT_EQ(f.summary.lines_read, f.summary.blocks_emitted + f.summary.lines_rejected + f.summary.lines_deleted);
+}
+
+// G10 tool entries, worked by hand from the manuals. LinuxCNC (G-code reference, "G10 L1" and
+// "G10 L10"): L1 P Z R sets tool P's length and radius; L10 sets the length such that the
+// current Z reads as the word after G43 reloads it (length = Z now + length in force - Z word).
+// Fanuc (0i-MF operator's manual B-64604EN, "Tool compensation values input by program (G10)",
+// tool compensation memory C): L10 P R = length geometry, L12 P R = radius geometry, and in
+// G91 R is added to the value stored.
+TEST(ParseIssue14, G10ToolEntriesFromTheProgram) {
+  Parsed l = parse_text("T1 M6\nG10 L1 P1 Z42 R3\nG43 H1\nG0 Z5\nG10 L10 P1 Z2\nG43 H1\n"
+                        "G1 F800 X0\nG275 X10 Z-1 R5 W12 K1\n",
+                        linuxcnc());
+  ASSERT_EQ(l.first_error(), nullptr) << format(*l.first_error());
+  EXPECT_DOUBLE_EQ(l.blocks[2].tool_length, 42);  // L1 is in force for the next G43
+  EXPECT_DOUBLE_EQ(l.blocks[5].tool_length, 45);  // 5 + 42 - 2
+  EXPECT_DOUBLE_EQ(l.blocks.back().slot.tool_diameter, 6);  // R is the radius
+  expect_error("G10 L1 P7 Z5\n", "tool 7 is not in", 8, linuxcnc());
+  expect_error("G10 L1 P1\n", "without Z or R has no effect", 1, linuxcnc());
+  expect_error("G10 L1 P1 X5\n", "not X", 11, linuxcnc());
+  expect_error("G10 L2 P1 R5\n", "rotated coordinate system", 11, linuxcnc());
+  Parsed f = parse_text("T1 M6\nG10 L10 P1 R120.\nG43 H1\nG91 G10 L10 P1 R-5.\nG90 G43 H1\nG10 L12 P7 R4.\n"
+                        "T7 M6\nG1 F800 X0\nG275 X10 Z-1 R5 W12 K1\n");
+  ASSERT_EQ(f.first_error(), nullptr) << format(*f.first_error());
+  EXPECT_DOUBLE_EQ(f.blocks[2].tool_length, 120);
+  EXPECT_DOUBLE_EQ(f.blocks[4].tool_length, 115);  // G91: R added
+  EXPECT_DOUBLE_EQ(f.blocks.back().slot.tool_diameter, 8);  // a new offset number P7, radius 4
+  expect_error("G10 L11 P1 R0.1\n", "wear offsets (L11, L13) are not modelled", 5);
+}
+
+// Fanuc Custom Macro B system variables (0i-MF operator's manual B-64604EN, "System variables"):
+// #5001..#5005 read the end position of the last block in work coordinates (X Y Z A C here),
+// #3000 = n stops the program with alarm 3000 + n and the comment as its message.
+TEST(ParseIssue14, FanucPositionVariablesAndAlarm) {
+  Parsed p = parse_text("G55 G0 X10 Y20 Z5\n#1 = #5001 + #5002\nG0 X#1 Z[#5003 - 1]\nG91 G0 X1\nG0 Y#5001\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  const auto e = ends(p);
+  ASSERT_EQ(e.size(), 4u);
+  // ends() gives work coordinates: #5001 + #5002 = 10 + 20 (G55's origin X100 Y50 is not in it)
+  EXPECT_DOUBLE_EQ(e[1][kX], 30);
+  EXPECT_DOUBLE_EQ(e[1][kZ], 4);
+  EXPECT_DOUBLE_EQ(e[3][kY], 20 + 31);  // G91: Y moves by the X read, 31
+  expect_error("#5002 = 3\n", "read only", 1);
+  Parsed a = parse_text("G0 X1\n#1 = 0\nWHILE [#1 LT 3] DO 1\n#1 = #1 + 1\nIF [#1 EQ 2] THEN #3000 = 12 (TOOL BROKEN)\n"
+                        "G0 X#1\nEND 1\nG0 X9\nM30\n");
+  ASSERT_NE(a.first_error(), nullptr);
+  EXPECT_EQ(a.first_error()->line, 5u);
+  EXPECT_NE(a.first_error()->message.find("macro alarm 3012: TOOL BROKEN"), std::string::npos) << a.first_error()->message;
+  EXPECT_DOUBLE_EQ(ends(a).back()[kX], 1);  // the loop's first pass moved to X1; nothing after
+  EXPECT_EQ(a.summary.lines_read, a.summary.blocks_emitted + a.summary.lines_rejected + a.summary.lines_deleted);
+  EXPECT_EQ(a.summary.lines_not_run, 2u);  // G0 X9 and M30
+  Parsed m = parse_text("G0 X1\n#3000 = 1 (STOP)\nG0 X2\n");
+  ASSERT_NE(m.first_error(), nullptr);
+  EXPECT_EQ(m.first_error()->column, 1u);
+  EXPECT_EQ(m.blocks.size(), 1u);
+  EXPECT_EQ(m.summary.lines_not_run, 1u);
+}
+
+namespace {
+struct Expected {
+  Motion motion;
+  double x, y, z;
+  Spindle spindle;
+  double dwell = 0;
+  bool stop = false;
+};
+void expect_moves(const Parsed& p, std::uint64_t line, const std::vector<Expected>& want) {
+  std::vector<const ResolvedBlock*> got;
+  for (const auto& b : p.blocks)
+    if (b.line == line) got.push_back(&b);
+  ASSERT_EQ(got.size(), want.size()) << "line " << line;
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    SCOPED_TRACE("line " + std::to_string(line) + " move " + std::to_string(i));
+    EXPECT_EQ(got[i]->motion, want[i].motion);
+    EXPECT_DOUBLE_EQ(got[i]->target[kX], want[i].x);
+    EXPECT_DOUBLE_EQ(got[i]->target[kY], want[i].y);
+    EXPECT_DOUBLE_EQ(got[i]->target[kZ], want[i].z);
+    EXPECT_EQ(got[i]->spindle, want[i].spindle);
+    EXPECT_DOUBLE_EQ(got[i]->dwell, want[i].dwell);
+    EXPECT_EQ(got[i]->stop == ProgramStop::kStop, want[i].stop);
+  }
+}
+}  // namespace
+
+// Fanuc boring cycles, worked by hand from the 0i-MF operator's manual (B-64604EN), canned
+// cycles section (G76 fine boring, G87 back boring, G88 boring): the shift direction is the
+// machine's (parameter 5101 RD2 RD1; parse.boring_shift), Q the shift, P the dwell in ms.
+TEST(ParseIssue14, FanucBoringCyclesByHand) {
+  const auto R = Motion::kRapid, F = Motion::kLinear, D = Motion::kDwell;
+  const auto on = Spindle::kCW, off = Spindle::kOff;
+  Parsed p = parse_text("G17 G90 G0 X0 Y0 Z50 S500 M3 F100\nG98 G76 X10 Y5 Z-20 R2 Q1.5 P500\nG80\n"
+                        "G99 G88 X30 Y0 Z-10 R2 P1000\nG80\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  expect_moves(p, 2, {{R, 10, 5, 50, on}, {R, 10, 5, 2, on}, {F, 10, 5, -20, on}, {D, 10, 5, -20, on, 0.5},
+                      {R, 11.5, 5, -20, off}, {R, 11.5, 5, 50, off}, {R, 10, 5, 50, off}});
+  expect_moves(p, 4, {{R, 30, 0, 50, on}, {R, 30, 0, 2, on}, {F, 30, 0, -10, on}, {D, 30, 0, -10, on, 1},
+                      {D, 30, 0, -10, off, 0, true}, {R, 30, 0, 2, off}});
+  EXPECT_EQ(p.blocks.back().spindle, on);  // the spindle turns again after the cycle
+  ParseOptions minus_y;
+  minus_y.boring_shift = 3;  // RD2 RD1 = 1 1: -Y in G17
+  Parsed b = parse_text("G17 G90 G0 X0 Y0 Z50 S500 M3 F100\nG98 G87 X20 Y5 Z-5 R-25 Q2\nG80\n", minus_y);
+  ASSERT_EQ(b.first_error(), nullptr) << format(*b.first_error());
+  expect_moves(b, 2, {{R, 20, 5, 50, on}, {R, 20, 3, 50, off}, {R, 20, 3, -25, off}, {R, 20, 5, -25, off},
+                      {F, 20, 5, -5, on}, {R, 20, 3, -5, off}, {R, 20, 3, 50, off}, {R, 20, 5, 50, off}});
+  expect_error("G0 Z50\nG99 G87 X1 Z-5 R-25 Q2 F100\n", "use G98", 5);
+  expect_error("G0 Z50\nG76 X1 Z-5 R2 F100\n", "positive shift Q", 1);
+  expect_error("G87 X1 Z-5 R-25 Q2 F100\n", "not LinuxCNC G-code", 1, linuxcnc());
 }

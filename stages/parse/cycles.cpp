@@ -1,6 +1,6 @@
-// Canned cycles G73 G74 G81..G86 G89 expanded into plain moves, as LinuxCNC's interpreter
-// expands them (checked move for move against its rs274 in tests/rs274_diff_test.cpp) and as the
-// Fanuc manuals describe them. In the G17 plane the drilling axis is Z, in G18 Y, in G19 X.
+// Canned cycles G73 G74 G81..G86 G89 (and the Fanuc boring cycles G76 G87 G88) expanded into
+// plain moves, as LinuxCNC's interpreter expands them (checked move for move against its rs274
+// in tests/rs274_diff_test.cpp) and as the Fanuc manuals describe them. In the G17 plane the drilling axis is Z, in G18 Y, in G19 X.
 //
 // Per repeat (L, or K on Fanuc): rapid to the hole in the plane at the current level, rapid down
 // to R, the cycle's own strokes, retract to the clear level: R in G99, in G98 the higher of R and
@@ -30,6 +30,7 @@ struct CycleGeometry {
   double r, bottom, clear;  // levels along the drilling axis [mm, machine]
   double q, dwell;          // peck depth [mm] and dwell [s]
   double du, dv;            // G91: the hole step in the plane [mm]
+  double shift[kNumAxes];   // G76/G87: the shift at the oriented spindle stop [mm]
   bool incremental;
   long repeats;
 };
@@ -50,6 +51,16 @@ class HoleWriter {
     if (s > 0) moves_.push_back({Motion::kDwell, pos_, s});
   }
   void spindle(Spindle sp) { spindle_ = static_cast<int>(sp); }
+  // Fanuc G76/G87: the oriented spindle stops and the tool tip moves off the wall by the shift.
+  void shift(const double (&by)[kNumAxes], double sign) {
+    Axes t = pos_;
+    for (int a = 0; a < kNumAxes; ++a) t[a] += sign * by[a];
+    add(Motion::kRapid, t);
+  }
+  // G88: the spindle stops and the program stops where the tool is (a move of no length).
+  void stop_here() {
+    moves_.push_back({Motion::kDwell, pos_, 0, static_cast<int>(Spindle::kOff), true});
+  }
 
  private:
   void to(Motion m, double level) {
@@ -85,6 +96,50 @@ void peck(HoleWriter& h, const CycleGeometry& g, bool full_retract) {
   h.rapid_to(g.clear);
 }
 
+// The Fanuc boring cycles, from the 0i-MF operator's manual (B-64604EN), canned cycles section:
+// "G76 fine boring": bore to the bottom, dwell P, oriented spindle stop, shift by Q (at rapid,
+// away from the wall), rapid out to the clear level, shift back, spindle on again.
+void fine_bore(HoleWriter& h, const CycleGeometry& g, Spindle spindle) {
+  h.feed_to(g.bottom);
+  h.dwell(g.dwell);
+  h.spindle(Spindle::kOff);
+  h.shift(g.shift, 1);
+  h.rapid_to(g.clear);
+  h.shift(g.shift, -1);
+  h.spindle(spindle);
+}
+
+// "G87 back boring": R is below the part and the bottom Z above it. Oriented stop, shift, rapid
+// down to R, shift back, spindle on (CW), bore upwards to Z, dwell P, oriented stop, shift,
+// rapid up to the initial level, shift back, spindle on. Entered from the initial level.
+void back_bore(HoleWriter& h, const CycleGeometry& g, Spindle spindle) {
+  h.spindle(Spindle::kOff);
+  h.shift(g.shift, 1);
+  h.rapid_to(g.r);
+  h.shift(g.shift, -1);
+  h.spindle(spindle);
+  h.feed_to(g.bottom);
+  h.dwell(g.dwell);
+  h.spindle(Spindle::kOff);
+  h.shift(g.shift, 1);
+  h.rapid_to(g.clear);
+  h.shift(g.shift, -1);
+  h.spindle(spindle);
+}
+
+// "G88 boring": bore, dwell P, spindle stop and the control stops; the operator jogs the tool
+// out by hand, which has no programmed path. gcpipe stands for the jog with a rapid straight
+// out to the clear level (R in G99, the initial level in G98), as the control itself moves to
+// that level when the cycle is restarted; the spindle turns again from there.
+void manual_retract_bore(HoleWriter& h, const CycleGeometry& g, Spindle spindle) {
+  h.feed_to(g.bottom);
+  h.dwell(g.dwell);
+  h.spindle(Spindle::kOff);
+  h.stop_here();
+  h.rapid_to(g.clear);
+  h.spindle(spindle);
+}
+
 // The strokes of one hole below R, ending at the clear level.
 void strokes(HoleWriter& h, const CycleGeometry& g, Spindle spindle) {
   switch (g.code) {
@@ -115,8 +170,38 @@ void strokes(HoleWriter& h, const CycleGeometry& g, Spindle spindle) {
       h.spindle(spindle);
       return h.rapid_to(g.clear);
     }
+    case 760: return fine_bore(h, g, spindle);
+    case 880: return manual_retract_bore(h, g, spindle);
     default: return;
   }
+}
+
+// The clear level of a cycle, and the order of R and the bottom: every cycle drills towards the
+// minus side of its axis from R, except G87 (back boring), which bores upwards from an R below
+// the part and returns to the initial level only (0i-MF manual: G87 cannot use the R level;
+// G99 is refused by the caller).
+// The shift of G76/G87 from the machine's parameter (5101 RD2 RD1 as a number 0..3): + or - the
+// first or second axis of the plane, by Q.
+void set_boring_shift(CycleGeometry& g, double q, int rd) {
+  for (double& d : g.shift) d = 0;
+  g.shift[rd < 2 ? g.pa.u : g.pa.v] = rd % 2 == 0 ? q : -q;
+}
+
+// Empty when the levels are right, else why not.
+std::string cycle_levels(CycleGeometry& g, const ModalState& ns, double start_n, Dialect dialect) {
+  const std::string name = code_text('G', g.code);
+  const char axis = kAxisLetters[g.pa.n];
+  if (g.code == 870) {
+    if (g.bottom < g.r) return "G87: the end " + std::string(1, axis) + " is below the R plane: back boring cuts towards +" + axis;
+    g.clear = ns.cycle_initial;
+    if (g.clear < g.bottom) return "G87: the initial level is below the end of the bore: start the cycle above the part";
+    return {};
+  }
+  if (g.bottom > g.r)
+    return name + ": the bottom " + axis + " is above the R plane: the cycle drills towards -" + axis;
+  const double old = dialect == Dialect::kFanuc ? ns.cycle_initial : std::max(start_n, g.r);
+  g.clear = ns.cycle_to_r ? g.r : std::max(g.r, old);
+  return {};
 }
 
 }  // namespace
@@ -146,11 +231,14 @@ bool Parser::Impl::cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, 
   const double z_word = linear_value(ns.cycle_z, ns.units);
   g.r = g.incremental ? start_n + r_word : r_word + ns.origin[n];
   g.bottom = g.incremental ? g.r + z_word : z_word + ns.origin[n];
-  if (g.bottom > g.r)
-    return fail(s.has(depth_letter) ? s.w(depth_letter).col : col,
-                name + ": the bottom " + depth_letter + " is above the R plane: the cycle drills towards -" + depth_letter);
-  const double old = opt.dialect == Dialect::kFanuc ? ns.cycle_initial : std::max(start_n, g.r);
-  g.clear = ns.cycle_to_r ? g.r : std::max(g.r, old);
+  if (ns.cycle == 870 && ns.cycle_to_r) return fail(col, "G87 (back boring) returns to the initial level: use G98, not G99");
+  if (const std::string why = cycle_levels(g, ns, start_n, opt.dialect); !why.empty())
+    return fail(s.has(depth_letter) ? s.w(depth_letter).col : col, why);
+  if (ns.cycle == 760 || ns.cycle == 870) {
+    const double q = ns.cycle_q.col ? linear_value(ns.cycle_q, ns.units) : 0;
+    if (!(q > 0)) return fail(ns.cycle_q.col ? ns.cycle_q.col : col, name + " needs a positive shift Q (the tool moves off the wall by Q at the bottom)");
+    set_boring_shift(g, q, opt.boring_shift);
+  }
   if (ns.cycle == 730 || ns.cycle == 830) {
     g.q = ns.cycle_q.col ? linear_value(ns.cycle_q, ns.units) : 0;
     if (!(g.q > 0)) return fail(ns.cycle_q.col ? ns.cycle_q.col : col, name + " needs a positive peck depth Q");
@@ -186,11 +274,15 @@ bool Parser::Impl::cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, 
   g.dv = (mask & (1u << v)) && g.incremental ? linear_value(s.w(kAxisLetters[v]), ns.units) : 0;
   Axes pos = ns.position;
   HoleWriter h(moves, pos, n);
-  if (pos[n] < g.r) h.rapid_to(g.r);  // preliminary move, once
+  if (pos[n] < g.r && g.code != 870) h.rapid_to(g.r);  // preliminary move, once
   for (long i = 0; i < g.repeats; ++i) {
     const double pu = g.incremental ? pos[u] + g.du : target[u];
     const double pv = g.incremental ? pos[v] + g.dv : target[v];
     h.rapid_in_plane(u, pu, v, pv);
+    if (g.code == 870) {  // R is below the part: reached shifted, by back_bore
+      back_bore(h, g, ns.spindle);
+      continue;
+    }
     h.rapid_to(g.r);
     strokes(h, g, ns.spindle);
   }

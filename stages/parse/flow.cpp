@@ -17,6 +17,7 @@
 // everything run on its behalf (a call's body, a loop's later passes) are its own. An error inside
 // an expansion abandons that expansion (the call returns, the loop ends), as LinuxCNC would stop
 // the program, and rejects the owner with the failing line's place in the diagnostic.
+#include <algorithm>
 #include <cmath>
 
 #include "parse_internal.hpp"
@@ -252,6 +253,7 @@ bool Parser::Impl::feed(std::string_view line, std::size_t overlong) {
   summary.bytes_read += (overlong ? overlong : line.size()) + 1;
   const std::uint64_t n = summary.lines_read;
   if (n == 1 && line.substr(0, 3) == "\xEF\xBB\xBF") line.remove_prefix(3);  // UTF-8 byte-order mark
+  if (alarm_line != 0) return skip_after_alarm(n);
   if (opt.dialect == Dialect::kFanuc && !macro_mode) note_macro_program(line);
   if (idle() && frames[0].pc == n && !maybe_statement(line) && !fanuc_line_to_keep(line)) {
     // The hot path: nothing open, the line runs at once and is counted.
@@ -936,11 +938,25 @@ bool Parser::Impl::push_subprogram(const std::string& label, long repeats, std::
   return true;
 }
 
+// After a #3000 alarm the control has stopped: every later line is passed over, with a note.
+bool Parser::Impl::skip_after_alarm(std::uint64_t n) {
+  ++summary.lines_deleted;
+  ++summary.lines_not_run;
+  classified = n;
+  frames[0].pc = n + 1;
+  return emit_diagnostic(n, 1, Severity::kNote,
+                         "not run: the program stopped at the macro alarm (#3000) of line " + std::to_string(alarm_line));
+}
+
 bool Parser::Impl::finish() {
   input_done = true;
   run_ready();
   close_owner();
   Frame& m = frames[0];
+  if (alarm_line != 0) {  // the program stopped at an alarm: what it left open never ran on
+    m.controls.clear();
+    m.skip = Skip::kNone;
+  }
   // What never closed: reported on its opening line, which is counted as rejected instead.
   auto unclosed = [&](std::uint64_t line, const std::string& what, bool was_skipped) {
     if (was_skipped) --summary.lines_deleted, --summary.lines_not_run;
@@ -953,6 +969,11 @@ bool Parser::Impl::finish() {
                               " follows it in the program", false);
   if (m.skip == Skip::kSubDefinition)
     unclosed(m.skip_from, olabel(m.skip_label) + " sub has no " + olabel(m.skip_label) + " endsub before the end of the program", true);
+  // A loop whose condition failed at once is passed over to its end, with no control open.
+  const bool loop_open = std::any_of(m.controls.begin(), m.controls.end(),
+                                     [&](const Control& c) { return c.label == m.skip_label; });
+  if (m.skip == Skip::kToLoopEnd && !loop_open)
+    unclosed(m.skip_from, olabel(m.skip_label) + " loop has no end before the end of the program", false);
   for (const Control& c : m.controls)
     unclosed(c.start, olabel(c.label) + (c.kind == Control::kIf ? " if has no endif" : " loop has no end") +
                           " before the end of the program", false);

@@ -303,11 +303,14 @@ bool Parser::Impl::set_offsets(const BlockCodes& c, ModalState& ns, std::uint8_t
   if (!s.has('L')) return fail(col, "G10 needs L: L2 (work offset values) or L20 (LinuxCNC: make the position read as the values)");
   const double l = s.w('L').value;
   const bool fanuc = opt.dialect == Dialect::kFanuc;
+  if (fanuc ? (l == 10 || l == 12) : (l == 1 || l == 10)) return set_tool_entry(c, ns, mask);
   if (l == 20 && fanuc)
     return fail(s.w('L').col, "G10 L20 on Fanuc sets the extended work offsets G54.1 P1..P48, which this machine does not have");
   if (l != 2 && l != 20)
-    return fail(s.w('L').col, "G10 L" + show(l) + " is not supported: tool offsets (L1, L10..L13) belong in the tool table "
-                              "(machine.tool_table); work offsets take L2" + std::string(fanuc ? "" : " or L20"));
+    return fail(s.w('L').col, "G10 L" + show(l) + " is not supported" +
+                              (fanuc ? std::string(": wear offsets (L11, L13) are not modelled; tool geometry takes L10 (length) or L12 (radius)")
+                                     : std::string(": tool entries take L1 or L10")) +
+                              "; work offsets take L2" + (fanuc ? "" : " or L20"));
   if (!s.has('P')) return fail(col, "G10 L" + show(l) + " needs P: the work offset, 1..6 for G54..G59" + (fanuc ? "" : ", 0 for the one in force"));
   const double p = s.w('P').value;
   if (p != std::floor(p) || p < (fanuc ? 1 : 0) || p > 6)
@@ -324,6 +327,57 @@ bool Parser::Impl::set_offsets(const BlockCodes& c, ModalState& ns, std::uint8_t
   }
   offsets[k] = origin;
   update_origin(ns);
+  return true;
+}
+
+}  // namespace gcpipe
+
+namespace gcpipe {
+
+// G10 tool entries, in force from this line on (a G43 after it loads the new length; the length
+// in force is not reloaded by the G10 itself, as rs274 shows).
+//  LinuxCNC (G10 L1 / L10, its manual): P tool number (in the table), Z length, R radius.
+//    L1 sets them; L10 sets the length so that the current position, with the G5x and G92
+//    offsets in force, reads as the Z word once the offset is reloaded: length = current Z
+//    (program) + length in force - Z. A G10 L1 without Z or R is an error (rs274's too).
+//  Fanuc (G10 L10 / L12, tool offset memory C): P offset number, R value; L10 the length
+//    geometry (H), L12 the radius geometry (D); in G91 R is added to the stored value.
+bool Parser::Impl::set_tool_entry(const BlockCodes& c, ModalState& ns, std::uint8_t mask) {
+  const Scan& s = sc;
+  const bool fanuc = opt.dialect == Dialect::kFanuc;
+  const int l = static_cast<int>(s.w('L').value);
+  const std::string name = "G10 L" + std::to_string(l);
+  if (!s.has('P')) return fail(c.non_modal_col, name + " needs P: the tool number");
+  const double p = s.w('P').value;
+  if (p != std::floor(p) || p < 1 || p > 9999) return fail(s.w('P').col, name + " P" + show(p) + " is not a tool number 1..9999");
+  const int tool = static_cast<int>(p);
+  for (int a = 0; a < kNumAxes; ++a)
+    if ((mask & (1u << a)) && (fanuc || a != kZ))
+      return fail(s.w(kAxisLetters[a]).col, name + ": only " + (fanuc ? "R" : "Z (length) and R (radius)") +
+                                                " can be set on this machine, not " + kAxisLetters[a]);
+  auto it = machine.tools.find(tool);
+  if (!fanuc && it == machine.tools.end())
+    return fail(s.w('P').col, name + " P" + std::to_string(tool) + ": tool " + std::to_string(tool) + " is not in " +
+                                  tool_table_name(machine) + " (LinuxCNC sets entries of tools in the table only)");
+  if (fanuc && !s.has('R')) return fail(c.non_modal_col, name + " needs R: the offset value");
+  if (!fanuc && !(mask & (1u << kZ)) && !s.has('R'))
+    return fail(c.non_modal_col, name + " without Z or R has no effect: give the length Z or the radius R");
+  ToolEntry e = it == machine.tools.end() ? ToolEntry{} : it->second;
+  const double r = s.has('R') ? linear_value(s.w('R'), ns.units) : 0;
+  if (fanuc) {
+    const double old = l == 10 ? e.length : e.diameter / 2;
+    const double v = ns.incremental ? old + r : r;
+    if (l == 10) e.length = v;
+    else e.diameter = 2 * v;
+  } else {
+    if (s.has('R')) e.diameter = 2 * r;
+    if (mask & (1u << kZ)) {
+      const double z = linear_value(s.w('Z'), ns.units);
+      const double current = ns.position[kZ] - ns.origin[kZ] + (ns.tlo_active ? ns.tool_length : 0);
+      e.length = l == 1 ? z : current - z;
+    }
+  }
+  machine.tools[tool] = e;
   return true;
 }
 

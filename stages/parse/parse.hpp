@@ -47,6 +47,10 @@ struct ParseOptions {
   /// (F0.001 for F1000) would run for hours. Inverse-time feeds (G93) are bounded by the
   /// simulation's machine-time limit instead.
   double min_feed = 1.0;
+  /// Fanuc G76/G87: the direction of the shift Q at the oriented spindle stop, as the control's
+  /// parameter 5101 bits RD2 RD1 (0..3): 0 + first axis of the plane (G17 +X, G18 +Z, G19 +Y),
+  /// 1 - first axis, 2 + second axis (G17 +Y, G18 +X, G19 +Z), 3 - second axis.
+  int boring_shift = 0;
 };
 
 /// Reads the `parse` section of a pipeline config (every key documented in the README).

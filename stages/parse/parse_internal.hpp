@@ -138,6 +138,7 @@ struct Move {
   Axes target{};
   double dwell = 0;
   int spindle = -1;  // -1: the modal spindle; else a Spindle value for this move (G84 reversal)
+  bool stop = false;  // a program stop after this move (G88: the operator retracts by hand)
 };
 
 // What an arc block needs to place its centre, shared by the two formats.
@@ -230,6 +231,7 @@ struct Parser::Impl {
   ResolvedBlock expanded;                 // one move of an expansion
   const ParseSink* sink = nullptr;
   bool stopped = false;  // the sink asked to stop
+  std::uint64_t alarm_line = 0;  // a Fanuc #3000 alarm stopped the program on this line (0: none)
 
   // -- flow control (flow.cpp)
   std::deque<parse_detail::SourceLine> window;  // main-program lines kept for loops and waits
@@ -289,6 +291,7 @@ struct Parser::Impl {
   bool read_expression_number(std::string_view s, std::size_t& p, char letter, Word& w);
   bool read_code(std::string_view s, std::size_t& p, char letter, int& code, std::uint32_t col);
   void refresh_system_parameters();
+  bool fanuc_system_assignment(std::string_view s, std::size_t p, const Assignment& a, std::uint32_t col);
 
   // -- resolve.cpp
   bool resolve(ResolvedBlock& b, ModalState& ns);
@@ -320,6 +323,7 @@ struct Parser::Impl {
   bool coordinate_shift(const BlockCodes& c, ModalState& ns, std::uint8_t mask);
   void update_origin(ModalState& ns) const;
   bool set_offsets(const BlockCodes& c, ModalState& ns, std::uint8_t mask);
+  bool set_tool_entry(const BlockCodes& c, ModalState& ns, std::uint8_t mask);
 
   // -- cycles.cpp
   bool cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, std::uint8_t mask);
@@ -327,6 +331,7 @@ struct Parser::Impl {
   // -- flow.cpp
   bool feed(std::string_view line, std::size_t overlong);
   bool finish();
+  bool skip_after_alarm(std::uint64_t n);
   bool run_ready();
   bool step(parse_detail::Frame& f, const parse_detail::SourceLine& l);
   bool statement(parse_detail::Frame& f, const parse_detail::SourceLine& l, const parse_detail::Statement& s);

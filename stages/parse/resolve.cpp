@@ -60,7 +60,8 @@ int g_group(int code, Dialect d) {
     // mode, so there they stay unsupported.
     case 50: case 51: case 80: return d == Dialect::kFanuc ? kGLookAhead : kGUnsupported;
     default:
-      if (is_cycle(code) && code != 760 && code != 870 && code != 880)
+      // G76/G87/G88 are Fanuc boring cycles; in LinuxCNC G76 threads, G87/G88 do not exist.
+      if (is_cycle(code) && (d == Dialect::kFanuc || (code != 760 && code != 870 && code != 880)))
         return kGCycleCancel;
       if (is_non_modal_action(code)) return kGNonModal;
       return kGUnsupported;
@@ -80,10 +81,8 @@ std::string unsupported_g(int code, Dialect d) {
     case 760:
       return d == Dialect::kLinuxCnc
                  ? "G76 in LinuxCNC is the lathe threading cycle: not supported on this milling machine"
-                 : "G76 (fine boring) is not supported: its shift at the bottom follows the control's spindle "
-                   "orientation parameters, which the program does not state; expand it in CAM";
-    case 870: return "G87 (back boring) is not supported: it needs the spindle orientation and shift of the control's parameters; expand it in CAM";
-    case 880: return "G88 (boring with manual retract) is not supported: its retract is jogged by hand, so it has no path";
+                 : g + " is not a supported G code";
+    case 870: case 880: return g + " is a Fanuc boring cycle, not LinuxCNC G-code: parse the program with dialect fanuc";
     case 381: case 382: case 383: case 384: return g + " (probing) is not supported";
     case 431: return "G43.1 (dynamic tool length) is not supported: use G43 H with the tool table";
     case 50: case 51: case 52:
@@ -441,8 +440,12 @@ GCPIPE_STEP bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalSt
   const bool arc_mode = !c.g4 && !c.g275 && c.non_modal == 0 && ns.cycle == 0 &&
                         (ns.motion == Motion::kArcCW || ns.motion == Motion::kArcCCW);
   const bool cycle_block = ns.cycle != 0 && c.non_modal == 0 && !c.g4;
-  if (c.non_modal == 100 && s.has('R'))
-    return fail(s.w('R').col, "G10 with R: a rotated coordinate system (LinuxCNC) or a tool radius is not supported");
+  // R of G10 is a tool radius (LinuxCNC L1/L10) or an offset value (Fanuc L10..L13); on work
+  // offsets (L2/L20) it would rotate the coordinate system, which is not supported.
+  const double g10_l = c.non_modal == 100 && s.has('L') ? s.w('L').value : 0;
+  const bool g10_tool = opt.dialect == Dialect::kFanuc ? g10_l >= 10 && g10_l <= 13 : g10_l == 1 || g10_l == 10;
+  if (c.non_modal == 100 && s.has('R') && !g10_tool)
+    return fail(s.w('R').col, "G10 with R: a rotated coordinate system (LinuxCNC) is not supported");
   const int look = c.has(kGLookAhead) ? c.group_code[kGLookAhead] : -1;
   const bool path = c.has(kGPathMode) && c.group_code[kGPathMode] == 640;
   for (char L : {'D', 'W', 'Q', 'K', 'I', 'J', 'R', 'P', 'L'}) {
@@ -452,7 +455,7 @@ GCPIPE_STEP bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalSt
     const bool arc_word = L == 'I' || L == 'J' || L == 'K' || L == 'R' || L == 'P';
     const bool cycle_word = L == 'R' || L == 'Q' || L == 'P' || L == 'L' ||
                             (L == 'K' && opt.dialect == Dialect::kFanuc);  // Fanuc repeats: K
-    const bool g10_word = c.non_modal == 100 && (L == 'L' || L == 'P');
+    const bool g10_word = c.non_modal == 100 && (L == 'L' || L == 'P' || (L == 'R' && g10_tool));
     const bool m98_word = c.m_code[kMSubprogram] == 980 && (L == 'P' || L == 'L');
     const bool look_word = (look == 50 || look == 80) ? L == 'P' : look == 51 ? (L == 'Q' || L == 'R') : false;
     if ((c.g275 && slot_word) || (arc_mode && arc_word) || (L == 'P' && c.g4) || (path && (L == 'P' || L == 'Q')) ||

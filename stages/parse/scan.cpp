@@ -78,6 +78,7 @@ bool Parser::Impl::read_expression_number(std::string_view s, std::size_t& p, ch
       return fail(static_cast<std::uint32_t>(p + 1),
                   std::string("word '") + letter + "' has no value (a number must follow the letter)");
   }
+  refresh_system_parameters();  // a word may read the position (#<_x>, Fanuc #5001)
   ExpressionReader er(params);
   double v = 0;
   if (!er.read_value(s, p, v)) return fail(static_cast<std::uint32_t>(er.error_pos() + 1), er.error());
@@ -247,8 +248,27 @@ bool Parser::Impl::scan_assignment(std::string_view s, std::size_t& p, std::uint
   if (!ok) return fail(static_cast<std::uint32_t>(er.error_pos() + 1), er.error());
   if (!std::isfinite(v)) return fail(col, "parameter value is not a finite number");
   a.value = v;
+  if (opt.dialect == Dialect::kFanuc && !a.named && !fanuc_system_assignment(s, p, a, col)) return false;
   ++sc.nassign;
   return true;
+}
+
+// Fanuc Custom Macro B system variables a program may not simply set: #5001..#5005 are the
+// position (read only); #3000 = n raises macro alarm 3000 + n with the comment that follows as
+// its message, and the program stops there (0i-MF manual B-64604EN, "System variables": #3000).
+bool Parser::Impl::fanuc_system_assignment(std::string_view s, std::size_t p, const Assignment& a, std::uint32_t col) {
+  if (a.number >= 5001 && a.number <= 5005)
+    return fail(col, "#" + std::to_string(a.number) + " is the position of the " + kAxisLetters[a.number - 5001] +
+                         " axis at the end of the last block: it is read only");
+  if (a.number != 3000) return true;
+  if (a.value < 0 || a.value > 999 || a.value != std::floor(a.value))
+    return fail(col, "#3000 = " + show(a.value) + ": the alarm number must be a whole number 0..999");
+  std::string message;
+  const std::size_t open = s.find('(', p), close = s.find(')', open == std::string_view::npos ? s.size() : open);
+  if (open != std::string_view::npos && close != std::string_view::npos) message = std::string(s.substr(open + 1, close - open - 1));
+  alarm_line = block.line;
+  return fail(col, "macro alarm " + std::to_string(3000 + static_cast<int>(a.value)) +
+                       (message.empty() ? std::string() : ": " + message) + " (#3000): the program stops here");
 }
 
 // Fanuc: O1234 is the program number. LinuxCNC o-word statements (o100 sub, o<name> call ...)
@@ -348,6 +368,7 @@ void Parser::Impl::refresh_system_parameters() {
     double v = st.position[a] - st.origin[a];
     if (a < kA && st.units == Units::kInch) v /= kInch;
     params.set_named(names[a], v);
+    if (opt.dialect == Dialect::kFanuc) params.set_numbered(5001 + a, v);  // Macro B #5001..#5005
   }
 }
 
