@@ -99,32 +99,30 @@ void peck(HoleWriter& h, const CycleGeometry& g, bool full_retract) {
 // The Fanuc boring cycles, from the 0i-MF operator's manual (B-64604EN), canned cycles section:
 // "G76 fine boring": bore to the bottom, dwell P, oriented spindle stop, shift by Q (at rapid,
 // away from the wall), rapid out to the clear level, shift back, spindle on again.
+// Oriented spindle stop, shift by Q away from the wall, rapid to `level`, shift back, spindle on:
+// how G76 and G87 move the tool past the bore's wall without marking it.
+void rapid_past_the_wall(HoleWriter& h, const CycleGeometry& g, double level, Spindle spindle) {
+  h.spindle(Spindle::kOff);
+  h.shift(g.shift, 1);
+  h.rapid_to(level);
+  h.shift(g.shift, -1);
+  h.spindle(spindle);
+}
+
 void fine_bore(HoleWriter& h, const CycleGeometry& g, Spindle spindle) {
   h.feed_to(g.bottom);
   h.dwell(g.dwell);
-  h.spindle(Spindle::kOff);
-  h.shift(g.shift, 1);
-  h.rapid_to(g.clear);
-  h.shift(g.shift, -1);
-  h.spindle(spindle);
+  rapid_past_the_wall(h, g, g.clear, spindle);
 }
 
 // "G87 back boring": R is below the part and the bottom Z above it. Oriented stop, shift, rapid
 // down to R, shift back, spindle on (CW), bore upwards to Z, dwell P, oriented stop, shift,
 // rapid up to the initial level, shift back, spindle on. Entered from the initial level.
 void back_bore(HoleWriter& h, const CycleGeometry& g, Spindle spindle) {
-  h.spindle(Spindle::kOff);
-  h.shift(g.shift, 1);
-  h.rapid_to(g.r);
-  h.shift(g.shift, -1);
-  h.spindle(spindle);
+  rapid_past_the_wall(h, g, g.r, spindle);
   h.feed_to(g.bottom);
   h.dwell(g.dwell);
-  h.spindle(Spindle::kOff);
-  h.shift(g.shift, 1);
-  h.rapid_to(g.clear);
-  h.shift(g.shift, -1);
-  h.spindle(spindle);
+  rapid_past_the_wall(h, g, g.clear, spindle);
 }
 
 // "G88 boring": bore, dwell P, spindle stop and the control stops; the operator jogs the tool

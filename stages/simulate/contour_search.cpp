@@ -1,9 +1,9 @@
 // simulate::ContourSearch: the one contour metric, over a sliding window of the nominal polyline.
 #include <algorithm>
+#include <cmath>
 #include <limits>
 
-#include <cmath>
-
+#include "contour.hpp"
 #include "simulate.hpp"
 
 namespace gcpipe::simulate {
@@ -72,19 +72,15 @@ bool outside_bounds(const Vec3& u, const Vec3& v, const Vec3& p, double best) {
 
 }  // namespace
 
-// Squared distances, as servo::segment_distance computes them before its square root: the
-// minimum is the same number, and the square root is taken once, for the match.
+// Squared distances (servo::segment_distance_sq, what segment_distance takes the root of): the
+// minimum is the same number, and the square root is taken once per better match.
 void ContourSearch::scan(std::size_t a, std::size_t b, const Vec3& p, Match& m) {
   for (std::size_t i = a; i < b; ++i) {  // segments [a, b)
     const Vec3& u = point(i);
     const Vec3& v = point(i + 1);
     if (outside_bounds(u, v, p, m.dist)) continue;  // no division for most segments of a group
-    const double d[3] = {v[0] - u[0], v[1] - u[1], v[2] - u[2]};
-    const double w[3] = {p[0] - u[0], p[1] - u[1], p[2] - u[2]};
-    const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    const double s = std::clamp(dd > 0 ? (w[0] * d[0] + w[1] * d[1] + w[2] * d[2]) / dd : 0.0, 0.0, 1.0);
-    const double e[3] = {w[0] - s * d[0], w[1] - s * d[1], w[2] - s * d[2]};
-    const double sq = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+    double s = 0;
+    const double sq = servo::segment_distance_sq(u, v, p, s);
     if (sq < m.sq) m.sq = sq, m.s = s, m.segment = i, m.dist = std::sqrt(sq);
   }
 }

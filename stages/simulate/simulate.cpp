@@ -270,6 +270,20 @@ std::uint64_t tick_bound(double max_ticks) {
   return max_ticks < 1.8e19 ? static_cast<std::uint64_t>(max_ticks) : UINT64_MAX;
 }
 
+void add_tracking(AxisStats& axes, const Axes& reference, const Axes& actual) {
+  for (std::size_t i = 0; i < kNumAxes; ++i)
+    axes.max_tracking[i] = std::max(axes.max_tracking[i], std::abs(reference[i] - actual[i]));
+}
+
+/// What a tap sees of a tick: the tick with its tool tip and its contour error (0 off cutting moves).
+void hand_on(const std::function<void(const Tick&)>& tap, const Tick& t, bool cutting, double e, const Vec3& tip) {
+  if (!tap) return;
+  Tick marked = t;
+  marked.contour = cutting ? e : 0.0;
+  marked.tip = tip;
+  tap(marked);
+}
+
 /// The figures of one run against the nominal path, gathered tick by tick: contour error on
 /// cutting moves and on rapids, per segment, what the run demanded of the axes, following error,
 /// travel margin, and the decimated series for the figures.
@@ -299,11 +313,8 @@ class RunAccumulator {
     return cutting;
   }
 
-  /// The distance of the actual joints from the re-timed reference at the same tick.
-  void track(const Axes& reference, const Axes& actual) {
-    for (std::size_t i = 0; i < kNumAxes; ++i)
-      ev_.axes.max_tracking[i] = std::max(ev_.axes.max_tracking[i], std::abs(reference[i] - actual[i]));
-  }
+  /// The distance of the actual joints from the planned reference at the same tick.
+  void track(const Axes& reference, const Axes& actual) { add_tracking(ev_.axes, reference, actual); }
 
   Evaluation finish(const RunStats& stats) {
     ev_.stats = stats;
@@ -424,12 +435,7 @@ OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> progra
           nom.block.push_back(t.block);
           own.actual.push_back(t.actual);
         }
-        if (on_tick) {
-          Tick marked = t;
-          marked.contour = cutting ? e : 0.0;
-          marked.tip = tip;
-          on_tick(marked);
-        }
+        hand_on(on_tick, t, cutting, e, tip);
       },
       max_ticks);
   own.eval = acc.finish(nom.stats);
@@ -486,12 +492,7 @@ Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const Reso
     const std::uint32_t seg = nom.segment_of_block.empty() ? 0 : nom.segment_of_block[std::min<std::size_t>(src, nom.segment_of_block.size() - 1)];
     const bool cutting = acc.add(t, b, seg, e, tip, nearest);
     acc.track(n < nom.reference.size() ? nom.reference[n] : ref_end, t.actual);
-    if (also) {
-      Tick marked = t;
-      marked.contour = cutting ? e : 0.0;
-      marked.tip = tip;
-      also(marked);
-    }
+    hand_on(also, t, cutting, e, tip);
   });
   return acc.finish(stats);
 }
@@ -550,9 +551,7 @@ SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> pr
     plan_reference(model, p, bounds.plan, max_ticks, nom);
     const Axes& ref_end = nom.reference.empty() ? run.start : nom.reference.back();
     for (std::size_t n = 0; n < own.actual.size(); ++n) {
-      const Axes& ref = n < nom.reference.size() ? nom.reference[n] : ref_end;
-      for (std::size_t i = 0; i < kNumAxes; ++i)
-        own.eval.axes.max_tracking[i] = std::max(own.eval.axes.max_tracking[i], std::abs(ref[i] - own.actual[n][i]));
+      add_tracking(own.eval.axes, n < nom.reference.size() ? nom.reference[n] : ref_end, own.actual[n]);
     }
   }
   run.before = std::move(own.eval);
