@@ -106,11 +106,18 @@ class ContourSearch {
   double distance(const Vec3& actual, Vec3& closest) { return distance(actual, size() == 0 ? 0 : size() - 1, closest); }
 
  private:
-  struct Box {
-    Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
-    void add(const Vec3& p);
-    double distance_sq(const Vec3& p) const;
-    bool within(const Vec3& p, double best) const;  //!< nearer than `best`
+  /// The bounding boxes of one level (groups or super-groups), structure of arrays: the test of
+  /// a whole window of boxes against a point is then one branch-free loop the compiler vectorises
+  /// (a per-box early exit mispredicts on a looping path, where the boxes hit change each tick).
+  struct Boxes {
+    std::array<std::vector<double>, 3> lo, hi;
+    std::size_t size() const { return lo[0].size(); }
+    void open(const Vec3& p);  //!< a new box holding p
+    void grow(const Vec3& p);  //!< the newest box grows to hold p
+    void drop_front(std::size_t n);
+    double distance_sq(std::size_t i, const Vec3& p) const;
+    /// hit[i - a] = box i lies within `best` of p along every axis, for boxes [a, b).
+    void near(std::size_t a, std::size_t b, const Vec3& p, double best, std::uint8_t* hit) const;
   };
   struct Match {
     double sq = 1e300, dist = 1e300;  //!< squared distance and distance [mm^2, mm]
@@ -120,13 +127,17 @@ class ContourSearch {
   static constexpr std::size_t kSuperSpan = kGroup * kGroupsPerSuper;
   const Vec3& point(std::size_t i) const { return win_[i - first_]; }
   void drop_old_points();
-  void scan(std::size_t a, std::size_t b, const Vec3& p, Match& m);
+  void scan(std::size_t a, std::size_t b, const Vec3& p, Match& m) const;
+  double finish(const Match& m, Vec3& closest);  //!< remembers the match, returns its distance
+  void scan_super(std::size_t sg, std::size_t lo, std::size_t hi, const Vec3& p, Match& m) const;
 
   const std::vector<Vec3>* source_ = nullptr;
   std::vector<Vec3> win_;          //!< points first_ .. size()-1
   std::size_t first_ = 0;          //!< global index of win_[0]; a multiple of kSuperSpan
-  std::vector<Box> boxes_, supers_;  //!< from group first_ / kGroup, super-group first_ / kSuperSpan
+  Boxes boxes_, supers_;           //!< from group first_ / kGroup, super-group first_ / kSuperSpan
+  std::vector<std::uint8_t> hit_;  //!< scratch of Boxes::near
   std::size_t j_ = 0;              //!< segment of the previous match (global index)
+  std::size_t warm_a_ = 0, warm_b_ = 0;  //!< segments the warm start scanned this call
 };
 
 /// Joints at which the machine starts, at rest, for the program's first moving block: where the
