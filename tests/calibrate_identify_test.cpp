@@ -117,30 +117,12 @@ TEST(CalibrateIdentify, CleanTracesNameNoEffect) {
 /// acceleration the feed-forward imposes (with full Pre-Control the motor torque follows the
 /// commanded acceleration, steps included), x'' + 2 zeta w x' + w^2 x = -g a_cmd(t), integrated
 /// with 20 semi-implicit Euler sub-steps per tick (accurate to < 1 % at 40 Hz and 1 ms).
-struct StructuralMode {
-  double hz = 40, zeta = 0.02, gain = 1;
-  int axis = kX;
-  double x = 0, xd = 0, p1 = NAN, p2 = NAN;
-  void operator()(const compensate::Tick& t, Axes& actual) {
-    const double p = t.command[static_cast<std::size_t>(axis)], T = 1e-3;
-    const double a = std::isnan(p2) ? 0 : (p - 2 * p1 + p2) / (T * T);
-    p2 = std::isnan(p1) ? p : p1;
-    p1 = p;
-    const double w = 2 * M_PI * hz, h = T / 20;
-    for (int i = 0; i < 20; ++i) {
-      xd += h * (-2 * zeta * w * xd - w * w * x - gain * a);
-      x += h * xd;
-    }
-    actual[static_cast<std::size_t>(axis)] += x;
-  }
-};
-
 TEST(CalibrateIdentify, StructuralModeIsUnidentifiedAndTheNnoeExplainsIt) {
   Scenario sc = test::five_axis_scenario();
   SimulateTraceOptions o;
   o.noise = {2e-4, 2e-4, 2e-4, 2e-4, 2e-4};
   o.seed = 9;
-  auto mode = std::make_shared<StructuralMode>();
+  auto mode = std::make_shared<test::StructuralMode>();
   o.extra = [mode](const compensate::Tick& t, Axes& a) { (*mode)(t, a); };
   const MeasuredTrace tr = simulate_trace(sc.machine, sc.program, o);
   const Calibration c = calibrate_traces({tr}, sc.config);
@@ -158,6 +140,27 @@ TEST(CalibrateIdentify, StructuralModeIsUnidentifiedAndTheNnoeExplainsIt) {
   EXPECT_GT(c.nnoe[kX]->explained_fraction, 0.0);
   const std::string json = calibration_json(c);
   EXPECT_NE(json.find("\"model\": \"nnoe\""), std::string::npos);
+
+  // The same NNOE as the simulation applies it: calibrated.yaml's drives, read back, replayed on
+  // the trace's X commands through the drive (the servo's `nnoe` effect, streaming).
+  const std::string yaml = drives_yaml(c, sc.config.drives);
+  ASSERT_NE(yaml.find("nnoe: {period: 0.001"), std::string::npos) << yaml;
+  const servo::DriveSet d = servo::load_drives(Config::from_string(yaml, "calibrated_drives.yaml"));
+  servo::AxisDrive drive(d.axes[kX], tr.period, d.substeps, d.saturation_margin);
+  const auto w = static_cast<std::size_t>(drive.window());
+  std::vector<double> cmd = tr.command[kX];
+  cmd.resize(cmd.size() + w, cmd.back());
+  drive.reset(cmd[0]);
+  double sq = 0;
+  std::size_t n = 0;
+  for (std::size_t k = 1; k < tr.size(); ++k) {
+    const double y = drive.step(std::span<const double>(cmd.data() + k - 1, w)).position;
+    if (k >= c.begin) sq += (y - tr.actual[kX][k]) * (y - tr.actual[kX][k]), ++n;
+  }
+  const double simulated_um = 1000 * std::sqrt(sq / static_cast<double>(n));
+  std::cout << "X rms, drive with the nnoe effect of calibrated.yaml: " << simulated_um << " um\n";
+  EXPECT_LE(simulated_um, 0.5 * c.calibrated.rms_um[kX]);
+  EXPECT_NEAR(simulated_um, c.with_nnoe.rms_um[kX], 0.05 * c.with_nnoe.rms_um[kX]);
 }
 
 TEST(CalibrateIdentify, ConstantOffsetIsAnOffsetNotAScaleError) {

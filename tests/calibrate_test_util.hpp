@@ -212,6 +212,26 @@ inline std::filesystem::path scratch(const std::string& name) {
   return d;
 }
 
+/// A lightly damped structural mode (40 Hz, 2 %) excited by the commanded acceleration of one
+/// axis and added to its actual position: an effect outside the catalogue.
+struct StructuralMode {
+  double hz = 40, zeta = 0.02, gain = 1;
+  int axis = kX;
+  double x = 0, xd = 0, p1 = NAN, p2 = NAN;
+  void operator()(const compensate::Tick& t, Axes& actual) {
+    const double p = t.command[static_cast<std::size_t>(axis)], T = 1e-3;
+    const double a = std::isnan(p2) ? 0 : (p - 2 * p1 + p2) / (T * T);
+    p2 = std::isnan(p1) ? p : p1;
+    p1 = p;
+    const double w = 2 * M_PI * hz, h = T / 20;
+    for (int i = 0; i < 20; ++i) {
+      xd += h * (-2 * zeta * w * xd - w * w * x - gain * a);
+      x += h * xd;
+    }
+    actual[static_cast<std::size_t>(axis)] += x;
+  }
+};
+
 /// The trace as the shared CSV (stages/servo/trace.hpp).
 inline void write_csv(const MeasuredTrace& tr, const std::filesystem::path& path) {
   std::ofstream out(path);

@@ -131,6 +131,9 @@ Calibration calibrate_traces(const std::vector<MeasuredTrace>& traces, const com
   c.period = traces.front().period;
   c.split = split_of(segments, c.rows);
   c.drives = model.drives;
+  // A configured NNOE correction (calibrated.yaml of an earlier run) is not a declared effect:
+  // the fallback below fits a new one on what this calibration's model leaves.
+  for (auto& axis : c.drives.axes) std::erase_if(axis.effects, [](const servo::EffectSettings& e) { return e.type == "nnoe"; });
   for (int a = 0; a < kNumAxes; ++a) {
     AxisSeries s;
     s.axis = a;
@@ -144,7 +147,7 @@ Calibration calibrate_traces(const std::vector<MeasuredTrace>& traces, const com
     c.begin = std::max(c.begin, s.begin);
     s.segments = segments;
     s.noise = c.noise[a] = estimate_noise(c.actual[a]);
-    c.axes[a] = identify_axis(s, model.drives.axes[a], options);
+    c.axes[a] = identify_axis(s, c.drives.axes[a], options);
     c.drives.axes[a] = c.axes[a].calibrated;
   }
   std::array<std::vector<double>, kNumAxes> corrected;

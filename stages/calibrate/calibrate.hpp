@@ -127,6 +127,9 @@ std::vector<std::string> write_plots(const Calibration& c, const std::string& ou
 std::string drives_yaml(const Calibration& c, const servo::DriveSet& configured);
 /// A drives file (pipeline_configs/drives/*.yaml layout) for `d`, after a comment `header`.
 std::string drives_text(const servo::DriveSet& d, const std::string& header);
+/// The NNOE `m`, fitted on samples every `period` s, as the servo's `nnoe` effect (the settings
+/// calibrated.yaml carries under the axis's `effects:`).
+servo::EffectSettings nnoe_effect(const NnoeModel& m, double period);
 /// The pipeline config at `config_path` with servo.drives = `drives_file` (relative to where the
 /// result is written) and its other relative paths made absolute.
 std::string pipeline_yaml(const std::string& config_path, const std::string& drives_file);

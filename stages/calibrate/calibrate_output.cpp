@@ -2,6 +2,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -26,6 +27,14 @@ std::string num(double v) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.10g", v);
   return buf;
+}
+
+/// Shortest text that reads back as the same double.
+std::string exact(double v) {
+  char buf[64];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+  (void)ec;
+  return std::string(buf, end);
 }
 
 /// Writes `text` to dir/name.part, then renames it to dir/name: a reader never sees half a file.
@@ -131,7 +140,14 @@ void axis_yaml(std::ostringstream& y, int a, const servo::DriveParams& p) {
   std::ostringstream e;
   for (const auto& ef : p.effects) {
     std::string line = "      " + ef.type + ": {";
-    for (std::size_t i = 0; i < ef.values.size(); ++i) line += (i ? ", " : "") + ef.values[i].first + ": " + num(ef.values[i].second);
+    // The NNOE is recurrent: its numbers are written to every digit.
+    const auto text = [&](double v) { return ef.type == "nnoe" ? exact(v) : num(v); };
+    for (std::size_t i = 0; i < ef.values.size(); ++i) line += (i ? ", " : "") + ef.values[i].first + ": " + text(ef.values[i].second);
+    for (const auto& [key, list] : ef.lists) {
+      line += ", " + key + ": [";
+      for (std::size_t i = 0; i < list.size(); ++i) line += (i ? ", " : "") + exact(list[i]);
+      line += "]";
+    }
     line += "}\n";
     // A measurement delay skews the log, not the table: a model that carried it would make the
     // compensation lead the real machine. It is reported, and left out of the model.
@@ -150,11 +166,28 @@ std::string drives_text(const servo::DriveSet& d, const std::string& header) {
   return y.str();
 }
 
+servo::EffectSettings nnoe_effect(const NnoeModel& m, double period) {
+  servo::EffectSettings e;
+  e.type = "nnoe";
+  e.values = {{"period", period},
+              {"decimation", static_cast<double>(m.decimation)},
+              {"na", static_cast<double>(m.structure.na)},
+              {"nb", static_cast<double>(m.structure.nb)},
+              {"hidden", static_cast<double>(m.structure.hidden)},
+              {"y_scale", m.y_scale},
+              {"y_offset", m.y_offset}};
+  const auto& w = m.net.parameters();
+  e.lists = {{"u_scale", m.u_scale}, {"u_offset", m.u_offset}, {"weights", std::vector<double>(w.data(), w.data() + w.size())}};
+  return e;
+}
+
 std::string drives_yaml(const Calibration& c, const servo::DriveSet& configured) {
   std::string h = "# Drives calibrated by gcpipe calibrate from " + std::to_string(c.rows) + " rows of";
   for (const auto& t : c.traces) h += " " + t;
   h += ".\n# Fitted values and their 1-sigma: calibration.json (declared, effects). Keys: stages/servo/README.md.\n";
   servo::DriveSet d = c.drives;
+  for (int a = 0; a < kNumAxes; ++a)
+    if (c.nnoe[a]) d.axes[static_cast<std::size_t>(a)].effects.push_back(nnoe_effect(*c.nnoe[a], c.period));
   d.substeps = configured.substeps;
   d.saturation_margin = configured.saturation_margin;
   return drives_text(d, h);

@@ -35,6 +35,13 @@ double EffectSettings::get(std::string_view name, double fallback) const {
   return fallback;
 }
 
+const std::vector<double>& EffectSettings::list(std::string_view name) const {
+  static const std::vector<double> kNone;
+  for (const auto& [k, v] : lists)
+    if (k == name) return v;
+  return kNone;
+}
+
 double DriveParams::r() const {
   if (rotary) return 1.0;
   return lead > 0 ? lead / (2 * kPi) : 1.0;
@@ -192,6 +199,8 @@ std::unique_ptr<AxisEffect> make_offset(const EffectSettings& s, const EffectCon
 
 }  // namespace
 
+std::unique_ptr<AxisEffect> make_nnoe(const EffectSettings& s, const EffectContext& ctx);  // nnoe_effect.cpp
+
 const std::vector<EffectType>& effect_types() {
   static const std::vector<EffectType> types = {
       {"backlash", "lost motion between motor and table (play operator)",
@@ -212,6 +221,16 @@ const std::vector<EffectType>& effect_types() {
        {{"ppm", "ppm", 0.0, -1e4, 1e4}}, &make_scale_error},
       {"measurement_delay", "the logged actual position lags the motion (not in the loop)",
        {{"delay", "s", 0.0, 0.0, 0.1}}, &make_measurement_delay},
+      {"nnoe", "seed 003 NNOE correction fitted by gcpipe calibrate (output only, not in the loop)",
+       {{"period", "s", 0.0, 1e-6, 1.0},
+        {"decimation", "", 1.0, 1.0, 1000.0},
+        {"na", "", 1.0, 1.0, 16.0},
+        {"nb", "", 1.0, 1.0, 16.0},
+        {"hidden", "", 1.0, 1.0, 256.0},
+        {"y_scale", "mm|deg", 1.0, 1e-15, 1e6},
+        {"y_offset", "mm|deg", 0.0, -1e6, 1e6}},
+       &make_nnoe,
+       {"u_scale", "u_offset", "weights"}},
   };
   return types;
 }
@@ -265,9 +284,11 @@ DriveParams load_axis(const Config& a, int axis) {
     for (const auto& k : e.keys()) {
       bool ok = false;
       for (const auto& key : type->keys) ok = ok || k == key.name;
+      for (const char* key : type->list_keys) ok = ok || k == key;
       if (!ok) {
         std::string known;
         for (const auto& key : type->keys) known += std::string(known.empty() ? "" : ", ") + key.name;
+        for (const char* key : type->list_keys) known += std::string(", ") + key;
         throw e.error(k, "unknown key for effect " + name + " (accepted: " + known + ")");
       }
     }
@@ -276,9 +297,13 @@ DriveParams load_axis(const Config& a, int axis) {
       if (unit == "mm|deg") unit = p.rotary ? "deg" : "mm";
       s.values.emplace_back(key.name, e.number(key.name, key.fallback, unit, key.min, key.max));
     }
-    if (name == "lead_error" && !e.has("period"))
-      throw e.error("period", "required: the pitch of the cyclic error in " +
-                                  std::string(p.rotary ? "deg" : "mm"));
+    for (const char* key : type->list_keys) {
+      if (!e.has(key)) throw e.error(key, "required: a sequence of numbers (written by gcpipe calibrate)");
+      s.lists.emplace_back(key, e.numbers(key, 0, "", -1e300, 1e300));
+    }
+    if ((name == "lead_error" || name == "nnoe") && !e.has("period"))
+      throw e.error("period", name == "nnoe" ? std::string("required: the sampling period [s] the model was fitted at")
+                                             : "required: the pitch of the cyclic error in " + std::string(p.rotary ? "deg" : "mm"));
     p.effects.push_back(std::move(s));
   }
   return p;
@@ -329,6 +354,13 @@ struct AxisDrive::Impl {
   // state (motor side, theta absolute)
   double theta = 0, w = 0, I = 0, f = 0, out = 0, tau = 0;
   std::vector<std::unique_ptr<AxisEffect>> effects;
+  std::vector<std::unique_ptr<AxisEffect>> outputs;  // output-only corrections, after the chain
+
+  // The position at the end of the period [load units] with the output-only corrections.
+  double corrected(double position, std::span<const double> c) {
+    for (const auto& ef : outputs) position += ef->correction(c);
+    return position;
+  }
 
   double vcmd(double e_pos, double f_, double u) const {
     return p.Kpp * e_pos + (p.Ta > 0 ? f_ : k * u);
@@ -441,8 +473,19 @@ AxisDrive::AxisDrive(const DriveParams& p, double period, int substeps, double m
   s.ideal = p.model == DriveModel::kIdeal;
   if (!(period > 0) || !std::isfinite(period))
     throw ConfigError("servo: period " + std::to_string(period) + " s must be > 0");
+  EffectContext ctx;
+  ctx.load_per_motor_rad = s.lpm;
+  ctx.period = period;
+  ctx.substep = period / substeps;
+  for (const auto& e : p.effects) {
+    auto effect = make_effect(e, ctx);
+    (effect->output_only() ? s.outputs : s.effects).push_back(std::move(effect));
+  }
+  int lookahead = 0;
+  for (const auto& e : s.outputs) lookahead = std::max(lookahead, e->lookahead());
   if (s.ideal) {
-    s.win = 2;
+    s.effects.clear();  // an ideal axis is its command: only a fitted correction applies
+    s.win = 2 + lookahead;
     return;
   }
   if (!(s.Jt > 0)) throw ConfigError("servo: J + J1 must be > 0");
@@ -453,15 +496,8 @@ AxisDrive::AxisDrive(const DriveParams& p, double period, int substeps, double m
   if (s.phi > 1 - 1e-9) { s.m += 1; s.phi = 0; }
   s.win = s.m + 2 + (s.phi > 0 ? 1 : 0);
   if (s.win > 64) throw ConfigError("servo: Tp = " + std::to_string(p.Tp) + " s needs more than 62 periods of look-ahead");
-
-  EffectContext ctx;
-  ctx.load_per_motor_rad = s.lpm;
-  ctx.period = period;
-  ctx.substep = period / substeps;
-  for (const auto& e : p.effects) {
-    s.effects.push_back(make_effect(e, ctx));
-    s.feedback_altered = s.feedback_altered || s.effects.back()->alters_feedback();
-  }
+  s.win = std::max(s.win, 2 + lookahead);
+  for (const auto& e : s.effects) s.feedback_altered = s.feedback_altered || e->alters_feedback();
 
   const Mat7 A = s.system_matrix();
   if (s.phi > 0) {
@@ -492,6 +528,7 @@ void AxisDrive::reset(double position) {
   s.w = s.I = s.f = s.tau = 0;
   s.out = s.theta;
   for (auto& e : s.effects) e->reset(s.theta);
+  for (auto& e : s.outputs) e->reset(s.theta);
   // Rest means the position chain is settled too: run it once so offsets show from tick 0.
   double pos = s.theta;
   for (auto& e : s.effects) pos = e->transmit(pos);
@@ -500,7 +537,7 @@ void AxisDrive::reset(double position) {
 
 AxisState AxisDrive::step(std::span<const double> c) {
   Impl& s = *impl_;
-  if (s.ideal) return {c[1], (c[1] - c[0]) / s.T, 0.0, false};
+  if (s.ideal) return {s.corrected(c[1], c), (c[1] - c[0]) / s.T, 0.0, false};
   const double inv = 1.0 / s.lpm;
   const double c0 = c[0] * inv;
   const double v = (c[1] - c[0]) * inv / s.T;
@@ -524,11 +561,11 @@ AxisState AxisDrive::step(std::span<const double> c) {
       s.f = x(3);
       s.tau = tau1;
       s.out = s.theta;
-      return {s.out * s.lpm, s.w * s.lpm, s.tau, false};
+      return {s.corrected(s.out * s.lpm, c), s.w * s.lpm, s.tau, false};
     }
   }
   sat = s.step_rk4(c0, v, u1, u2);
-  return {s.out * s.lpm, s.w * s.lpm, s.tau, sat};
+  return {s.corrected(s.out * s.lpm, c), s.w * s.lpm, s.tau, sat};
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -46,7 +46,10 @@ enum class DriveModel : std::uint8_t {
 struct EffectSettings {
   std::string type;                                   //!< registry name, e.g. "backlash"
   std::vector<std::pair<std::string, double>> values; //!< name -> value
+  std::vector<std::pair<std::string, std::vector<double>>> lists;  //!< name -> sequence (nnoe weights)
   double get(std::string_view name, double fallback) const;
+  /// The sequence `name`, empty when absent.
+  const std::vector<double>& list(std::string_view name) const;
 };
 
 /// Parameters of one axis, named like seed 002 Table 1. Linear axes: load units mm, rotary: deg.
@@ -119,6 +122,19 @@ class AxisEffect {
   virtual double feedback(double theta) { return theta; }
   /// Puts the effect at rest at motor angle theta [rad].
   virtual void reset(double theta) { (void)theta; }
+
+  /// Output-only effects are a correction fitted on the measured output (the NNOE): they never
+  /// enter the loop or the integration, so the drive keeps its exact step and adds correction()
+  /// to the position at the end of every period.
+  virtual bool output_only() const { return false; }
+  /// Command samples after this tick's that correction() needs to see.
+  virtual int lookahead() const { return 0; }
+  /// Correction of this tick's position [load units: mm or deg]; `window` holds the commands in
+  /// load units, window[0] the previous tick's, window[1] this tick's, then lookahead() more.
+  virtual double correction(std::span<const double> window) {
+    (void)window;
+    return 0;
+  }
 };
 
 using EffectFactory = std::unique_ptr<AxisEffect> (*)(const EffectSettings&, const EffectContext&);
@@ -137,10 +153,11 @@ struct EffectType {
   const char* summary;
   std::vector<EffectKey> keys;
   EffectFactory create;
+  std::vector<const char*> list_keys = {};  //!< required sequences of numbers (nnoe weights)
 };
 
 /// Registry of effect types (backlash, coulomb_friction, feedback_delay, lead_error, offset,
-/// scale_error, measurement_delay).
+/// scale_error, measurement_delay, nnoe).
 const std::vector<EffectType>& effect_types();
 /// Builds an effect from its settings; throws ConfigError for an unknown type.
 std::unique_ptr<AxisEffect> make_effect(const EffectSettings& s, const EffectContext& ctx);
