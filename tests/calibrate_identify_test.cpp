@@ -187,3 +187,65 @@ TEST(CalibrateIdentify, TraceRecordedWhileMovingStillFindsTheEffect) {
 
 }  // namespace
 }  // namespace gcpipe::calibrate
+
+namespace gcpipe::calibrate {
+namespace {
+
+// A torque column separates J from the gains: the positions see Kvp/J, C/J, Kvi/J only, the
+// torque sees J itself (identify.cpp fits both in one problem).
+Calibration calibrate_with_torque(test::Scenario& sc, bool torque) {
+  SimulateTraceOptions o;
+  o.noise = {2e-4, 2e-4, 2e-4, 2e-4, 2e-4};
+  o.seed = 31;
+  o.torque = torque;
+  o.torque_noise = {0.05, 0.05, 0.05, 0.05, 0.05};
+  return calibrate_traces({simulate_trace(sc.machine, sc.program, o)}, sc.config);
+}
+
+const DeclaredParam& declared(const Calibration& c, int axis, const std::string& name) {
+  for (const auto& d : c.axes[axis].declared)
+    if (d.name == name) return d;
+  throw std::runtime_error("no declared " + name);
+}
+
+TEST(CalibrateTorque, InertiaOffByAQuarterIsFoundFromTheTorqueColumn) {
+  test::Scenario sc = test::circle_scenario();
+  sc.machine.drives.axes[kX].J *= 1.25;  // and the configured J is 20 % off the machine's (perturb)
+  const double j_true = sc.machine.drives.axes[kX].J;
+  const Calibration c = calibrate_with_torque(sc, true);
+  const DeclaredParam& j = declared(c, kX, "J");
+  std::cout << "X: J config " << j.config << ", fitted " << j.fitted << " +- " << j.sigma << " (true " << j_true
+            << "); Kvp fitted " << declared(c, kX, "Kvp").fitted << " (true " << sc.machine.drives.axes[kX].Kvp << "); "
+            << c.axes[kX].refit_note << "; X prediction rms " << c.calibrated.rms_um[kX] << " um\n";
+  EXPECT_FALSE(j.held);
+  EXPECT_NEAR(j.fitted, j_true, 0.01 * j_true);
+  EXPECT_NEAR(declared(c, kX, "Kvp").fitted, sc.machine.drives.axes[kX].Kvp, 0.01 * sc.machine.drives.axes[kX].Kvp);
+  EXPECT_NEAR(c.drives.axes[kX].J, j.fitted, 1e-12);
+  EXPECT_LT(c.axes[kX].torque_rms_calibrated, 0.5 * c.axes[kX].torque_rms_config);
+  EXPECT_LE(c.calibrated.rms_um[kX], 2 * 0.2);  // positions still within 2x the 0.2 um noise
+  EXPECT_NE(calibration_json(c).find("\"torque\": {"), std::string::npos);
+}
+
+TEST(CalibrateTorque, GainsAndInertiaScaledTogetherAreInvisibleInPositionsButNotInTorque) {
+  test::Scenario sc = test::circle_scenario();
+  sc.config.drives = sc.machine.drives;  // the configured model is right up to the common scale
+  for (double servo::DriveParams::*f : {&servo::DriveParams::J, &servo::DriveParams::Kvp, &servo::DriveParams::C, &servo::DriveParams::Kvi})
+    sc.machine.drives.axes[kX].*f *= 1.3;
+  const Calibration c = calibrate_with_torque(sc, true);
+  EXPECT_TRUE(c.axes[kX].refit_kept) << c.axes[kX].refit_note;
+  EXPECT_NEAR(c.drives.axes[kX].Kvp, sc.machine.drives.axes[kX].Kvp, 0.01 * sc.machine.drives.axes[kX].Kvp);
+  EXPECT_NEAR(c.drives.axes[kX].J, sc.machine.drives.axes[kX].J, 0.01 * sc.machine.drives.axes[kX].J);
+}
+
+TEST(CalibrateTorque, WithoutATorqueColumnJIsHeldAndTheReportSaysWhy) {
+  test::Scenario sc = test::circle_scenario();
+  sc.machine.drives.axes[kX].J *= 1.25;
+  const Calibration c = calibrate_with_torque(sc, false);
+  const DeclaredParam& j = declared(c, kX, "J");
+  EXPECT_TRUE(j.held);
+  EXPECT_EQ(j.fitted, j.config);
+  EXPECT_NE(j.why.find("no torque signal"), std::string::npos) << j.why;
+}
+
+}  // namespace
+}  // namespace gcpipe::calibrate

@@ -23,12 +23,19 @@ void join(const std::vector<MeasuredTrace>& traces, Calibration& c, std::vector<
     for (int a = 0; a < kNumAxes; ++a) {
       c.command[a].insert(c.command[a].end(), tr.command[a].begin(), tr.command[a].end());
       c.actual[a].insert(c.actual[a].end(), tr.actual[a].begin(), tr.actual[a].end());
+      // A torque or current column is used only when every joined trace has the same kind.
+      const bool first = &tr == &traces.front();
+      if (first) c.effort_kind[a] = tr.effort[a].size() == tr.size() ? tr.effort_kind[a] : "";
+      if (tr.effort[a].size() != tr.size() || tr.effort_kind[a] != c.effort_kind[a]) c.effort_kind[a].clear();
+      c.effort[a].insert(c.effort[a].end(), tr.effort[a].begin(), tr.effort[a].end());
     }
     c.traces.push_back(tr.file);
     c.rows_skipped += tr.rows_skipped;
     c.rows_unused += tr.rows_unused;
   }
   c.rows = c.t.size();
+  for (int a = 0; a < kNumAxes; ++a)
+    if (c.effort_kind[a].empty()) c.effort[a].clear();
 }
 
 /// Held-out part: the last trace when there are several (fit on some experiments, predict the
@@ -147,6 +154,8 @@ Calibration calibrate_traces(const std::vector<MeasuredTrace>& traces, const com
     c.begin = std::max(c.begin, s.begin);
     s.segments = segments;
     s.noise = c.noise[a] = estimate_noise(c.actual[a]);
+    s.effort = c.effort[a];
+    s.effort_kind = c.effort_kind[a];
     c.axes[a] = identify_axis(s, c.drives.axes[a], options);
     c.drives.axes[a] = c.axes[a].calibrated;
   }

@@ -96,6 +96,8 @@ struct Calibration {
   PredictionError declared, refit, calibrated, with_nnoe;
   std::vector<double> t;                           //!< joined time axis [s]
   std::array<std::vector<double>, kNumAxes> command, actual;
+  std::array<std::vector<double>, kNumAxes> effort;  //!< torque [N*m] or current [A], when every trace has it
+  std::array<std::string, kNumAxes> effort_kind;     //!< "torque", "current" or ""
   std::size_t split = 0;                           //!< first held-out sample
   std::size_t begin = 1;                           //!< first scored sample (start transient out)
   servo::DriveSet drives;                          //!< the calibrated drives

@@ -96,6 +96,13 @@ std::string calibration_json(const Calibration& c) {
   j["criterion"] = "BIC = N_eff ln(SSE/N) + k ln(N_eff), N_eff = N / correlation time of the residual";
   for (int a = 0; a < kNumAxes; ++a) j["noise_um"][axis(a)] = (a == kA || a == kC) ? c.noise[a] * M_PI / 180 * kRotaryRadiusMm * 1000 : c.noise[a] * 1000;
   j["declared"] = declared_json(c);
+  j["torque"] = json::object();
+  for (int a = 0; a < kNumAxes; ++a) {
+    const auto& id = c.axes[a];
+    if (c.effort_kind[a].empty() || !id.moving) continue;
+    j["torque"][axis(a)] = {{"column", c.effort_kind[a]}, {"heldout_rms_config_Nm", id.torque_rms_config},
+                            {"heldout_rms_calibrated_Nm", id.torque_rms_calibrated}};
+  }
   j["effects"] = json::array();
   j["candidates"] = json::array();
   for (int a = 0; a < kNumAxes; ++a) {
@@ -232,6 +239,9 @@ void report_errors(std::ostringstream& r, const char* name, const PredictionErro
 void report_axis(std::ostringstream& r, const Calibration& c, int a) {
   const auto& id = c.axes[a];
   r << "\naxis " << axis(a) << ": " << (id.moving ? "" : "not moving; ") << id.refit_note << "\n";
+  if (c.effort_kind[a] == "torque" && id.moving)
+    r << "  torque column: fitted with the positions; held-out torque rms " << num(id.torque_rms_config) << " -> "
+      << num(id.torque_rms_calibrated) << " N*m\n";
   for (const auto& d : id.declared)
     r << "  " << d.name << " [" << d.unit << "]: config " << num(d.config) << ", fitted " << num(d.fitted) << " +- " << num(d.sigma)
       << (d.held ? "  (held: " + d.why + ")" : "") << "\n";

@@ -102,16 +102,30 @@ struct Ctx {
 
   /// Prediction of the first `end` samples (plus a margin so the held last command of the
   /// truncated look-ahead does not reach the scored samples).
-  std::vector<double> predict(const servo::DriveParams& p, std::size_t end) const {
+  std::vector<double> predict(const servo::DriveParams& p, std::size_t end, std::vector<double>* torque = nullptr) const {
     const std::size_t e = std::min(n(), end + 64);
     std::vector<double> y;
     y.reserve(e);
+    if (torque) torque->clear();
     for (std::size_t i = 0; i < s.segments.size() && s.segments[i] < e; ++i) {
       const std::size_t a = s.segments[i], z = i + 1 < s.segments.size() ? std::min(e, s.segments[i + 1]) : e;
-      const auto part = predict_axis(p, s.substeps, s.margin, s.period, std::span<const double>(s.command.data() + a, z - a));
+      const std::span<const double> cmd(s.command.data() + a, z - a);
+      std::vector<double> tq;
+      auto part = simulate_motor(p, s.substeps, s.margin, s.period, cmd, torque ? &tq : nullptr);
+      for (const auto& ef : p.effects)
+        if (!is_dynamic_effect(ef.type)) apply_output_effect(ef, s.period, part);
       y.insert(y.end(), part.begin(), part.end());
+      if (torque) torque->insert(torque->end(), tq.begin(), tq.end());
     }
     return y;
+  }
+  bool has_torque() const { return s.effort_kind == "torque" && s.effort.size() == n(); }
+  /// Torque residuals in units of the position noise: one least-squares problem for both.
+  double torque_weight() const { return std::max(s.noise, 1e-9) / std::max(estimate_noise(s.effort), 1e-9); }
+  double torque_mse(const std::vector<double>& tq, std::size_t b, std::size_t e) const {
+    double q = 0;
+    for (std::size_t k = b; k < e; ++k) q += (s.effort[k] - tq[k]) * (s.effort[k] - tq[k]);
+    return e > b ? q / static_cast<double>(e - b) : 0;
   }
   Eigen::VectorXd residual(const std::vector<double>& y, std::size_t b, std::size_t e) const {
     Eigen::VectorXd r(static_cast<Eigen::Index>(e - b));
@@ -139,14 +153,16 @@ struct DeclaredSlot {
   double servo::DriveParams::*field;
 };
 const std::vector<DeclaredSlot>& declared_slots() {
-  // J and Kvi are not here: without a torque signal the positions see J only through the ratios
-  // Kvp/J, C/J, Kvi/J (so J stays configured and the others are fitted relative to it), and Kvi
-  // has a corner of 1e-3 rad/s (seed 002 Table 1): no trace of seconds can see it.
+  // Kvi is not here: it has a corner of 1e-3 rad/s (seed 002 Table 1): no trace of seconds can
+  // see it. J is fitted only with a torque column: the positions see it only through the ratios
+  // Kvp/J, C/J, Kvi/J (so without torque J stays configured and the others are fitted relative
+  // to it); the torque sees J itself.
   static const std::vector<DeclaredSlot> s = {{"Kpp", "1/s", &servo::DriveParams::Kpp},
                                               {"Kvp", "N*m*s/rad", &servo::DriveParams::Kvp},
                                               {"C", "N*m*s/rad", &servo::DriveParams::C},
                                               {"K_FFP", "%", &servo::DriveParams::K_FFP},
-                                              {"Ta", "s", &servo::DriveParams::Ta}};
+                                              {"Ta", "s", &servo::DriveParams::Ta},
+                                              {"J", "kg*m^2", &servo::DriveParams::J}};
   return s;
 }
 
@@ -154,10 +170,19 @@ const std::vector<DeclaredSlot>& declared_slots() {
 LsqResult fit_declared(const Ctx& c, const servo::DriveParams& cfg, const std::vector<int>& free, double tau) {
   const auto& slots = declared_slots();
   const std::size_t end = c.dynamic_end();
+  const bool torque = c.has_torque();
+  const double w = torque ? c.torque_weight() : 0;
   ResidualFn r = [&](const Eigen::VectorXd& x, Eigen::MatrixXd*) {
     servo::DriveParams p = cfg;
     for (std::size_t i = 0; i < free.size(); ++i) p.*(slots[static_cast<std::size_t>(free[i])].field) *= std::max(x[static_cast<Eigen::Index>(i)], 1e-3);
-    return c.residual(c.predict(p, end), c.s.begin, end);
+    std::vector<double> tq;
+    const Eigen::VectorXd rp = c.residual(c.predict(p, end, torque ? &tq : nullptr), c.s.begin, end);
+    if (!torque) return rp;
+    // Positions and torque in one problem, the torque in units of the position noise.
+    Eigen::VectorXd both(2 * rp.size());
+    both.head(rp.size()) = rp;
+    for (std::size_t k = c.s.begin; k < end; ++k) both[rp.size() + static_cast<Eigen::Index>(k - c.s.begin)] = w * (c.s.effort[k] - tq[k]);
+    return both;
   };
   const auto n = static_cast<Eigen::Index>(free.size());
   return least_squares(r, Eigen::VectorXd::Ones(n), Eigen::VectorXd::Constant(n, 1e-4), false, tau);
@@ -170,7 +195,12 @@ void refit_declared(const Ctx& c, AxisIdentification& id) {
     DeclaredParam d{slots[i].name, slots[i].unit, id.config.*(slots[i].field), id.config.*(slots[i].field), 0, false, ""};
     const double vel_bw = (id.config.Kvp + id.config.C) / (id.config.J + id.config.J1);
     if (!(d.config > 0)) { d.held = true; d.why = "configured as 0 (feature off): not fitted"; }
-    else if ((d.name == "Kvp" || d.name == "C") && vel_bw > 5 * id.config.Kpp) {
+    else if (d.name == "J" && !c.has_torque()) {
+      d.held = true;
+      d.why = c.s.effort_kind == "current"
+                  ? "current column only: J and the motor's torque constant scale together; kept at the configured value"
+                  : "no torque signal in the trace: a position trace sees J only through Kvp/J, C/J, Kvi/J; kept at the configured value";
+    } else if ((d.name == "Kvp" || d.name == "C") && vel_bw > 5 * id.config.Kpp && !c.has_torque()) {
       // A velocity loop much faster than the position loop shows in the position only as a lag
       // of about J/(Kvp + C): the same signature as a delay, so a position trace cannot tell a
       // velocity gain from a delay (and sees J only through Kvp/J anyway).
@@ -214,13 +244,24 @@ void refit_declared(const Ctx& c, AxisIdentification& id) {
     d.sigma = d.config * fit.sigma[static_cast<Eigen::Index>(i)];
     id.refit.*(slots[static_cast<std::size_t>(free[i])].field) = d.fitted;
   }
-  id.pred_refit = c.predict(id.refit, c.n());
+  std::vector<double> tq0, tq1;
+  id.pred_refit = c.predict(id.refit, c.n(), c.has_torque() ? &tq1 : nullptr);
   const double b0 = bic(c.fit_sse(id.pred_declared), c.nfit(), tau, 0);
   const double b1 = bic(c.fit_sse(id.pred_refit), c.nfit(), tau, static_cast<int>(free.size()));
   const double h0 = c.heldout_mse(id.pred_declared), h1 = c.heldout_mse(id.pred_refit);
-  id.refit_kept = !free.empty() && b1 < b0 - c.o.bic_margin && (c.s.split >= c.n() || h1 < h0 * (1 - c.o.heldout_gain));
+  const bool heldout_ok = c.s.split >= c.n() || h1 < h0 * (1 - c.o.heldout_gain);
+  id.refit_kept = !free.empty() && b1 < b0 - c.o.bic_margin && heldout_ok;
   id.refit_note = "BIC " + std::to_string(b0) + " -> " + std::to_string(b1) + ", held-out rms " +
                   std::to_string(std::sqrt(h0)) + " -> " + std::to_string(std::sqrt(h1));
+  if (c.has_torque() && !free.empty()) {
+    // The torque can show what the positions cannot (J with the gains scaled alike): the refit
+    // also pays when it lowers the held-out torque error and the positions do not get worse.
+    (void)c.predict(id.config, c.n(), &tq0);
+    const std::size_t b = c.s.split < c.n() ? c.s.split : c.s.begin, e = c.n();
+    const double t0 = c.torque_mse(tq0, b, e), t1 = c.torque_mse(tq1, b, e);
+    id.refit_note += ", held-out torque rms " + std::to_string(std::sqrt(t0)) + " -> " + std::to_string(std::sqrt(t1)) + " N*m";
+    id.refit_kept = id.refit_kept || (t1 < t0 * (1 - c.o.heldout_gain) && h1 <= h0 * (1 + c.o.heldout_gain));
+  }
   if (!id.refit_kept) {
     id.refit = id.config;
     id.pred_refit = id.pred_declared;
@@ -881,7 +922,17 @@ AxisIdentification identify_axis(const AxisSeries& s, const servo::DriveParams& 
   for (const auto& d : id.declared) k += !d.held;
   for (int round = 1; round <= options.max_rounds; ++round)
     if (!greedy_round(c, id, round, k)) break;
+  if (c.has_torque()) {
+    std::vector<double> t0, t1;
+    (void)c.predict(id.config, c.n(), &t0);
+    (void)c.predict(id.calibrated, c.n(), &t1);
+    const std::size_t b = s.split < c.n() ? s.split : s.begin;
+    id.torque_rms_config = std::sqrt(c.torque_mse(t0, b, c.n()));
+    id.torque_rms_calibrated = std::sqrt(c.torque_mse(t1, b, c.n()));
+  }
   return id;
 }
+
+
 
 }  // namespace gcpipe::calibrate

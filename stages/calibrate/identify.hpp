@@ -32,6 +32,9 @@ struct AxisSeries {
   /// at rest at each start, so no transient is invented across the join.
   std::vector<std::size_t> segments{0};
   double noise = 0;                     //!< measurement noise estimate [mm or deg]
+  /// Measured motor torque [N*m] or current [A] per sample (empty: the trace has none).
+  std::vector<double> effort;
+  std::string effort_kind;              //!< "torque", "current" or ""
 };
 
 struct IdentifyOptions {
@@ -72,6 +75,7 @@ struct CandidateScore {
   double seconds = 0;  //!< CPU time of its fit (wall clock of one thread)
 };
 
+
 struct AxisIdentification {
   int axis = 0;
   bool moving = false;
@@ -83,7 +87,11 @@ struct AxisIdentification {
   std::vector<CandidateScore> named;       //!< the named effects, in order
   std::vector<double> pred_declared, pred_refit, pred_calibrated;  //!< whole trace
   double noise = 0;
+  /// With a torque column: the torque's rms prediction error [N*m] of the configured and the
+  /// calibrated model on the held-out samples (0 without one).
+  double torque_rms_config = 0, torque_rms_calibrated = 0;
 };
+
 
 /// Runs steps 1 and 2 on one axis. `config` is the configured drive of that axis.
 AxisIdentification identify_axis(const AxisSeries& s, const servo::DriveParams& config,

@@ -32,10 +32,14 @@ MeasuredTrace simulate_trace(const compensate::Model& machine, std::span<const R
       tr.command[a].push_back(t.command[a]);
       tr.actual[a].push_back(act[a] + (o.noise[a] > 0 ? o.noise[a] * normal01(rng) : 0.0));
     }
+    if (o.torque)
+      for (std::size_t a = 0; a < kNumAxes; ++a)
+        tr.effort[a].push_back(t.torque[a] + (o.torque_noise[a] > 0 ? o.torque_noise[a] * normal01(rng) : 0.0));
   });
   if (!stats.ok)
     throw std::runtime_error(tr.file + ": line " + std::to_string(stats.failed_line) + ": " + stats.message);
   tr.lines_read = tr.t.size();
+  if (o.torque) tr.effort_kind.fill("torque");
   return tr;
 }
 

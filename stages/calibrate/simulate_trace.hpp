@@ -21,6 +21,8 @@ struct SimulateTraceOptions {
   Axes noise{};
   std::uint64_t seed = 1;
   std::function<void(const compensate::Tick&, Axes& actual)> extra;
+  bool torque = false;   //!< record the motor torque as `<axis>_torque` columns
+  Axes torque_noise{};   //!< [N*m], drawn after the position noise
 };
 
 /// Runs `program` from where it believes it starts; throws std::runtime_error with the block's
