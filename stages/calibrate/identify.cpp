@@ -727,7 +727,17 @@ std::vector<Trial> fit_catalogue(const Ctx& c, const servo::DriveParams& cur, co
   if (open("measurement_delay")) { out.push_back(fit_measurement_delay(c, cur, y0, tau)); lap(); out.back().seconds = secs.back(); }
   if (drive && open("coulomb_friction")) { out.push_back(fit_friction(c, cur, y0, tau)); lap(); out.back().seconds = secs.back(); }
   if (drive && open("feedback_delay")) { out.push_back(fit_feedback_delay(c, base, tau, free)); lap(); out.back().seconds = secs.back(); }
-  if (drive && open("torque_limit") && cur.Kvp > 0) { out.push_back(fit_torque_limit(c, base, tau)); lap(); out.back().seconds = secs.back(); }
+  if (drive && open("torque_limit") && cur.Kvp > 0) {
+    // From the configured gains (unbiased by the refit) and from the refitted ones (which may
+    // have bent to mimic part of the limit, but start much closer when the configuration is
+    // off): the better start goes on, since only the best re-simulated trial gets polished.
+    Trial from_base = fit_torque_limit(c, base, tau), from_refit = fit_torque_limit(c, cur, tau);
+    const std::size_t e = c.dynamic_end();
+    const bool refit_better = c.sse(c.predict(from_refit.model, e), c.s.begin, e) < c.sse(c.predict(from_base.model, e), c.s.begin, e);
+    out.push_back(refit_better ? std::move(from_refit) : std::move(from_base));
+    lap();
+    out.back().seconds = secs.back();
+  }
   return out;
 }
 
@@ -792,6 +802,21 @@ struct RoundStart {
   int k, round;
 };
 
+/// Why a fitted effect cannot be the machine's: a parameter outside the range the servo registry
+/// accepts (a negative width or delay, a log that leads the motion): such a fit only mops up
+/// what the model lacks elsewhere. Empty when every parameter is in range.
+std::string outside_physical_range(const Trial& t) {
+  for (const auto& type : servo::effect_types()) {
+    if (t.effect != type.name) continue;
+    for (const auto& p : t.params)
+      for (const auto& key : type.keys)
+        if (p.name == key.name && p.name != "phase" && (p.value < key.min || p.value > key.max))  // a phase wraps
+          return p.name + " = " + std::to_string(p.value) + " is outside its physical range [" + std::to_string(key.min) +
+                 ", " + std::to_string(key.max) + "]";
+  }
+  return "";
+}
+
 /// Scores one trial against the round's start; fills `y` with its full prediction when it was
 /// computed (re-simulated effects on long traces are screened on their fit window first).
 CandidateScore score_trial(const Ctx& c, const Trial& t, const RoundStart& r, std::vector<double>& y) {
@@ -821,12 +846,14 @@ CandidateScore score_trial(const Ctx& c, const Trial& t, const RoundStart& r, st
   const bool held = c.s.split >= c.n() || s.heldout_after < r.h0 * (1 - c.o.heldout_gain);
   const double excess = r.h0 - r.noise2;
   const bool bulk = c.s.split >= c.n() || !(excess > 0) || (r.h0 - s.heldout_after) >= c.o.excess_explained * excess;
+  const std::string unphysical = outside_physical_range(t);
   s.reason = !crit ? "BIC does not drop by the margin"
              : !held ? "does not hold on the held-out part"
              : !t.significant ? "size below the significance threshold"
              : !bulk ? "explains too little of the residual above the noise"
+             : !unphysical.empty() ? unphysical
              : "named";
-  s.named = crit && held && t.significant && bulk;
+  s.named = crit && held && t.significant && bulk && unphysical.empty();
   return s;
 }
 
