@@ -131,8 +131,8 @@ class CompensateStage final : public pipeline::Stage {
     if (!options_.slowed_baseline || !compensation_.result || compensation_.result->nodes.empty()) return;
     if (progress_) progress_("simulating the original slowed to the compensated cycle time", 0, 0);
     const double target = static_cast<double>(compensation_.result->nodes.back().tick) * model_.interp.period;
-    slowed_ = simulate::slowed_original(model_, simulated_->run.program, target,
-                                        compensate::run_bounds(options_));
+    const double at_one = static_cast<double>(simulated_->run.nominal->raw.size()) * model_.interp.period;
+    slowed_ = simulate::slowed_original(model_, simulated_->run.program, target, at_one, compensate::run_bounds(options_));
   }
 
   std::shared_ptr<const force::ForceProfile> force_;

@@ -576,10 +576,13 @@ std::vector<ResolvedBlock> with_feeds_scaled(std::span<const ResolvedBlock> prog
 }  // namespace
 
 SlowedBaseline slowed_original(const Model& model, std::span<const ResolvedBlock> program, double target_cycle_time,
-                               const RunBounds& bounds) {
-  SlowedBaseline best;
+                               double cycle_at_one, const RunBounds& bounds) {
+  // Only the program's own run is needed (its cycle and contour error): no planned reference,
+  // no recorded nominal.
+  RunBounds own = bounds;
+  own.record_nominal = false;
   auto run_at = [&](double f) {
-    const SimulationRun run = simulate_program(model, with_feeds_scaled(program, f), bounds);
+    const SimulationRun run = simulate_program(model, with_feeds_scaled(program, f), own);
     SlowedBaseline r;
     if (!run.before) {
       r.note = run.note;
@@ -587,24 +590,28 @@ SlowedBaseline slowed_original(const Model& model, std::span<const ResolvedBlock
     }
     r.ok = true;
     r.feed_factor = f;
-    r.cycle_time = static_cast<double>(run.nominal->raw.size()) * model.interp.period;
+    r.cycle_time = static_cast<double>(run.before->stats.ticks) * model.interp.period;
     r.contour = run.before->contour;
     return r;
   };
-  double hi = 1.0, lo = 1.0;  // feed factors: cycle(hi) <= target <= cycle(lo)
-  SlowedBaseline at_lo = run_at(lo);
-  for (int k = 0; k < 6 && at_lo.ok && at_lo.cycle_time < target_cycle_time; ++k) at_lo = run_at(lo *= 0.5);
-  if (!at_lo.ok || at_lo.cycle_time < target_cycle_time) {
-    best.note = at_lo.ok ? "the program does not slow to the compensated cycle time at 1/64 of its feeds" : at_lo.note;
-    return best;
-  }
-  best = at_lo;
-  for (int k = 0; k < 8 && std::abs(best.cycle_time / target_cycle_time - 1) > 0.02 && hi > lo; ++k) {
-    const double mid = std::sqrt(lo * hi);
-    const SlowedBaseline m = run_at(mid);
-    if (!m.ok) break;
-    (m.cycle_time < target_cycle_time ? hi : lo) = mid;
-    if (std::abs(m.cycle_time / target_cycle_time - 1) < std::abs(best.cycle_time / target_cycle_time - 1)) best = m;
+  // The cycle is about a + b / f (a: rapids and dwells, which do not scale; b / f: feed moves), so
+  // f <- f * cycle(f) / target converges on the factor geometrically, with ratio a / target:
+  // two or three runs where the feed moves dominate.
+  SlowedBaseline best;
+  double f = std::min(1.0, cycle_at_one / target_cycle_time);
+  for (int k = 0; k < 8; ++k) {
+    if (f < 1.0 / 64) {
+      best.ok = false;
+      best.note = "the program does not slow to the compensated cycle time at 1/64 of its feeds";
+      return best;
+    }
+    const SlowedBaseline r = run_at(f);
+    if (!r.ok) return r;
+    if (!best.ok || std::abs(r.cycle_time / target_cycle_time - 1) < std::abs(best.cycle_time / target_cycle_time - 1)) best = r;
+    if (std::abs(r.cycle_time / target_cycle_time - 1) <= 0.02 || !(r.cycle_time > 0)) break;
+    const double next = std::min(1.0, f * r.cycle_time / target_cycle_time);
+    if (next == f) break;  // at full feed and still longer than the target: nothing to slow
+    f = next;
   }
   return best;
 }

@@ -306,8 +306,9 @@ struct SlowedBaseline {
   ErrorStats contour;        //!< its contour error on cutting moves
 };
 
-/// Searches the feed factor (bisection on log f, to 2 % of `target_cycle_time` [s] or 8 runs).
+/// Searches the feed factor that gives the program `target_cycle_time` [s] (to 2 %, at most 8
+/// runs of its own, unplanned run), from its cycle at full feed `cycle_at_one` [s].
 SlowedBaseline slowed_original(const Model& model, std::span<const ResolvedBlock> program, double target_cycle_time,
-                               const RunBounds& bounds);
+                               double cycle_at_one, const RunBounds& bounds);
 
 }  // namespace gcpipe::simulate
