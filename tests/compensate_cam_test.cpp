@@ -17,51 +17,13 @@
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-/// A CAM-style finishing pass: polyline runs with random turns, arcs between them, a feed per run.
-std::string cam_like_program(std::uint64_t seed, int segments) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> length(0.1, 2.0), turn(5.0, 120.0), unit(0.0, 1.0);
-  std::ostringstream p;
-  p.setf(std::ios::fixed);
-  p.precision(4);
-  p << "%\nO1200 (generated CAM-like program, seed " << seed << ")\nG17 G21 G90 G94 G54\n";
-  p << "G0 X0 Y0 Z5\nG1 Z0 F500\n";
-  double x = 0, y = 0, heading = 0;
-  for (int k = 0; k < segments; ++k) {
-    if (k % 40 == 0) p << "F" << std::round(500 + 5500 * unit(rng)) << "\n";
-    const double sign = unit(rng) < 0.5 ? -1 : 1;
-    // Turn back towards the middle when the path wanders off: the part is 60 mm wide.
-    const double towards = std::atan2(-y, -x);
-    double d = sign * turn(rng) * kPi / 180;
-    if (std::hypot(x, y) > 30) d = std::remainder(towards - heading, 2 * kPi) * 0.5;
-    heading += d;
-    if (k % 25 == 12) {  // an arc of 20-90 degrees, radius 2-10 mm, tangent to the heading
-      const double r = 2 + 8 * unit(rng), sweep = (20 + 70 * unit(rng)) * kPi / 180 * sign;
-      const double cx = x - sign * r * std::sin(heading), cy = y + sign * r * std::cos(heading);
-      const double a0 = std::atan2(y - cy, x - cx), a1 = a0 + sweep;
-      const double ex = cx + r * std::cos(a1), ey = cy + r * std::sin(a1);
-      p << (sign > 0 ? "G3" : "G2") << " X" << ex << " Y" << ey << " I" << cx - x << " J" << cy - y << "\n";
-      x = ex, y = ey, heading += sweep;
-      continue;
-    }
-    const double l = length(rng);
-    x += l * std::cos(heading), y += l * std::sin(heading);
-    p << "G1 X" << x << " Y" << y << "\n";
-  }
-  p << "G0 Z5\nM30\n%\n";
-  return p.str();
-}
-
 TEST(CompensateCam, GeneratedProgramsKeepThePlannedCycleTimeAndBeatTheSlowedOriginal) {
   for (std::uint64_t seed : {1, 2}) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     const fs::path dir = tmpdir("cam" + std::to_string(seed));
-    {
-      std::ofstream f(dir / "cam.nc");
-      f << cam_like_program(seed, 400);
-    }
+    // The generator is `gcpipe synth --cam-segments` (stages/cli/synthetic_program.cpp).
+    const Outcome g = gcpipe({"synth", "--cam-segments", "400", "--seed", std::to_string(seed), "-o", (dir / "cam.nc").string()});
+    ASSERT_EQ(g.status, 0) << g.err;
     Outcome r = gcpipe({"batch", (dir / "cam.nc").string(), "-o", (dir / "out").string(), "--quiet"});
     ASSERT_EQ(r.status, 0) << r.err;
     const auto sim = read_json(dir / "out" / "report.json").at("simulation");

@@ -13,8 +13,15 @@ namespace {
 }  // namespace
 
 int run_synth(const SynthArgs& args) {
+  if (args.cam_segments > 0) {
+    pipeline::AtomicFile out(args.output);
+    std::string text = cam_like_program(args.seed, args.cam_segments);
+    out.write(text, true);
+    out.commit();
+    return 0;
+  }
   if ((args.blocks <= 0) == (args.megabytes <= 0)) {
-    std::fprintf(stderr, "gcpipe synth: give either --blocks N or --megabytes M (positive)\n");
+    std::fprintf(stderr, "gcpipe synth: give either --blocks N, --megabytes M or --cam-segments N (positive)\n");
     return 2;
   }
   const double blocks = args.blocks, mb = args.megabytes;

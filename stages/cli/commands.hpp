@@ -57,6 +57,7 @@ int run_simulate(const SimulateArgs& args);
 
 struct SynthArgs {
   double blocks = 0, megabytes = 0;
+  int cam_segments = 0;  //!< > 0: a CAM-like 2.5D finishing pass instead (cam_like_program)
   std::uint64_t seed = 1;
   std::string output = "-";
 };

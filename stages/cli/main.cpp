@@ -98,7 +98,11 @@ void add_synth(CLI::App& app, SynthArgs& a) {
   auto* s = app.add_subcommand("synth", "write a seeded synthetic five-axis program for load tests");
   auto* blocks = s->add_option("--blocks", a.blocks, "this many blocks")->check(CLI::PositiveNumber);
   auto* mb = s->add_option("--megabytes", a.megabytes, "about this many MB")->check(CLI::PositiveNumber);
+  auto* cam = s->add_option("--cam-segments", a.cam_segments,
+                            "a CAM-like 2.5D finishing pass of this many 0.1-2 mm moves and arcs instead")
+                  ->check(CLI::Range(1, 10000000));
   blocks->excludes(mb);
+  cam->excludes(blocks)->excludes(mb);
   s->add_option("--seed", a.seed, "random seed");
   s->add_option("-o,--output", a.output, "write to this file instead of standard output")->check(kNonEmpty);
 }

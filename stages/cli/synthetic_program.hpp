@@ -24,4 +24,10 @@ class SyntheticProgram {
   std::uint64_t n_ = 0;
 };
 
+/// A CAM-style 2.5D finishing pass for the compensation's tests and benchmark: polyline runs of
+/// 0.1-2 mm with random turns of 5-120 degrees, a tangent arc (20-90 degrees, radius 2-10 mm)
+/// every 25 moves, a feed of 500-6000 mm/min every 40; it turns back towards the middle beyond
+/// 30 mm (a part 60 mm wide). `segments` motion blocks after the approach.
+std::string cam_like_program(std::uint64_t seed, int segments);
+
 }  // namespace gcpipe::cli
