@@ -11,6 +11,7 @@
 #include <fstream>
 
 #include "force_report.hpp"
+#include "nnoe_fast.hpp"
 #include "nnoe_force.hpp"
 #include "umich_force.hpp"
 
@@ -59,6 +60,17 @@ TEST(ForceNnoe, Table1StructuresTrainAndVerify) {
                 eq13.verification_fpe, eq13.training_fpe);
   write_prediction_png(std::filesystem::path(GCPIPE_BINARY_DIR) / "force_nnoe_verification.png", verify.force, predicted,
                        p.period, "NNOE on the mechanistic slot force: verification run", note, "mean force [N]");
+  // The float recurrence (the fast path, bench ParallelRunFloat) on the trained eq. (13) model
+  // follows the double one over 100 000 steps: rounding does not accumulate in a stable model.
+  const ForceSeries long_run = simulate_force_process(p, 100000, 13);
+  const calibrate::Channels lu{long_run.feed, long_run.depth};
+  const auto yd = calibrate::nnoe_simulate(eq13.model, lu, long_run.force.size());
+  const auto yf = calibrate::nnoe_simulate_float(eq13.model, lu, long_run.force.size());
+  double worst = 0, spread = 0;
+  for (std::size_t t = 0; t < yd.size(); ++t) worst = std::max(worst, std::abs(yf[t] - yd[t])), spread = std::max(spread, std::abs(yd[t] - eq13.model.y_offset));
+  std::printf("float vs double recurrence over %zu steps: max difference %.3g N (output spread %.1f N)\n", yd.size(), worst, spread);
+  EXPECT_GT(spread, 10.0);
+  EXPECT_LT(worst, 1e-4 * eq13.model.y_scale * 20);  // 1e-4 of the output's held range
   // The finding of README sec. 7, kept: the second-order structure of eq. (13) wins here too.
   EXPECT_EQ(scores[4].verification_fpe, best) << "eq. (13) no longer has the lowest verification FPE";
   for (const auto& s : scores) EXPECT_GT(s.training_fpe, 0.0);

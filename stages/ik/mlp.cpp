@@ -267,6 +267,45 @@ void MlpInference::forward(const float* x, std::size_t n, std::vector<float>& y,
   }
 }
 
+MlpSingle::MlpSingle(const Mlp& net) : inputs_(net.input_size()) {
+  if (net.layer_count() != 2 || net.output_size() != 1)
+    throw std::invalid_argument("MlpSingle: needs one hidden layer and one output");
+  const auto W1 = net.weight(0), W2 = net.weight(1);
+  const auto b1 = net.bias(0);
+  const int hidden = static_cast<int>(W1.rows());
+  padded_ = (hidden + 7) / 8 * 8;  // padding units have zero weights: tanh(0) * 0 adds nothing
+  const auto P = static_cast<std::size_t>(padded_);
+  w1_.assign(static_cast<std::size_t>(inputs_) * P, 0.0f);
+  b1_.assign(P, 0.0f);
+  w2_.assign(P, 0.0f);
+  z_.assign(P, 0.0f);
+  for (int h = 0; h < hidden; ++h) {
+    for (int j = 0; j < inputs_; ++j) w1_[static_cast<std::size_t>(j) * P + static_cast<std::size_t>(h)] = static_cast<float>(W1(h, j));
+    b1_[static_cast<std::size_t>(h)] = static_cast<float>(b1[h]);
+    w2_[static_cast<std::size_t>(h)] = static_cast<float>(W2(0, h));
+  }
+  b2_ = static_cast<float>(net.bias(1)[0]);
+}
+
+float MlpSingle::operator()(const float* x) const {
+  const auto P = static_cast<std::size_t>(padded_);
+  float* __restrict z = z_.data();
+  const float* __restrict b1 = b1_.data();
+  for (std::size_t h = 0; h < P; ++h) z[h] = b1[h];
+  for (int j = 0; j < inputs_; ++j) {
+    const float xj = x[j];
+    const float* __restrict w = w1_.data() + static_cast<std::size_t>(j) * P;
+    for (std::size_t h = 0; h < P; ++h) z[h] += w[h] * xj;
+  }
+  for (std::size_t h = 0; h < P; ++h) z[h] = tanh_float(z[h]);
+  // Eight partial sums, one per lane: a vector accumulator without reassociating a float sum.
+  float lane[8] = {};
+  const float* __restrict w2 = w2_.data();
+  for (std::size_t h = 0; h < P; h += 8)
+    for (std::size_t l = 0; l < 8; ++l) lane[l] += w2[h + l] * z[h + l];
+  return b2_ + (((lane[0] + lane[4]) + (lane[1] + lane[5])) + ((lane[2] + lane[6]) + (lane[3] + lane[7])));
+}
+
 double mean_squared_error(const Mlp& net, const Dataset& data) {
   if (data.size() == 0) return 0;
   const Eigen::MatrixXd y = net.forward(data.inputs);

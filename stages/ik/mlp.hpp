@@ -128,6 +128,26 @@ class MlpInference {
 /// |x| < 4e-4).
 float tanh_float(float x);
 
+/// One sample at a time through a net of one tanh layer and one linear output (seed 003's eq. 2),
+/// in float: the hidden layer is one loop over units that the compiler vectorises (weights stored
+/// input-major, units padded to a multiple of 8), the same tanh as MlpInference. For recurrent use
+/// (the NNOE's parallel run), where each step needs the previous step's output and a batch cannot
+/// be formed. Allocates nothing per call.
+class MlpSingle {
+ public:
+  /// Throws std::invalid_argument unless `net` has one hidden layer and one output.
+  explicit MlpSingle(const Mlp& net);
+  int input_size() const { return inputs_; }
+  float operator()(const float* x) const;
+
+ private:
+  int inputs_ = 0, padded_ = 0;
+  std::vector<float> w1_;  //!< [j * padded_ + h]
+  std::vector<float> b1_, w2_;
+  float b2_ = 0;
+  mutable std::vector<float> z_;
+};
+
 /// Training data: one sample per column, inputs and targets already normalised.
 struct Dataset {
   Eigen::MatrixXd inputs;   //!< inputs x N

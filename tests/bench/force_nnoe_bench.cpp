@@ -4,7 +4,9 @@
 //  - OneStepBatch: one-step predictions of many independent regressors at once (MlpInference,
 //    float, vectorised tanh): what a feed planner evaluating candidate feeds needs;
 //  - ParallelRun: the recurrent output-error simulation of one series (nnoe_simulate, double):
-//    each step waits for the previous prediction, so no batching.
+//    each step waits for the previous prediction, so no batching;
+//  - ParallelRunFloat: the same recurrence in float (nnoe_simulate_float, neural::MlpSingle: the
+//    hidden layer vectorised), over 100 000 steps including the input normalisation.
 //
 // Run: build/tests/force_nnoe_bench --benchmark_min_time=2
 #include <benchmark/benchmark.h>
@@ -13,6 +15,7 @@
 #include <vector>
 
 #include "mlp.hpp"
+#include "nnoe_fast.hpp"
 #include "nnoe_force.hpp"
 
 namespace {
@@ -60,6 +63,18 @@ void ParallelRun(benchmark::State& state) {
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) * 10000);
 }
 BENCHMARK(ParallelRun);
+
+void ParallelRunFloat(benchmark::State& state) {
+  const auto m = eq13_model();
+  const force::ForceSeries s = force::simulate_force_process({}, 100000, 5);
+  const calibrate::Channels u{s.feed, s.depth};
+  for (auto _ : state) {
+    auto y = calibrate::nnoe_simulate_float(m, u, s.feed.size());
+    benchmark::DoNotOptimize(y.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) * 100000);
+}
+BENCHMARK(ParallelRunFloat);
 
 }  // namespace
 
