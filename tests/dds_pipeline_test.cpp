@@ -189,6 +189,35 @@ class DdsPipeline : public ::testing::Test {
   // A program published before the sink exists is a replay to it (skipped without --replay):
   // start the rest only once the sink says it is ready, since under load a sink can take longer
   // to start than a feed.
+  void compensate_chain_equals_batch(const fs::path& dir, const fs::path& input, const std::string& config) {
+    Process batch("batch", {"batch", input.string(), "-o", (dir / "batch").string(), "--config", config, "--quiet"}, dir);
+    ASSERT_EQ(batch.wait(), 0);
+    const std::string expected = slurp(dir / "batch" / "compensated.nc");
+    ASSERT_FALSE(expected.empty());
+    const fs::path comp = dir / "compensated.nc", out = dir / "sink.nc";
+    Process sink_comp("sink_comp", dds_args({"sink", "--in", "gcpipe_compensated", "-o", comp.string()}), dir);
+    Process sink("sink", dds_args({"sink", "-o", out.string()}), dir);
+    wait_until_ready(sink_comp);
+    wait_until_ready(sink);
+    Process compensate("compensate", dds_args({"node", "compensate", "--config", config}), dir);
+    Process force("force", dds_args({"node", "force", "--config", config}), dir);
+    Process write("write", dds_args({"node", "write", "--config", config}), dir);
+    Process trochoid("trochoid", dds_args({"node", "trochoid", "--config", config, "--subscribers", "2"}), dir);
+    Process parse("parse", dds_args({"node", "parse", "--config", config}), dir);
+    Process feed("feed", dds_args({"feed", input.string(), "--config", config}), dir);
+    EXPECT_EQ(feed.wait(), 0);
+    EXPECT_EQ(sink_comp.wait(), 0) << slurp(sink_comp.log);
+    EXPECT_EQ(sink.wait(), 0) << slurp(sink.log);
+    EXPECT_EQ(compensate.wait(), 0) << slurp(compensate.log);
+    EXPECT_EQ(force.wait(), 0) << slurp(force.log);
+    EXPECT_EQ(write.wait(), 0);
+    EXPECT_EQ(trochoid.wait(), 0);
+    EXPECT_EQ(parse.wait(), 0);
+    any_killed_ |= feed.killed || sink.killed || sink_comp.killed || compensate.killed || force.killed;
+    EXPECT_TRUE(slurp(comp) == expected) << "compensated program differs from batch";
+    EXPECT_TRUE(slurp(out) == slurp(dir / "batch" / "output.nc"));
+  }
+
   static void wait_until_ready(const Process& sink) {
     for (int i = 0; i < 600 && slurp(sink.log).find("gcpipe sink: ready") == std::string::npos; ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -551,33 +580,22 @@ TEST_F(DdsPipeline, LateMonitorStillSeesTheEndMarker) {
 
 }  // namespace
 
-// The compensate node beside the write node: both read the trochoid node's output, and the
-// compensated program arriving on gcpipe_compensated is batch mode's compensated.nc, byte for
-// byte (the same compensate_program call on the same blocks).
+// The compensate node beside the write node: the write node reads the trochoid node's output, the
+// force node too (a pass-through without a `force:` section, the feed planner with one), the
+// compensate node the force node's; the compensated program arriving on gcpipe_compensated is
+// batch mode's compensated.nc, byte for byte (the same stage code on the same blocks).
 TEST_F(DdsPipeline, CompensateNodeWritesBatchModesCompensatedProgram) {
-  const fs::path input = fs::path(GCPIPE_SOURCE_DIR) / "samples" / "five_axis_demo.nc";
-  Process batch("batch", {"batch", input.string(), "-o", (dir_ / "batch").string(), "--config", kConfig, "--quiet"}, dir_);
-  ASSERT_EQ(batch.wait(), 0);
-  const std::string expected = slurp(dir_ / "batch" / "compensated.nc");
-  ASSERT_FALSE(expected.empty());
-  const fs::path comp = dir_ / "compensated.nc", out = dir_ / "sink.nc";
-  Process sink_comp("sink_comp", dds_args({"sink", "--in", "gcpipe_compensated", "-o", comp.string()}), dir_);
-  Process sink("sink", dds_args({"sink", "-o", out.string()}), dir_);
-  wait_until_ready(sink_comp);
-  wait_until_ready(sink);
-  Process compensate("compensate", dds_args({"node", "compensate", "--config", kConfig}), dir_);
-  Process write("write", dds_args({"node", "write", "--config", kConfig}), dir_);
-  Process trochoid("trochoid", dds_args({"node", "trochoid", "--config", kConfig, "--subscribers", "2"}), dir_);
-  Process parse("parse", dds_args({"node", "parse", "--config", kConfig}), dir_);
-  Process feed("feed", dds_args({"feed", input.string(), "--config", kConfig}), dir_);
-  EXPECT_EQ(feed.wait(), 0);
-  EXPECT_EQ(sink_comp.wait(), 0) << slurp(sink_comp.log);
-  EXPECT_EQ(sink.wait(), 0) << slurp(sink.log);
-  EXPECT_EQ(compensate.wait(), 0) << slurp(compensate.log);
-  EXPECT_EQ(write.wait(), 0);
-  EXPECT_EQ(trochoid.wait(), 0);
-  EXPECT_EQ(parse.wait(), 0);
-  any_killed_ |= feed.killed || sink.killed || sink_comp.killed || compensate.killed;
-  EXPECT_TRUE(slurp(comp) == expected) << "compensated program differs from batch";
-  EXPECT_TRUE(slurp(out) == slurp(dir_ / "batch" / "output.nc"));
+  compensate_chain_equals_batch(dir_, fs::path(GCPIPE_SOURCE_DIR) / "samples" / "five_axis_demo.nc", kConfig);
+}
+
+// With the force stage's feed planner on (force_al7075.yaml): the force node rewrites the feeds of
+// the whole program at its end, and the compensation works on the planned program in both modes.
+TEST_F(DdsPipeline, ForceNodePlansTheFeedsAsBatchModeDoes) {
+  const fs::path dir = dir_ / "force";
+  fs::create_directories(dir);
+  std::ofstream(dir / "slot.nc") << "%\nO0001 (a short slot)\nG17 G21 G90 G94 G54\nT1 M6\nS4000 M3\nG0 X0 Y0 Z5\n"
+                                    "G1 Z-5 F300\nG1 X40 F800\nG1 Y8\nG1 X0\nG0 Z5\nM30\n%\n";
+  compensate_chain_equals_batch(dir, dir / "slot.nc", std::string(GCPIPE_SOURCE_DIR) + "/pipeline_configs/force_al7075.yaml");
+  const std::string planned = slurp(dir / "batch" / "compensated.nc");
+  EXPECT_NE(planned.find("F"), std::string::npos);
 }

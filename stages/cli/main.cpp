@@ -7,6 +7,7 @@
 
 #include "commands.hpp"
 #include "output_dir.hpp"
+#include "stage.hpp"
 
 using namespace gcpipe::cli;
 
@@ -186,7 +187,11 @@ void add_feed(CLI::App& app, FeedArgs& a) {
 
 void add_node(CLI::App& app, NodeArgs& a) {
   auto* s = app.add_subcommand("node", "run one stage of the pipeline as a DDS node");
-  s->add_option("stage", a.stage, "the stage: parse, trochoid, write or compensate (see gcpipe stages)")->required();
+  // The stages with a DDS topic, from the registry: the help cannot fall behind a new node.
+  std::string nodes;
+  for (const auto& info : gcpipe::pipeline::registry())
+    if (*info.topic != '\0') nodes += std::string(nodes.empty() ? "" : ", ") + info.name;
+  s->add_option("stage", a.stage, "the stage: " + nodes + " (see gcpipe stages)")->required();
   s->add_option("--config", a.config, "pipeline config");
   s->add_option("--batch-bytes", a.batch_bytes, "publish a batch once it holds this much")->check(CLI::Range(1024, 1048576));
   s->add_option("--in", a.in, "input topic (default: the stage's edge)");

@@ -181,7 +181,8 @@ pipeline::StageInfo force_stage() {
           pipeline::Port::kBlocks, pipeline::Port::kBlocks,
           [](const pipeline::StageContext& c) -> std::unique_ptr<pipeline::Stage> {
             return std::make_unique<ForceStage>(c);
-          }};
+          },
+          "gcpipe_planned"};
 }
 
 }  // namespace gcpipe
