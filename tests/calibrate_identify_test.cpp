@@ -78,6 +78,8 @@ struct MatrixCase {
   const char* program;
   const char* effect;
 };
+// Names the case in test output (the default prints the pointers' bytes).
+void PrintTo(const MatrixCase& m, std::ostream* os) { *os << m.program << " " << m.effect; }
 
 Scenario scenario_named(const std::string& program) {
   if (program == "circle") return test::circle_scenario();
