@@ -247,95 +247,207 @@ void Interpolator::emit(const Axes& raw, SampleSink& sink) {
   sink.sample(y);
 }
 
+// One block's plan: what the steps of add() hand on.
+struct Interpolator::BlockPlan {
+  Path path;
+  TcpMap map;
+  bool moves = false, tcp = false;
+  double tool_length = 0;
+  double duration = 0;
+  Axes travel{};    // largest speed-relevant excursion per axis (arc: radius x angle in plane)
+  Axes tcp_end{};   // joints at the end of a TCP block
+};
+
 InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
   InterpolateResult res;
-  Path path;
+  BlockPlan plan;
+  if (auto early = plan_path(b, plan, sink)) return *early;
+  if (auto early = plan_duration(b, plan, res)) return *early;
+  if (auto early = account(b, plan, res)) return *early;
+  sample(b, plan, sink);
+  return res;
+}
+
+namespace {
+
+InterpolateResult invalid_block(const ResolvedBlock& b, const std::string& why) {
+  InterpolateResult res;
+  res.status = InterpolateStatus::kInvalid;
+  res.message = where(b) + ": " + why;
+  return res;
+}
+
+/// The arc's geometry in its plane: centre, radii, start angle and signed sweep (turns
+/// included), its length along the tool and the axes' excursions. Empty on success.
+std::optional<InterpolateResult> arc_geometry(const ResolvedBlock& b, bool tcp, Path& path, Axes& travel, double& length_xyz) {
+  path.arc = true;
+  switch (b.plane) {
+    case Plane::kXY: path.ia = kX; path.ib = kY; path.in = kZ; break;
+    case Plane::kZX: path.ia = kZ; path.ib = kX; path.in = kY; break;
+    case Plane::kYZ: path.ia = kY; path.ib = kZ; path.in = kX; break;
+  }
+  const auto ia = static_cast<std::size_t>(path.ia), ib = static_cast<std::size_t>(path.ib),
+             in = static_cast<std::size_t>(path.in);
+  path.ca = b.centre[ia];
+  path.cb = b.centre[ib];
+  const double sa = path.from[ia] - path.ca, sb = path.from[ib] - path.cb;
+  const double ea = path.to[ia] - path.ca, eb = path.to[ib] - path.cb;
+  path.r0 = std::hypot(sa, sb);
+  path.r1 = std::hypot(ea, eb);
+  if (!(path.r0 > 1e-9)) return invalid_block(b, "arc start lies on its centre");
+  path.th0 = std::atan2(sb, sa);
+  double d = std::atan2(eb, ea) - path.th0;
+  const bool ccw = b.motion == Motion::kArcCCW;
+  // TCP start points come through FK and match the programmed ones only to ~1e-13 mm.
+  const bool full = std::hypot(ea - sa, eb - sb) < (tcp ? 1e-7 : 1e-9);
+  if (ccw) {
+    while (d <= 0) d += kTwoPi;
+    if (full) d = kTwoPi;
+  } else {
+    while (d >= 0) d -= kTwoPi;
+    if (full) d = -kTwoPi;
+  }
+  const double extra = kTwoPi * std::max(0, b.turns - 1);
+  path.dth = ccw ? d + extra : d - extra;
+  const double rmean = 0.5 * (path.r0 + path.r1);
+  const double arc_len = rmean * std::abs(path.dth);
+  const double dh = path.to[in] - path.from[in];
+  length_xyz = std::hypot(arc_len, dh);
+  for (std::size_t i = 0; i < kNumAxes; ++i) travel[i] = std::abs(path.to[i] - path.from[i]);
+  travel[ia] = travel[ib] = std::max(path.r0, path.r1) * std::abs(path.dth);
+  return std::nullopt;
+}
+
+}  // namespace
+
+// Validates the target and sets the path's end points; in TCP mode the start becomes a tool tip
+// and a G43.5 block leaving the pole first turns C there (a block of its own, run here).
+std::optional<InterpolateResult> Interpolator::plan_path(const ResolvedBlock& b, BlockPlan& plan, SampleSink& sink) {
+  Path& path = plan.path;
   path.from = raw_end_;
   path.to = b.target;
-  double duration = 0;
-  const double T = opt_.period;
-
-  auto invalid = [&](const std::string& why) {
-    res.status = InterpolateStatus::kInvalid;
-    res.message = where(b) + ": " + why;
-    return res;
-  };
   for (double v : b.target)
-    if (!std::isfinite(v)) return invalid("non-finite target");
+    if (!std::isfinite(v)) return invalid_block(b, "non-finite target");
 
-  const bool moves = b.motion == Motion::kRapid || b.motion == Motion::kLinear ||
-                     b.motion == Motion::kArcCW || b.motion == Motion::kArcCCW;
-  const bool tcp = moves && b.tcp;
+  plan.moves = b.motion == Motion::kRapid || b.motion == Motion::kLinear ||
+               b.motion == Motion::kArcCW || b.motion == Motion::kArcCCW;
+  plan.tcp = plan.moves && b.tcp;
   // Switching between joint and TCP mode: the parser's targets of the axes this block does not
   // program still hold values of the other space (tips vs joints); those axes keep their
   // current value in the block's own space instead (README, "Switching").
-  const bool switching = moves && tcp != tcp_space_;
+  const bool switching = plan.moves && plan.tcp != tcp_space_;
   auto kept = [&](int axis) { return switching && (b.axis_words & (1u << axis)) == 0; };
   const MachineKinematics* kin = opt_.kinematics;
-  const double tool_length = kin ? (b.tool_length_active ? b.tool_length : kin->tool_length) : 0.0;
+  plan.tool_length = kin ? (b.tool_length_active ? b.tool_length : kin->tool_length) : 0.0;
+  plan.tcp_end = raw_end_;
 
-  TcpMap map;
-  if (tcp) {
-    if (kin == nullptr) {
-      res.status = InterpolateStatus::kUnsupported;
-      res.message = where(b) + ": tool-centre-point block needs the machine kinematics (InterpolateOptions::kinematics)";
-      return res;
-    }
-    map.kin = kin;
-    map.tool_length = tool_length;
-    const ToolPose now = forward_kinematics(*kin, raw_end_, tool_length);
-    path.from = {now.tip[0], now.tip[1], now.tip[2], raw_end_[kA], raw_end_[kC]};
-    for (int i = 0; i < kNumAxes; ++i)
-      if (kept(i)) path.to[static_cast<std::size_t>(i)] = path.from[static_cast<std::size_t>(i)];
-    if (b.tool_vector_mode) {
-      map.vector_mode = true;
-      const double n = norm3(b.tool_vector);
-      if (!(n > 1e-12) || !std::isfinite(n)) return invalid("tool vector I J K has zero length");
-      map.v0 = now.axis;
-      map.v1 = {b.tool_vector[0] / n, b.tool_vector[1] / n, b.tool_vector[2] / n};
-      map.omega = std::acos(std::clamp(dot3(map.v0, map.v1), -1.0, 1.0));
-      if (map.omega > std::numbers::pi - 1e-9)
-        return invalid("tool vector turns by 180 deg: the orientation path is undefined (split the move)");
-      // Leaving the pole: at A = 0, C is free and was held; the first step off the pole needs the
-      // C of the direction the slerp leaves in (a meridian: the azimuth of v1), which is a jump
-      // in joints. As a control does, C turns first, at the pole, with the tip held and the
-      // tool axis unchanged: a TCP move with A C given, fed at F deg/min (G94) or at the joint
-      // limits (G93); then the block itself runs from there with C continuous.
-      if (!pole_turn_ && std::abs(raw_end_[kA]) <= kin->c_hold_tilt && map.omega > 0) {
-        const IkResult leave = inverse_kinematics(*kin, ToolPose{now.tip, map.v1}, raw_end_, tool_length);
-        if (all_finite(leave.joints) && std::abs(leave.joints[kC] - raw_end_[kC]) > 1e-9) {
-          ResolvedBlock turn = b;
-          turn.tool_vector_mode = false;
-          turn.motion = b.feed_mode == FeedMode::kInverseTime ? Motion::kRapid : Motion::kLinear;
-          turn.target = {now.tip[0], now.tip[1], now.tip[2], raw_end_[kA], leave.joints[kC]};
-          turn.axis_words = 0x1f;
-          pole_turn_ = true;
-          InterpolateResult first = add(turn, sink);
-          if (first.status == InterpolateStatus::kOk) {
-            --stats_.blocks;  // one programmed block
-            --stats_.tcp_blocks;
-            InterpolateResult rest = add(b, sink);
-            rest.duration += first.duration;
-            rest.velocity_limited = rest.velocity_limited || first.velocity_limited;
-            first = rest;
-          }
-          pole_turn_ = false;
-          return first;
-        }
-      }
-      // A and C follow from the IK; the path's own A C are placeholders at the current joints.
-      path.to[kA] = raw_end_[kA];
-      path.to[kC] = raw_end_[kC];
-    }
-  } else if (moves && tcp_space_) {
-    for (int i = 0; i < kNumAxes; ++i)
-      if (kept(i)) path.to[static_cast<std::size_t>(i)] = raw_end_[static_cast<std::size_t>(i)];
+  if (!plan.tcp) {
+    if (plan.moves && tcp_space_)
+      for (int i = 0; i < kNumAxes; ++i)
+        if (kept(i)) path.to[static_cast<std::size_t>(i)] = raw_end_[static_cast<std::size_t>(i)];
+    return std::nullopt;
   }
+  if (kin == nullptr) {
+    InterpolateResult res;
+    res.status = InterpolateStatus::kUnsupported;
+    res.message = where(b) + ": tool-centre-point block needs the machine kinematics (InterpolateOptions::kinematics)";
+    return res;
+  }
+  TcpMap& map = plan.map;
+  map.kin = kin;
+  map.tool_length = plan.tool_length;
+  const ToolPose now = forward_kinematics(*kin, raw_end_, plan.tool_length);
+  path.from = {now.tip[0], now.tip[1], now.tip[2], raw_end_[kA], raw_end_[kC]};
+  for (int i = 0; i < kNumAxes; ++i)
+    if (kept(i)) path.to[static_cast<std::size_t>(i)] = path.from[static_cast<std::size_t>(i)];
+  if (!b.tool_vector_mode) return std::nullopt;
+  map.vector_mode = true;
+  const double n = norm3(b.tool_vector);
+  if (!(n > 1e-12) || !std::isfinite(n)) return invalid_block(b, "tool vector I J K has zero length");
+  map.v0 = now.axis;
+  map.v1 = {b.tool_vector[0] / n, b.tool_vector[1] / n, b.tool_vector[2] / n};
+  map.omega = std::acos(std::clamp(dot3(map.v0, map.v1), -1.0, 1.0));
+  if (map.omega > std::numbers::pi - 1e-9)
+    return invalid_block(b, "tool vector turns by 180 deg: the orientation path is undefined (split the move)");
+  // Leaving the pole: at A = 0, C is free and was held; the first step off the pole needs the
+  // C of the direction the slerp leaves in (a meridian: the azimuth of v1), which is a jump
+  // in joints. As a control does, C turns first, at the pole, with the tip held and the
+  // tool axis unchanged: a TCP move with A C given, fed at F deg/min (G94) or at the joint
+  // limits (G93); then the block itself runs from there with C continuous.
+  if (!pole_turn_ && std::abs(raw_end_[kA]) <= kin->c_hold_tilt && map.omega > 0) {
+    const IkResult leave = inverse_kinematics(*kin, ToolPose{now.tip, map.v1}, raw_end_, plan.tool_length);
+    if (all_finite(leave.joints) && std::abs(leave.joints[kC] - raw_end_[kC]) > 1e-9) {
+      ResolvedBlock turn = b;
+      turn.tool_vector_mode = false;
+      turn.motion = b.feed_mode == FeedMode::kInverseTime ? Motion::kRapid : Motion::kLinear;
+      turn.target = {now.tip[0], now.tip[1], now.tip[2], raw_end_[kA], leave.joints[kC]};
+      turn.axis_words = 0x1f;
+      pole_turn_ = true;
+      InterpolateResult first = add(turn, sink);
+      if (first.status == InterpolateStatus::kOk) {
+        --stats_.blocks;  // one programmed block
+        --stats_.tcp_blocks;
+        InterpolateResult rest = add(b, sink);
+        rest.duration += first.duration;
+        rest.velocity_limited = rest.velocity_limited || first.velocity_limited;
+        first = rest;
+      }
+      pole_turn_ = false;
+      return first;
+    }
+  }
+  // A and C follow from the IK; the path's own A C are placeholders at the current joints.
+  path.to[kA] = raw_end_[kA];
+  path.to[kC] = raw_end_[kC];
+  return std::nullopt;
+}
 
+// A TCP block's duration: the joint path through IK, sub-sampled finer than the ticks and the
+// rotation; its largest joint rates and curvatures set the shortest duration the joint limits
+// allow.
+std::optional<InterpolateResult> Interpolator::tcp_duration(const ResolvedBlock& b, BlockPlan& plan, InterpolateResult& res,
+                                                           double length_xyz) const {
+  const Path& path = plan.path;
+  double& duration = plan.duration;
+  const double T = opt_.period;
   const Axes vlim = speed_bound(opt_);
-  Axes travel{};  // largest speed-relevant excursion per axis (arc: radius x angle in plane)
-  Axes tcp_end = raw_end_;  // joints at the end of a TCP block
+  const bool feed_move = b.motion != Motion::kRapid;
+  // Joint path through IK, sub-sampled finer than the ticks and the rotation: its largest
+  // joint rates and curvatures set the shortest duration the joint limits allow.
+  const double angle_deg = std::abs(path.to[kA] - path.from[kA]) + std::abs(path.to[kC] - path.from[kC]) +
+                           std::abs(path.dth) * 180 / std::numbers::pi + plan.map.omega * 180 / std::numbers::pi;
+  const double feed_time = feed_move && b.feed > 0 ? std::max(length_xyz, 1.0) / (b.feed / 60.0) : 0.0;
+  const int K = static_cast<int>(std::clamp(std::max(4 * angle_deg, 2 * std::max(duration, feed_time) / T), 256.0, 16384.0));
+  const JointSweep w = sweep_joints(path, plan.map, raw_end_, K);
+  if (!w.finite) return invalid_block(b, "no finite joints for the tool-tip path (inverse kinematics failed)");
+  plan.tcp_end = w.end;
+  if (feed_move && b.feed_mode == FeedMode::kUnitsPerMinute) {
+    double length = length_xyz;  // along the tool tip in the workpiece frame
+    if (!(length > 1e-9)) length = std::hypot(w.end[kA] - raw_end_[kA], w.end[kC] - raw_end_[kC]);
+    duration = length / (b.feed / 60.0);
+  }
+  double need = 0;
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    if (w.rate[i] == 0) continue;
+    if (!(vlim[i] > 0)) return invalid_block(b, std::string("axis ") + kAxisLetters[i] + " has no velocity limit");
+    need = std::max(need, w.rate[i] / vlim[i]);
+    if (opt_.max_acceleration[i] > 0) need = std::max(need, std::sqrt(w.curvature[i] / opt_.max_acceleration[i]));
+  }
+  if (need > duration * (1 + 1e-12)) {
+    res.velocity_limited = feed_move && duration > 0;
+    duration = need;
+  }
+  return std::nullopt;
+}
 
+// The block's duration: from the feed (along the tool tip, or inverse time), raised to what the
+// axes' velocity (and in TCP mode acceleration) limits allow.
+std::optional<InterpolateResult> Interpolator::plan_duration(const ResolvedBlock& b, BlockPlan& plan, InterpolateResult& res) const {
+  Path& path = plan.path;
+  double& duration = plan.duration;
+  Axes& travel = plan.travel;
+  const Axes vlim = speed_bound(opt_);
+  const MachineKinematics* kin = opt_.kinematics;
   switch (b.motion) {
     case Motion::kNone:
       return res;
@@ -345,140 +457,89 @@ InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
       return res;
     case Motion::kDwell:
       duration = b.dwell;
-      if (!(duration >= 0)) return invalid("negative dwell");
+      if (!(duration >= 0)) return invalid_block(b, "negative dwell");
       path.to = raw_end_;
-      break;
+      return std::nullopt;
     case Motion::kRapid:
     case Motion::kLinear:
     case Motion::kArcCW:
-    case Motion::kArcCCW: {
-      double length_xyz = 0;
-      if (b.motion == Motion::kArcCW || b.motion == Motion::kArcCCW) {
-        path.arc = true;
-        switch (b.plane) {
-          case Plane::kXY: path.ia = kX; path.ib = kY; path.in = kZ; break;
-          case Plane::kZX: path.ia = kZ; path.ib = kX; path.in = kY; break;
-          case Plane::kYZ: path.ia = kY; path.ib = kZ; path.in = kX; break;
-        }
-        const auto ia = static_cast<std::size_t>(path.ia), ib = static_cast<std::size_t>(path.ib),
-                   in = static_cast<std::size_t>(path.in);
-        path.ca = b.centre[ia];
-        path.cb = b.centre[ib];
-        const double sa = path.from[ia] - path.ca, sb = path.from[ib] - path.cb;
-        const double ea = path.to[ia] - path.ca, eb = path.to[ib] - path.cb;
-        path.r0 = std::hypot(sa, sb);
-        path.r1 = std::hypot(ea, eb);
-        if (!(path.r0 > 1e-9)) return invalid("arc start lies on its centre");
-        path.th0 = std::atan2(sb, sa);
-        double d = std::atan2(eb, ea) - path.th0;
-        const bool ccw = b.motion == Motion::kArcCCW;
-        // TCP start points come through FK and match the programmed ones only to ~1e-13 mm.
-        const bool full = std::hypot(ea - sa, eb - sb) < (tcp ? 1e-7 : 1e-9);
-        if (ccw) {
-          while (d <= 0) d += kTwoPi;
-          if (full) d = kTwoPi;
-        } else {
-          while (d >= 0) d -= kTwoPi;
-          if (full) d = -kTwoPi;
-        }
-        const double extra = kTwoPi * std::max(0, b.turns - 1);
-        path.dth = ccw ? d + extra : d - extra;
-        const double rmean = 0.5 * (path.r0 + path.r1);
-        const double arc_len = rmean * std::abs(path.dth);
-        const double dh = path.to[in] - path.from[in];
-        length_xyz = std::hypot(arc_len, dh);
-        for (std::size_t i = 0; i < kNumAxes; ++i) travel[i] = std::abs(path.to[i] - path.from[i]);
-        travel[ia] = travel[ib] = std::max(path.r0, path.r1) * std::abs(path.dth);
-      } else {
-        for (std::size_t i = 0; i < kNumAxes; ++i) travel[i] = std::abs(path.to[i] - path.from[i]);
-        length_xyz = std::sqrt(travel[kX] * travel[kX] + travel[kY] * travel[kY] + travel[kZ] * travel[kZ]);
-      }
-      const bool feed_move = b.motion != Motion::kRapid;
-      if (feed_move && b.feed_mode == FeedMode::kInverseTime) {
-        if (!(b.feed > 0)) return invalid("inverse-time feed F must be > 0 (G93: F = 1/minutes)");
-        duration = 60.0 / b.feed;
-      } else if (feed_move && !(b.feed > 0)) {
-        return invalid("feed F must be > 0 for G1/G2/G3");
-      }
-
-      if (tcp) {
-        // Joint path through IK, sub-sampled finer than the ticks and the rotation: its largest
-        // joint rates and curvatures set the shortest duration the joint limits allow.
-        const double angle_deg = std::abs(path.to[kA] - path.from[kA]) + std::abs(path.to[kC] - path.from[kC]) +
-                                 std::abs(path.dth) * 180 / std::numbers::pi + map.omega * 180 / std::numbers::pi;
-        const double feed_time = feed_move && b.feed > 0 ? std::max(length_xyz, 1.0) / (b.feed / 60.0) : 0.0;
-        const int K = static_cast<int>(std::clamp(std::max(4 * angle_deg, 2 * std::max(duration, feed_time) / T), 256.0, 16384.0));
-        const JointSweep w = sweep_joints(path, map, raw_end_, K);
-        if (!w.finite) return invalid("no finite joints for the tool-tip path (inverse kinematics failed)");
-        tcp_end = w.end;
-        if (feed_move && b.feed_mode == FeedMode::kUnitsPerMinute) {
-          double length = length_xyz;  // along the tool tip in the workpiece frame
-          if (!(length > 1e-9)) length = std::hypot(w.end[kA] - raw_end_[kA], w.end[kC] - raw_end_[kC]);
-          duration = length / (b.feed / 60.0);
-        }
-        double need = 0;
-        for (std::size_t i = 0; i < kNumAxes; ++i) {
-          if (w.rate[i] == 0) continue;
-          if (!(vlim[i] > 0)) return invalid(std::string("axis ") + kAxisLetters[i] + " has no velocity limit");
-          need = std::max(need, w.rate[i] / vlim[i]);
-          if (opt_.max_acceleration[i] > 0) need = std::max(need, std::sqrt(w.curvature[i] / opt_.max_acceleration[i]));
-        }
-        if (need > duration * (1 + 1e-12)) {
-          res.velocity_limited = feed_move && duration > 0;
-          duration = need;
-        }
-        break;
-      }
-
-      if (!feed_move) {
-        for (std::size_t i = 0; i < kNumAxes; ++i) {
-          if (travel[i] == 0) continue;
-          if (!(vlim[i] > 0)) return invalid(std::string("axis ") + kAxisLetters[i] + " has no velocity limit for the rapid");
-          duration = std::max(duration, travel[i] / vlim[i]);
-        }
-      } else if (b.feed_mode == FeedMode::kUnitsPerMinute) {
-        double length = length_xyz;
-        const bool rotary_moves = travel[kA] != 0 || travel[kC] != 0;
-        double min_length = 1e-12;
-        if (kin != nullptr && rotary_moves) {
-          length = fk_tip_length(*kin, path, tool_length);
-          min_length = 1e-9;  // FK rounding of a tip that stays put
-        } else if (kin == nullptr && opt_.tip_path_length && !path.arc) {
-          length = opt_.tip_path_length(path.from, path.to);
-        }
-        if (!(length > min_length)) length = std::hypot(travel[kA], travel[kC]);  // deg at deg/min
-        duration = length / (b.feed / 60.0);
-      }
-      for (std::size_t i = 0; i < kNumAxes; ++i) {
-        if (travel[i] == 0 || !(vlim[i] > 0)) continue;
-        const double need = travel[i] / vlim[i];
-        if (need > duration * (1 + 1e-12)) {
-          duration = need;
-          res.velocity_limited = b.motion != Motion::kRapid;
-        }
-      }
+    case Motion::kArcCCW:
       break;
-    }
+  }
+  double length_xyz = 0;
+  if (b.motion == Motion::kArcCW || b.motion == Motion::kArcCCW) {
+    if (auto bad = arc_geometry(b, plan.tcp, path, travel, length_xyz)) return bad;
+  } else {
+    for (std::size_t i = 0; i < kNumAxes; ++i) travel[i] = std::abs(path.to[i] - path.from[i]);
+    length_xyz = std::sqrt(travel[kX] * travel[kX] + travel[kY] * travel[kY] + travel[kZ] * travel[kZ]);
+  }
+  const bool feed_move = b.motion != Motion::kRapid;
+  if (feed_move && b.feed_mode == FeedMode::kInverseTime) {
+    if (!(b.feed > 0)) return invalid_block(b, "inverse-time feed F must be > 0 (G93: F = 1/minutes)");
+    duration = 60.0 / b.feed;
+  } else if (feed_move && !(b.feed > 0)) {
+    return invalid_block(b, "feed F must be > 0 for G1/G2/G3");
   }
 
-  res.duration = duration;
+  if (plan.tcp) return tcp_duration(b, plan, res, length_xyz);
+
+  if (!feed_move) {
+    for (std::size_t i = 0; i < kNumAxes; ++i) {
+      if (travel[i] == 0) continue;
+      if (!(vlim[i] > 0)) return invalid_block(b, std::string("axis ") + kAxisLetters[i] + " has no velocity limit for the rapid");
+      duration = std::max(duration, travel[i] / vlim[i]);
+    }
+  } else if (b.feed_mode == FeedMode::kUnitsPerMinute) {
+    double length = length_xyz;
+    const bool rotary_moves = travel[kA] != 0 || travel[kC] != 0;
+    double min_length = 1e-12;
+    if (kin != nullptr && rotary_moves) {
+      length = fk_tip_length(*kin, path, plan.tool_length);
+      min_length = 1e-9;  // FK rounding of a tip that stays put
+    } else if (kin == nullptr && opt_.tip_path_length && !path.arc) {
+      length = opt_.tip_path_length(path.from, path.to);
+    }
+    if (!(length > min_length)) length = std::hypot(travel[kA], travel[kC]);  // deg at deg/min
+    duration = length / (b.feed / 60.0);
+  }
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    if (travel[i] == 0 || !(vlim[i] > 0)) continue;
+    const double need = travel[i] / vlim[i];
+    if (need > duration * (1 + 1e-12)) {
+      duration = need;
+      res.velocity_limited = b.motion != Motion::kRapid;
+    }
+  }
+  return std::nullopt;
+}
+
+// The block counts as run: statistics, mode, and the bound on machine time (a block ending past
+// it is refused before its first tick).
+std::optional<InterpolateResult> Interpolator::account(const ResolvedBlock& b, const BlockPlan& plan, InterpolateResult& res) {
+  res.duration = plan.duration;
   line_ = b.line;
   ++stats_.blocks;
-  if (tcp) ++stats_.tcp_blocks;
-  if (moves) tcp_space_ = tcp;
+  if (plan.tcp) ++stats_.tcp_blocks;
+  if (plan.moves) tcp_space_ = plan.tcp;
   if (res.velocity_limited) ++stats_.velocity_limited_blocks;
-  const double t_end = t_block_ + duration;
+  const double t_end = t_block_ + plan.duration;
   if (t_end > opt_.max_time) {
     char msg[200];
     std::snprintf(msg, sizeof msg, ": this block takes %.6g s and would end at %.6g s of machine time, past the bound of %.6g s",
-                  duration, t_end, opt_.max_time);
+                  plan.duration, t_end, opt_.max_time);
     res.status = InterpolateStatus::kTooLong;
     res.message = where(b) + msg;
-    res.duration = duration;
     return res;
   }
-  // Samples at t = n T inside (t_block_, t_end]; the tolerance keeps a sample that rounding put
-  // a hair beyond the end.
+  return std::nullopt;
+}
+
+// Samples at t = n T inside (t_block_, t_end]; the tolerance keeps a sample that rounding put a
+// hair beyond the end.
+void Interpolator::sample(const ResolvedBlock& b, const BlockPlan& plan, SampleSink& sink) {
+  const Path& path = plan.path;
+  const double T = opt_.period, duration = plan.duration;
+  const double t_end = t_block_ + duration;
   // On an arc the angle grows by the same step every period, so cos and sin follow by rotation
   // (4 multiplies) instead of two libm calls per sample; an exact anchor every 64 samples keeps
   // the recurrence's rounding drift below 1e-13 of the radius.
@@ -494,7 +555,7 @@ InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
   // block's line, and a non-finite answer holds the previous joints.
   auto to_joints = [&](const Axes& p, double s) {
     // The end sample is the sweep's end (the joints the next block starts from).
-    const IkResult r = s >= 1 ? map.joints(path.to, 1.0, tcp_end) : map.joints(p, s, previous_joints);
+    const IkResult r = s >= 1 ? plan.map.joints(path.to, 1.0, plan.tcp_end) : plan.map.joints(p, s, previous_joints);
     const bool finite = all_finite(r.joints);
     if (!finite || r.status == IkStatus::kFailed) {
       ++stats_.ik_failed_samples;
@@ -510,7 +571,7 @@ InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
     ++n_;
     const double s = duration > 0 ? std::clamp((t - t_block_) / duration, 0.0, 1.0) : 1.0;
     if (!path.arc || s >= 1) {
-      if (tcp) emit(to_joints(path.at(s), s), sink);
+      if (plan.tcp) emit(to_joints(path.at(s), s), sink);
       else emit(path.at(s), sink);
       continue;
     }
@@ -530,12 +591,11 @@ InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
     const double r = path.r0 + s * (path.r1 - path.r0);
     p[static_cast<std::size_t>(path.ia)] = path.ca + r * cth;
     p[static_cast<std::size_t>(path.ib)] = path.cb + r * sth;
-    if (tcp) emit(to_joints(p, s), sink);
+    if (plan.tcp) emit(to_joints(p, s), sink);
     else emit(p, sink);
   }
   t_block_ = t_end;
-  raw_end_ = tcp ? tcp_end : path.to;
-  return res;
+  raw_end_ = plan.tcp ? plan.tcp_end : path.to;
 }
 
 void Interpolator::finish(SampleSink& sink) {

@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -153,6 +154,14 @@ class Interpolator {
   const InterpolateOptions& options() const { return opt_; }
 
  private:
+  struct BlockPlan;  // one block's path, its TCP map and duration (interpolate.cpp)
+  // The steps of add(), in order; the first three return a result when the block ends there.
+  std::optional<InterpolateResult> plan_path(const ResolvedBlock& b, BlockPlan& plan, SampleSink& sink);
+  std::optional<InterpolateResult> plan_duration(const ResolvedBlock& b, BlockPlan& plan, InterpolateResult& res) const;
+  std::optional<InterpolateResult> tcp_duration(const ResolvedBlock& b, BlockPlan& plan, InterpolateResult& res,
+                                                double length_xyz) const;
+  std::optional<InterpolateResult> account(const ResolvedBlock& b, const BlockPlan& plan, InterpolateResult& res);
+  void sample(const ResolvedBlock& b, const BlockPlan& plan, SampleSink& sink);
   void emit(const Axes& raw, SampleSink& sink);
   InterpolateOptions opt_;
   bool tcp_space_ = false;    // the last moving block was a TCP block (targets were tool tips)

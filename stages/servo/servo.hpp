@@ -46,7 +46,7 @@ enum class DriveModel : std::uint8_t {
 struct EffectSettings {
   std::string type;                                   //!< registry name, e.g. "backlash"
   std::vector<std::pair<std::string, double>> values; //!< name -> value
-  std::vector<std::pair<std::string, std::vector<double>>> lists;  //!< name -> sequence (nnoe weights)
+  std::vector<std::pair<std::string, std::vector<double>>> lists = {};  //!< name -> sequence (nnoe weights)
   double get(std::string_view name, double fallback) const;
   /// The sequence `name`, empty when absent.
   const std::vector<double>& list(std::string_view name) const;
