@@ -127,17 +127,19 @@ void Figure::colourbar(std::string label, double vmin, double vmax, ColourMap ma
   bar_ = Bar{std::move(label), vmin, vmax > vmin ? vmax : vmin + 1.0, map};
 }
 
-cv::Mat Figure::render() const {
-  const FigureStyle& st = style_;
-  cv::Mat img(st.height, st.width, CV_8UC3, kWhite);
-  const double fs = st.font_scale;
-  // Plot area; the colour bar and its labels take room on the right.
-  const int bar_room = bar_ ? st.colourbar_width + 110 : 0;
-  const int top = st.margin_top + int(notes_.size()) * int(std::lround(28 * fs / 0.6));
-  const cv::Rect area(st.margin_left, top, st.width - st.margin_left - st.margin_right - bar_room,
-                      st.height - top - st.margin_bottom);
+cv::Point2d Figure::Frame::to_px(double x, double y) const {
+  return cv::Point2d(area.x + (x - x0) / (x1 - x0) * area.width, area.y + area.height - (y - y0) / (y1 - y0) * area.height);
+}
 
-  // Data range.
+// Plot area (the colour bar and its labels take room on the right, notes in the top margin) and
+// data range: the limits set, else the data's bounding box plus 3 %, widened to equal scales when
+// asked.
+Figure::Frame Figure::frame() const {
+  const FigureStyle& st = style_;
+  Frame f;
+  const int bar_room = bar_ ? st.colourbar_width + 110 : 0;
+  const int top = st.margin_top + int(notes_.size()) * int(std::lround(28 * st.font_scale / 0.6));
+  f.area = cv::Rect(st.margin_left, top, st.width - st.margin_left - st.margin_right - bar_room, st.height - top - st.margin_bottom);
   double x0 = std::numeric_limits<double>::infinity(), x1 = -x0, y0 = x0, y1 = -x0;
   if (limits_) {
     x0 = (*limits_)[0];
@@ -160,26 +162,28 @@ cv::Mat Figure::render() const {
   if (!(x1 > x0)) x0 -= 0.5, x1 += 0.5;
   if (!(y1 > y0)) y0 -= 0.5, y1 += 0.5;
   if (equal_) {
-    const double sx = area.width / (x1 - x0), sy = area.height / (y1 - y0);
+    const double sx = f.area.width / (x1 - x0), sy = f.area.height / (y1 - y0);
     if (sx > sy) {
-      const double w = area.width / sy, c = 0.5 * (x0 + x1);
+      const double w = f.area.width / sy, c = 0.5 * (x0 + x1);
       x0 = c - 0.5 * w, x1 = c + 0.5 * w;
     } else {
-      const double h = area.height / sx, c = 0.5 * (y0 + y1);
+      const double h = f.area.height / sx, c = 0.5 * (y0 + y1);
       y0 = c - 0.5 * h, y1 = c + 0.5 * h;
     }
   }
-  auto to_px = [&](double x, double y) {
-    return cv::Point2d(area.x + (x - x0) / (x1 - x0) * area.width,
-                       area.y + area.height - (y - y0) / (y1 - y0) * area.height);
-  };
+  f.x0 = x0, f.x1 = x1, f.y0 = y0, f.y1 = y1;
+  return f;
+}
 
-  // Grid and ticks.
-  const auto xt = nice_ticks(x0, x1, std::max(3, area.width / 140));
-  const auto yt = nice_ticks(y0, y1, std::max(3, area.height / 90));
+int Figure::draw_grid(cv::Mat& img, const Frame& f) const {
+  const FigureStyle& st = style_;
+  const double fs = st.font_scale;
+  const cv::Rect& area = f.area;
+  const auto xt = nice_ticks(f.x0, f.x1, std::max(3, area.width / 140));
+  const auto yt = nice_ticks(f.y0, f.y1, std::max(3, area.height / 90));
   const double xstep = xt.size() > 1 ? xt[1] - xt[0] : 1.0, ystep = yt.size() > 1 ? yt[1] - yt[0] : 1.0;
   for (double v : xt) {
-    const int px = int(std::lround(to_px(v, y0).x));
+    const int px = int(std::lround(f.to_px(v, f.y0).x));
     if (st.grid) cv::line(img, {px, area.y}, {px, area.y + area.height}, kGrey, 1, cv::LINE_AA);
     cv::line(img, {px, area.y + area.height}, {px, area.y + area.height + 6}, kBlack, 1);
     const std::string s = tick_label(v, xstep);
@@ -188,7 +192,7 @@ cv::Mat Figure::render() const {
   }
   int widest_ytick = 0;
   for (double v : yt) {
-    const int py = int(std::lround(to_px(x0, v).y));
+    const int py = int(std::lround(f.to_px(f.x0, v).y));
     if (st.grid) cv::line(img, {area.x, py}, {area.x + area.width, py}, kGrey, 1, cv::LINE_AA);
     cv::line(img, {area.x - 6, py}, {area.x, py}, kBlack, 1);
     const std::string s = tick_label(v, ystep);
@@ -196,11 +200,15 @@ cv::Mat Figure::render() const {
     widest_ytick = std::max(widest_ytick, sz.width);
     put(img, s, {area.x - 10 - sz.width, py + sz.height / 2}, fs);
   }
+  return widest_ytick;
+}
 
-  // Data, clipped to the plot area.
+// Data, clipped to the plot area.
+void Figure::draw_series(cv::Mat& img, const Frame& f) const {
+  const cv::Rect& area = f.area;
   cv::Mat plot = img(area);
   auto local = [&](double x, double y) {
-    const cv::Point2d p = to_px(x, y);
+    const cv::Point2d p = f.to_px(x, y);
     // Sub-pixel precision with 4 fractional bits keeps dense paths smooth.
     return cv::Point(int(std::lround((p.x - area.x) * 16)), int(std::lround((p.y - area.y) * 16)));
   };
@@ -221,8 +229,13 @@ cv::Mat Figure::render() const {
     }
   }
   cv::rectangle(img, area, kBlack, 1);
+}
 
-  // Labels and title.
+// Title, axis labels, and the notes: small lines under the title, in the top margin.
+void Figure::draw_labels(cv::Mat& img, const Frame& f, int widest_ytick) const {
+  const FigureStyle& st = style_;
+  const double fs = st.font_scale;
+  const cv::Rect& area = f.area;
   if (!title_.empty()) {
     const cv::Size sz = text_size(title_, fs * 1.4, 2);
     put(img, title_, {std::max(4, area.x + area.width / 2 - sz.width / 2), st.margin_top / 2 + sz.height / 2}, fs * 1.4, 2);
@@ -233,59 +246,72 @@ cv::Mat Figure::render() const {
   }
   if (!ylabel_.empty())
     put_vertical(img, ylabel_, {std::max(14, area.x - widest_ytick - 32), area.y + area.height / 2}, fs * 1.15);
-
-  // Notes: small lines under the title, in the top margin.
   int ny = st.margin_top / 2 + int(text_size("Ag", fs * 1.4, 2).height * 0.5) + 8;
   for (const auto& n : notes_) {
     const cv::Size sz = text_size(n, fs * 0.9, 1);
     ny += sz.height + 8;
     put(img, n, {std::max(4, area.x + area.width / 2 - sz.width / 2), ny}, fs * 0.9);
   }
+}
 
-  // Legend, top right inside the plot.
+// Legend, top right inside the plot.
+void Figure::draw_legend(cv::Mat& img, const Frame& f) const {
+  const double fs = style_.font_scale;
+  const cv::Rect& area = f.area;
   std::vector<const Series*> labelled;
   for (const auto& s : series_)
     if (!s.label.empty()) labelled.push_back(&s);
-  if (!labelled.empty()) {
-    int w = 0, h = 0;
-    for (auto* s : labelled) {
-      const cv::Size sz = text_size(s->label, fs, 1);
-      w = std::max(w, sz.width);
-      h = std::max(h, sz.height);
-    }
-    const int row = h + 10, bw = w + 60, bh = int(labelled.size()) * row + 10;
-    const cv::Rect box(area.x + area.width - bw - 8, area.y + 8, bw, bh);
-    cv::rectangle(img, box, kWhite, cv::FILLED);
-    cv::rectangle(img, box, kBlack, 1);
-    for (std::size_t i = 0; i < labelled.size(); ++i) {
-      const int cy = box.y + 5 + int(i) * row + row / 2;
-      if (labelled[i]->marker_radius > 0)
-        cv::circle(img, {box.x + 22, cy}, labelled[i]->marker_radius, labelled[i]->colour, cv::FILLED, cv::LINE_AA);
-      else
-        cv::line(img, {box.x + 8, cy}, {box.x + 38, cy}, labelled[i]->colour, labelled[i]->thickness, cv::LINE_AA);
-      put(img, labelled[i]->label, {box.x + 48, cy + h / 2}, fs);
-    }
+  if (labelled.empty()) return;
+  int w = 0, h = 0;
+  for (auto* s : labelled) {
+    const cv::Size sz = text_size(s->label, fs, 1);
+    w = std::max(w, sz.width);
+    h = std::max(h, sz.height);
   }
+  const int row = h + 10, bw = w + 60, bh = int(labelled.size()) * row + 10;
+  const cv::Rect box(area.x + area.width - bw - 8, area.y + 8, bw, bh);
+  cv::rectangle(img, box, kWhite, cv::FILLED);
+  cv::rectangle(img, box, kBlack, 1);
+  for (std::size_t i = 0; i < labelled.size(); ++i) {
+    const int cy = box.y + 5 + int(i) * row + row / 2;
+    if (labelled[i]->marker_radius > 0)
+      cv::circle(img, {box.x + 22, cy}, labelled[i]->marker_radius, labelled[i]->colour, cv::FILLED, cv::LINE_AA);
+    else
+      cv::line(img, {box.x + 8, cy}, {box.x + 38, cy}, labelled[i]->colour, labelled[i]->thickness, cv::LINE_AA);
+    put(img, labelled[i]->label, {box.x + 48, cy + h / 2}, fs);
+  }
+}
 
-  // Colour bar.
-  if (bar_) {
-    const int bx = area.x + area.width + 30, by = area.y, bh = area.height;
-    for (int i = 0; i < bh; ++i) {
-      const double t = 1.0 - double(i) / std::max(1, bh - 1);
-      cv::line(img, {bx, by + i}, {bx + st.colourbar_width, by + i}, colour_at(bar_->map, t), 1);
-    }
-    cv::rectangle(img, {bx, by}, {bx + st.colourbar_width, by + bh}, kBlack, 1);
-    const auto bt = nice_ticks(bar_->vmin, bar_->vmax, 6);
-    const double bstep = bt.size() > 1 ? bt[1] - bt[0] : 1.0;
-    for (double v : bt) {
-      const int py = by + int(std::lround((1.0 - (v - bar_->vmin) / (bar_->vmax - bar_->vmin)) * (bh - 1)));
-      cv::line(img, {bx + st.colourbar_width, py}, {bx + st.colourbar_width + 5, py}, kBlack, 1);
-      const std::string s = tick_label(v, bstep);
-      const cv::Size sz = text_size(s, fs, 1);
-      put(img, s, {bx + st.colourbar_width + 8, py + sz.height / 2}, fs);
-    }
-    put_vertical(img, bar_->label, {std::min(st.width - 14, bx + st.colourbar_width + 80), by + bh / 2}, fs * 1.15);
+void Figure::draw_colourbar(cv::Mat& img, const Frame& f) const {
+  if (!bar_) return;
+  const FigureStyle& st = style_;
+  const double fs = st.font_scale;
+  const int bx = f.area.x + f.area.width + 30, by = f.area.y, bh = f.area.height;
+  for (int i = 0; i < bh; ++i) {
+    const double t = 1.0 - double(i) / std::max(1, bh - 1);
+    cv::line(img, {bx, by + i}, {bx + st.colourbar_width, by + i}, colour_at(bar_->map, t), 1);
   }
+  cv::rectangle(img, {bx, by}, {bx + st.colourbar_width, by + bh}, kBlack, 1);
+  const auto bt = nice_ticks(bar_->vmin, bar_->vmax, 6);
+  const double bstep = bt.size() > 1 ? bt[1] - bt[0] : 1.0;
+  for (double v : bt) {
+    const int py = by + int(std::lround((1.0 - (v - bar_->vmin) / (bar_->vmax - bar_->vmin)) * (bh - 1)));
+    cv::line(img, {bx + st.colourbar_width, py}, {bx + st.colourbar_width + 5, py}, kBlack, 1);
+    const std::string s = tick_label(v, bstep);
+    const cv::Size sz = text_size(s, fs, 1);
+    put(img, s, {bx + st.colourbar_width + 8, py + sz.height / 2}, fs);
+  }
+  put_vertical(img, bar_->label, {std::min(st.width - 14, bx + st.colourbar_width + 80), by + bh / 2}, fs * 1.15);
+}
+
+cv::Mat Figure::render() const {
+  cv::Mat img(style_.height, style_.width, CV_8UC3, kWhite);
+  const Frame f = frame();
+  const int widest_ytick = draw_grid(img, f);
+  draw_series(img, f);
+  draw_labels(img, f, widest_ytick);
+  draw_legend(img, f);
+  draw_colourbar(img, f);
   return img;
 }
 

@@ -90,6 +90,19 @@ class Figure {
     double vmin = 0, vmax = 1;
     ColourMap map = ColourMap::kViridis;
   };
+  /// The plot area in pixels and the data range it shows.
+  struct Frame {
+    cv::Rect area;
+    double x0 = 0, x1 = 1, y0 = 0, y1 = 1;
+    cv::Point2d to_px(double x, double y) const;
+  };
+  // The steps of render(), in drawing order.
+  Frame frame() const;
+  int draw_grid(cv::Mat& img, const Frame& f) const;  //!< returns the widest y tick label [px]
+  void draw_series(cv::Mat& img, const Frame& f) const;
+  void draw_labels(cv::Mat& img, const Frame& f, int widest_ytick) const;
+  void draw_legend(cv::Mat& img, const Frame& f) const;
+  void draw_colourbar(cv::Mat& img, const Frame& f) const;
   FigureStyle style_;
   std::string title_, xlabel_, ylabel_;
   std::optional<std::array<double, 4>> limits_;
