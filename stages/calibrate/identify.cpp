@@ -188,7 +188,9 @@ LsqResult fit_declared(const Ctx& c, const servo::DriveParams& cfg, const std::v
   return least_squares(r, Eigen::VectorXd::Ones(n), Eigen::VectorXd::Constant(n, 1e-4), false, tau);
 }
 
-void refit_declared(const Ctx& c, AxisIdentification& id) {
+/// Each declared parameter with why it is held, if it is: off in the config, J without a torque
+/// signal, the velocity loop's gains when the position cannot see them. Returns the free ones.
+std::vector<int> declare(const Ctx& c, AxisIdentification& id) {
   const auto& slots = declared_slots();
   std::vector<int> free;
   for (std::size_t i = 0; i < slots.size(); ++i) {
@@ -209,6 +211,12 @@ void refit_declared(const Ctx& c, AxisIdentification& id) {
     } else free.push_back(static_cast<int>(i));
     id.declared.push_back(d);
   }
+  return free;
+}
+
+void refit_declared(const Ctx& c, AxisIdentification& id) {
+  const auto& slots = declared_slots();
+  std::vector<int> free = declare(c, id);
   const double tau = c.tau(id.pred_declared);
   LsqResult fit;
   // Fit, then hold every parameter the trace cannot pin down and fit the rest again: a poorly
