@@ -16,6 +16,16 @@ AtomicFile::AtomicFile(const std::string& path) : path_(path) {
     f_ = stdout;
     return;
   }
+  // A device, pipe or socket (-o /dev/null, a named pipe to another program) is written in place:
+  // renaming a .part file over it would replace /dev/null with a regular file, as it once did.
+  std::error_code ec;
+  const auto status = fs::status(path, ec);
+  if (!ec && fs::exists(status) && !fs::is_regular_file(status) && !fs::is_directory(status)) {
+    f_ = std::fopen(path.c_str(), "wb");
+    if (f_ == nullptr) throw std::runtime_error(path + ": cannot write: " + std::strerror(errno));
+    direct_ = true;
+    return;
+  }
   part_ = path + ".part";
   f_ = std::fopen(part_.c_str(), "wb");
   if (f_ == nullptr) throw std::runtime_error(path + ": cannot write: " + std::strerror(errno));
@@ -24,7 +34,7 @@ AtomicFile::AtomicFile(const std::string& path) : path_(path) {
 AtomicFile::~AtomicFile() {
   if (f_ == nullptr || f_ == stdout) return;
   std::fclose(f_);
-  std::remove(part_.c_str());
+  if (!direct_) std::remove(part_.c_str());
 }
 
 void AtomicFile::write(std::string& buffer, bool force) {
@@ -46,9 +56,10 @@ void AtomicFile::commit() {
   const bool closed = std::fclose(f_) == 0;
   f_ = nullptr;
   if (!ok || !closed) {
-    std::remove(part_.c_str());
+    if (!direct_) std::remove(part_.c_str());
     throw std::runtime_error(path_ + ": write failed: " + std::strerror(errno));
   }
+  if (direct_) return;
   if (std::rename(part_.c_str(), path_.c_str()) != 0)
     throw std::runtime_error(path_ + ": cannot rename " + part_ + ": " + std::strerror(errno));
 }

@@ -28,6 +28,7 @@ class AtomicFile {
  private:
   std::FILE* f_ = nullptr;
   std::string path_, part_;
+  bool direct_ = false;  //!< a device or pipe: written in place, never renamed over
 };
 
 /// Writes `text` to `path` through an AtomicFile.
