@@ -100,6 +100,7 @@ class Figure {
   Frame frame() const;
   int draw_grid(cv::Mat& img, const Frame& f) const;  //!< returns the widest y tick label [px]
   void draw_series(cv::Mat& img, const Frame& f) const;
+  std::vector<std::size_t> drawn_points(const Series& s, const Frame& f) const;
   void draw_labels(cv::Mat& img, const Frame& f, int widest_ytick) const;
   void draw_legend(cv::Mat& img, const Frame& f) const;
   void draw_colourbar(cv::Mat& img, const Frame& f) const;
