@@ -542,6 +542,107 @@ void TrochoidExpander::skip(const ResolvedBlock& in, std::vector<ResolvedBlock>&
   em.finish("G275 left out: rapid to where the program continues");
 }
 
+namespace {
+
+// Break points of the loop phase: stretch boundaries, walls (vertices exactly on the wall lines,
+// so no chord or arc can reach past them), and the air stretches of each revolution (`air`).
+std::vector<double> loop_breaks(const SlotGeometry& g, const SteadyEngagement& se, double margin,
+                                std::vector<std::pair<double, double>>& air) {
+  std::vector<double> cuts{g.phi_start_circle, g.phi_accel, g.phi_cruise, g.phi_decel, g.phi_end_circle, g.phi_end};
+  for (double w = g.phase0; w < g.phi_end; w += kPi) cuts.push_back(w);
+  if (se.air_end > se.air_begin && se.air_end - se.air_begin > 2.0 * margin) {
+    const double k0 = std::floor((g.phi_accel - se.air_end) / kTwoPi);
+    for (double k = k0;; k += 1.0) {
+      const double lo = std::max(g.phi_accel, se.air_begin + margin + kTwoPi * k);
+      const double hi = std::min(g.phi_end, se.air_end - margin + kTwoPi * k);
+      if (se.air_begin + margin + kTwoPi * k > g.phi_end) break;
+      if (hi > lo) {
+        air.emplace_back(lo, hi);
+        cuts.push_back(lo);
+        cuts.push_back(hi);
+      }
+    }
+  }
+  std::sort(cuts.begin(), cuts.end());
+  cuts.erase(std::unique(cuts.begin(), cuts.end(), [](double a, double b) { return b - a < 1e-12; }), cuts.end());
+  return cuts;
+}
+
+// The way down to pass depth z from z_top: a helix, a zig-zag ramp or a plunge, each ending on
+// the loop's start point p0.
+void write_entry(Emitter& em, const SlotGeometry& g, const TrochoidSlot& s, TrochoidEntry entry, double z_top, double z,
+                 double entry_feed, double tan_a, const double p0[2]) {
+  const double R = g.loop_radius, sx = g.sx, sy = g.sy;
+  const double mx = 0.5 * (sx + p0[0]), my = 0.5 * (sy + p0[1]);
+  switch (entry) {
+    case TrochoidEntry::kHelix: {
+      em.circle(mx, my, g.sigma * kPi, z_top, entry_feed, TrochoidPart::kEntry, p0);
+      const double per_turn = kTwoPi * R * tan_a;
+      const int turns = std::max(1, int(std::ceil((z_top - z) / per_turn - 1e-9)));
+      for (int t = 1; t <= turns; ++t)
+        em.circle(sx, sy, g.sigma * kTwoPi, z_top - (z_top - z) * t / turns, entry_feed,
+                  TrochoidPart::kEntry);
+      break;
+    }
+    case TrochoidEntry::kRamp: {
+      const double ramp_len = std::min(g.length, s.tool_diameter);
+      const double fx = sx + ramp_len * g.ux, fy = sy + ramp_len * g.uy;
+      double zc = z_top;
+      bool forward = true;
+      while (zc > z + 1e-12) {
+        const double drop = ramp_len * tan_a;
+        const double tx = forward ? fx : sx, ty = forward ? fy : sy;
+        if (zc - drop >= z) {
+          zc -= drop;
+          em.line(tx, ty, zc, entry_feed, TrochoidPart::kEntry);
+        } else {
+          const double frac = (zc - z) / drop;
+          const double ax = em.pos()[kX] + (tx - em.pos()[kX]) * frac;
+          const double ay = em.pos()[kY] + (ty - em.pos()[kY]) * frac;
+          zc = z;
+          em.line(ax, ay, z, entry_feed, TrochoidPart::kEntry);
+          em.line(tx, ty, z, entry_feed, TrochoidPart::kEntry);
+        }
+        forward = !forward;
+      }
+      em.line(sx, sy, z, entry_feed, TrochoidPart::kEntry);
+      em.circle(mx, my, g.sigma * kPi, z, entry_feed, TrochoidPart::kEntry, p0);
+      break;
+    }
+    case TrochoidEntry::kPlunge:
+      em.line(sx, sy, z, entry_feed, TrochoidPart::kEntry);
+      em.circle(mx, my, g.sigma * kPi, z, entry_feed, TrochoidPart::kEntry, p0);
+      break;
+  }
+}
+
+// The loops of one pass, piece by piece between the break points: the start circle at the entry
+// feed, the air stretches at the air feed, the rest at the programmed feed.
+void write_loops(LoopWriter& lw, const SlotGeometry& g, const std::vector<double>& cuts,
+                 const std::vector<std::pair<double, double>>& air, double z, double feed, double entry_feed,
+                 double air_feed) {
+  for (std::size_t i = 0; i + 1 < cuts.size(); ++i) {
+    const double a = cuts[i], b = cuts[i + 1], mid = 0.5 * (a + b);
+    TrochoidPart part = TrochoidPart::kLoops;
+    double f = feed;
+    if (mid < g.phi_accel) {
+      part = TrochoidPart::kStartCircle;
+      f = entry_feed;  // finishes the entry: cuts the helix's last wedge or the plunge's ring
+    } else if (mid > g.phi_end_circle) {
+      part = TrochoidPart::kEndCircle;
+    }
+    for (auto [lo, hi] : air)
+      if (mid > lo && mid < hi) {
+        part = TrochoidPart::kAir;
+        f = air_feed;
+      }
+    const bool pure = mid < g.phi_accel || mid > g.phi_end_circle;
+    lw.piece(a, b, z, f, part, pure);
+  }
+}
+
+}  // namespace
+
 TrochoidExpander::Status TrochoidExpander::expand(const ResolvedBlock& in,
                                                   std::vector<ResolvedBlock>& out,
                                                   std::vector<TrochoidPart>* parts) const {
@@ -562,29 +663,8 @@ TrochoidExpander::Status TrochoidExpander::expand(const ResolvedBlock& in,
   const double air_feed = opt_.air_feed > 0 ? opt_.air_feed : feed * opt_.air_feed_factor;
   const double tan_a = std::tan(opt_.entry_angle_deg * kPi / 180.0);
 
-  // Break points of the loop phase: stretch boundaries, walls (vertices exactly on the wall
-  // lines, so no chord or arc can reach past them), and the air stretches of each revolution.
-  std::vector<double> cuts{g.phi_start_circle, g.phi_accel, g.phi_cruise, g.phi_decel,
-                           g.phi_end_circle, g.phi_end};
-  for (double w = g.phase0; w < g.phi_end; w += kPi) cuts.push_back(w);
-  const double margin = opt_.air_margin_deg * kPi / 180.0;
   std::vector<std::pair<double, double>> air;
-  if (se.air_end > se.air_begin && se.air_end - se.air_begin > 2.0 * margin) {
-    const double k0 = std::floor((g.phi_accel - se.air_end) / kTwoPi);
-    for (double k = k0;; k += 1.0) {
-      const double lo = std::max(g.phi_accel, se.air_begin + margin + kTwoPi * k);
-      const double hi = std::min(g.phi_end, se.air_end - margin + kTwoPi * k);
-      if (se.air_begin + margin + kTwoPi * k > g.phi_end) break;
-      if (hi > lo) {
-        air.emplace_back(lo, hi);
-        cuts.push_back(lo);
-        cuts.push_back(hi);
-      }
-    }
-  }
-  std::sort(cuts.begin(), cuts.end());
-  cuts.erase(std::unique(cuts.begin(), cuts.end(), [](double a, double b) { return b - a < 1e-12; }),
-             cuts.end());
+  const std::vector<double> cuts = loop_breaks(g, se, opt_.air_margin_deg * kPi / 180.0, air);
 
   Emitter em(in, out, parts, opt_.chord_tolerance, opt_.arcs);
   LoopWriter lw(g, em, opt_.chord_tolerance, opt_.arcs);
@@ -601,66 +681,8 @@ TrochoidExpander::Status TrochoidExpander::expand(const ResolvedBlock& in,
       z_top = std::min(s.clearance, s.start[2] - (pass - 1) * pp.dz + opt_.approach_clearance);
       em.rapid(sx, sy, z_top);
     }
-    const double mx = 0.5 * (sx + p0x), my = 0.5 * (sy + p0y);
-    switch (opt_.entry) {
-      case TrochoidEntry::kHelix: {
-        em.circle(mx, my, g.sigma * kPi, z_top, entry_feed, TrochoidPart::kEntry, p0);
-        const double per_turn = kTwoPi * R * tan_a;
-        const int turns = std::max(1, int(std::ceil((z_top - z) / per_turn - 1e-9)));
-        for (int t = 1; t <= turns; ++t)
-          em.circle(sx, sy, g.sigma * kTwoPi, z_top - (z_top - z) * t / turns, entry_feed,
-                    TrochoidPart::kEntry);
-        break;
-      }
-      case TrochoidEntry::kRamp: {
-        const double ramp_len = std::min(g.length, s.tool_diameter);
-        const double fx = sx + ramp_len * g.ux, fy = sy + ramp_len * g.uy;
-        double zc = z_top;
-        bool forward = true;
-        while (zc > z + 1e-12) {
-          const double drop = ramp_len * tan_a;
-          const double tx = forward ? fx : sx, ty = forward ? fy : sy;
-          if (zc - drop >= z) {
-            zc -= drop;
-            em.line(tx, ty, zc, entry_feed, TrochoidPart::kEntry);
-          } else {
-            const double frac = (zc - z) / drop;
-            const double ax = em.pos()[kX] + (tx - em.pos()[kX]) * frac;
-            const double ay = em.pos()[kY] + (ty - em.pos()[kY]) * frac;
-            zc = z;
-            em.line(ax, ay, z, entry_feed, TrochoidPart::kEntry);
-            em.line(tx, ty, z, entry_feed, TrochoidPart::kEntry);
-          }
-          forward = !forward;
-        }
-        em.line(sx, sy, z, entry_feed, TrochoidPart::kEntry);
-        em.circle(mx, my, g.sigma * kPi, z, entry_feed, TrochoidPart::kEntry, p0);
-        break;
-      }
-      case TrochoidEntry::kPlunge:
-        em.line(sx, sy, z, entry_feed, TrochoidPart::kEntry);
-        em.circle(mx, my, g.sigma * kPi, z, entry_feed, TrochoidPart::kEntry, p0);
-        break;
-    }
-    // The loops.
-    for (std::size_t i = 0; i + 1 < cuts.size(); ++i) {
-      const double a = cuts[i], b = cuts[i + 1], mid = 0.5 * (a + b);
-      TrochoidPart part = TrochoidPart::kLoops;
-      double f = feed;
-      if (mid < g.phi_accel) {
-        part = TrochoidPart::kStartCircle;
-        f = entry_feed;  // finishes the entry: cuts the helix's last wedge or the plunge's ring
-      } else if (mid > g.phi_end_circle) {
-        part = TrochoidPart::kEndCircle;
-      }
-      for (auto [lo, hi] : air)
-        if (mid > lo && mid < hi) {
-          part = TrochoidPart::kAir;
-          f = air_feed;
-        }
-      const bool pure = mid < g.phi_accel || mid > g.phi_end_circle;
-      lw.piece(a, b, z, f, part, pure);
-    }
+    write_entry(em, g, s, opt_.entry, z_top, z, entry_feed, tan_a, p0);
+    write_loops(lw, g, cuts, air, z, feed, entry_feed, air_feed);
     // Lead-out: half circle of radius R/2 from the last loop point to E, tangent to the loop.
     const double qx = em.pos()[kX], qy = em.pos()[kY];
     const double end_xy[2] = {g.ex, g.ey};
