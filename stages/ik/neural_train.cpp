@@ -207,136 +207,112 @@ NeuralTrainingOptions preset_options(std::string_view preset) {
                               "'; use 'paper' or 'improved'");
 }
 
-NeuralIk train_neural_ik(const MachineKinematics& m, const std::string& machine_name,
-                         const NeuralTrainingOptions& o, NeuralTrainingReport* report,
-                         const NeuralProgressCallback& progress) {
-  using Clock = std::chrono::steady_clock;
-  const auto t_start = Clock::now();
-  const std::clock_t cpu_start = std::clock();
-  NeuralTrainingReport local_report;
-  NeuralTrainingReport& rep = report ? *report : local_report;
-  rep = {};
+namespace {
 
-  for (int a = 0; a < kNumAxes; ++a)
-    for (int h : o.hidden[a])
-      if (h < 1 || h > 1024)
-        throw std::invalid_argument(std::string("neural training: hidden layer of net ") +
-                                    kAxisLetters[a] + " has " + std::to_string(h) +
-                                    " units; must be in [1, 1024]");
-  if (!(o.min_tilt >= 0 && o.min_tilt < 90))
-    throw std::invalid_argument("neural training: min_tilt " + std::to_string(o.min_tilt) +
-                                " deg outside [0, 90)");
-
-  std::mt19937_64 rng(o.seed);
-  const int branch = training_branch_sign(m);
-  const JointRanges ranges = joint_ranges(m, o, branch);
-
-  // Data and splits first, then the nets in X Y Z A C order: the stream of draws is fixed.
-  const RawData pos = position_data(m, o, ranges, rng);
-  const Split pos_split = split_indices(pos.inputs.cols(), o.position_split, rng, "position");
-  const RawData rot = rotary_data(m, o, ranges, rng);
-  const Split rot_split = split_indices(rot.inputs.cols(), o.rotary_split, rng, "rotary");
-
-  AxisNets nets;
-  for (int axis = 0; axis < kNumAxes; ++axis) {
-    const auto t_axis = Clock::now();
-    const std::clock_t cpu_axis = std::clock();
-    const bool position = axis <= kZ;
-    const RawData& raw = position ? pos : rot;
-    const Split& split = position ? pos_split : rot_split;
-    Eigen::MatrixXd in, out;
-    if (position) {
-      in = raw.inputs;
-      out = raw.targets.row(axis);
-    } else if (axis == kA) {
-      in = raw.inputs.topRows(2);
-      out = raw.targets.row(0);
-    } else {
-      in = raw.inputs.bottomRows(2);
-      out = raw.targets.bottomRows(raw.targets.rows() - 1);
-    }
-    const Eigen::MatrixXd train_in = columns(in, split.training);
-    const Eigen::MatrixXd train_out = columns(out, split.training);
-
-    AxisNet& net = nets[axis];
-    std::vector<int> sizes{static_cast<int>(in.rows())};
-    sizes.insert(sizes.end(), o.hidden[axis].begin(), o.hidden[axis].end());
-    sizes.push_back(static_cast<int>(out.rows()));
-    net.mlp = Mlp(sizes);
-    net.mlp.initialise(rng);
-    set_ranges(net, train_in, train_out);
-    if (position && ranges.position[kC].max - ranges.position[kC].min >= 360.0) {
-      // A full turn of C: the nominal range, so NeuralIk's wrap lands inside it.
-      net.input_min[4] = ranges.position[kC].min;
-      net.input_max[4] = ranges.position[kC].max;
-    }
-    if (axis == kC && o.c_output == COutput::kSinCos) {
-      net.output_min.setConstant(-1.0);  // sin and cos have a known range; no data-dependent scale
-      net.output_max.setConstant(1.0);
-    }
-    for (Eigen::Index r = 0; r < net.output_min.size(); ++r)
-      if (!(net.output_max[r] > net.output_min[r]))
-        throw std::invalid_argument(std::string("neural training: targets of net ") +
-                                    kAxisLetters[axis] + " are constant over the training set");
-
-    auto make = [&](const std::vector<Eigen::Index>& idx) {
-      Dataset d;
-      d.inputs = normalise_inputs(net, columns(in, idx));
-      d.targets = normalise_outputs(net, columns(out, idx));
-      return d;
-    };
-    const Dataset training = make(split.training);
-    const Dataset validation = make(split.validation);
-    const Dataset test = make(split.test);
-
-    ProgressCallback net_progress;
-    if (progress) net_progress = [&](const TrainingProgress& p) { progress(axis, p); };
-    AxisTrainingReport& ar = rep.axes[axis];
-    ar.training_count = static_cast<int>(split.training.size());
-    ar.validation_count = static_cast<int>(split.validation.size());
-    ar.test_count = static_cast<int>(split.test.size());
-    if (o.trainer == Trainer::kLevenbergMarquardt)
-      ar.result = train_levenberg_marquardt(net.mlp, training, validation, o.levenberg_marquardt,
-                                            net_progress);
-    else
-      ar.result = train_gradient_descent(net.mlp, training, validation, o.gradient_descent[axis],
-                                         net_progress);
-    ar.test_mse = mean_squared_error(net.mlp, test);
-
-    // Physical errors on validation and test; C as a wrapped angle.
-    auto physical_errors = [&](const std::vector<Eigen::Index>& idx, const Dataset& d) {
-      const Eigen::MatrixXd predicted = denormalise_outputs(net, net.mlp.forward(d.inputs));
-      Eigen::ArrayXd err(static_cast<Eigen::Index>(idx.size()));
-      for (std::size_t i = 0; i < idx.size(); ++i) {
-        const auto k = static_cast<Eigen::Index>(i);
-        if (axis == kC) {
-          const double c_hat = o.c_output == COutput::kSinCos
-                                   ? std::atan2(predicted(0, k), predicted(1, k)) * kDeg
-                                   : predicted(0, k);
-          err[k] = angle_difference(c_hat, rot.joints(1, idx[i]));
-        } else {
-          err[k] = predicted(0, k) - out(0, idx[i]);
-        }
-      }
-      return err;
-    };
-    const Eigen::ArrayXd val_err = physical_errors(split.validation, validation);
-    const Eigen::ArrayXd test_err = physical_errors(split.test, test);
-    ar.validation_rms = rms(val_err);
-    ar.test_rms = rms(test_err);
-    ar.test_max_abs = test_err.size() ? test_err.abs().maxCoeff() : 0.0;
+/// Errors of `net` in physical units on the samples `idx` (normalised in `d`): C as a wrapped angle.
+Eigen::ArrayXd physical_errors(const AxisNet& net, int axis, const NeuralTrainingOptions& o, const RawData& rot,
+                               const Eigen::MatrixXd& out, const std::vector<Eigen::Index>& idx, const Dataset& d) {
+  const Eigen::MatrixXd predicted = denormalise_outputs(net, net.mlp.forward(d.inputs));
+  Eigen::ArrayXd err(static_cast<Eigen::Index>(idx.size()));
+  for (std::size_t i = 0; i < idx.size(); ++i) {
+    const auto k = static_cast<Eigen::Index>(i);
     if (axis == kC) {
-      ar.validation_mse_angle = val_err.size() ? (val_err / 180.0).square().mean() : 0.0;
-      ar.test_mse_angle = test_err.size() ? (test_err / 180.0).square().mean() : 0.0;
+      const double c_hat = o.c_output == COutput::kSinCos ? std::atan2(predicted(0, k), predicted(1, k)) * kDeg : predicted(0, k);
+      err[k] = angle_difference(c_hat, rot.joints(1, idx[i]));
+    } else {
+      err[k] = predicted(0, k) - out(0, idx[i]);
     }
-    ar.seconds = std::chrono::duration<double>(Clock::now() - t_axis).count();
-    ar.cpu_seconds = static_cast<double>(std::clock() - cpu_axis) / CLOCKS_PER_SEC;
   }
+  return err;
+}
 
-  NeuralIk model({machine_name, o.preset, o.seed}, branch, o.c_output, std::move(nets));
+/// One axis's net: its data and split, sizes and scalings, training, and its errors in physical
+/// units on the validation and test sets (C as a wrapped angle). Draws from `rng` in the fixed order.
+AxisNet train_axis(int axis, const RawData& pos, const RawData& rot, const Split& pos_split, const Split& rot_split,
+                   const JointRanges& ranges, const NeuralTrainingOptions& o, std::mt19937_64& rng,
+                   const NeuralProgressCallback& progress, AxisTrainingReport& ar) {
+  const auto t_axis = std::chrono::steady_clock::now();
+  const std::clock_t cpu_axis = std::clock();
+  const bool position = axis <= kZ;
+  const RawData& raw = position ? pos : rot;
+  const Split& split = position ? pos_split : rot_split;
+  Eigen::MatrixXd in, out;
+  if (position) {
+    in = raw.inputs;
+    out = raw.targets.row(axis);
+  } else if (axis == kA) {
+    in = raw.inputs.topRows(2);
+    out = raw.targets.row(0);
+  } else {
+    in = raw.inputs.bottomRows(2);
+    out = raw.targets.bottomRows(raw.targets.rows() - 1);
+  }
+  const Eigen::MatrixXd train_in = columns(in, split.training);
+  const Eigen::MatrixXd train_out = columns(out, split.training);
 
-  // End to end on fresh random joints (|A| >= min_tilt, where C is defined): rotary nets first,
-  // their A and C into the position nets, exactly as NeuralIk::predict runs in the IK stage.
+  AxisNet net;
+  std::vector<int> sizes{static_cast<int>(in.rows())};
+  sizes.insert(sizes.end(), o.hidden[axis].begin(), o.hidden[axis].end());
+  sizes.push_back(static_cast<int>(out.rows()));
+  net.mlp = Mlp(sizes);
+  net.mlp.initialise(rng);
+  set_ranges(net, train_in, train_out);
+  if (position && ranges.position[kC].max - ranges.position[kC].min >= 360.0) {
+    // A full turn of C: the nominal range, so NeuralIk's wrap lands inside it.
+    net.input_min[4] = ranges.position[kC].min;
+    net.input_max[4] = ranges.position[kC].max;
+  }
+  if (axis == kC && o.c_output == COutput::kSinCos) {
+    net.output_min.setConstant(-1.0);  // sin and cos have a known range; no data-dependent scale
+    net.output_max.setConstant(1.0);
+  }
+  for (Eigen::Index r = 0; r < net.output_min.size(); ++r)
+    if (!(net.output_max[r] > net.output_min[r]))
+      throw std::invalid_argument(std::string("neural training: targets of net ") +
+                                  kAxisLetters[axis] + " are constant over the training set");
+
+  auto make = [&](const std::vector<Eigen::Index>& idx) {
+    Dataset d;
+    d.inputs = normalise_inputs(net, columns(in, idx));
+    d.targets = normalise_outputs(net, columns(out, idx));
+    return d;
+  };
+  const Dataset training = make(split.training);
+  const Dataset validation = make(split.validation);
+  const Dataset test = make(split.test);
+
+  ProgressCallback net_progress;
+  if (progress) net_progress = [&](const TrainingProgress& p) { progress(axis, p); };
+  ar.training_count = static_cast<int>(split.training.size());
+  ar.validation_count = static_cast<int>(split.validation.size());
+  ar.test_count = static_cast<int>(split.test.size());
+  if (o.trainer == Trainer::kLevenbergMarquardt)
+    ar.result = train_levenberg_marquardt(net.mlp, training, validation, o.levenberg_marquardt,
+                                          net_progress);
+  else
+    ar.result = train_gradient_descent(net.mlp, training, validation, o.gradient_descent[axis],
+                                       net_progress);
+  ar.test_mse = mean_squared_error(net.mlp, test);
+
+  // Physical errors on validation and test; C as a wrapped angle.
+  const Eigen::ArrayXd val_err = physical_errors(net, axis, o, rot, out, split.validation, validation);
+  const Eigen::ArrayXd test_err = physical_errors(net, axis, o, rot, out, split.test, test);
+  ar.validation_rms = rms(val_err);
+  ar.test_rms = rms(test_err);
+  ar.test_max_abs = test_err.size() ? test_err.abs().maxCoeff() : 0.0;
+  if (axis == kC) {
+    ar.validation_mse_angle = val_err.size() ? (val_err / 180.0).square().mean() : 0.0;
+    ar.test_mse_angle = test_err.size() ? (test_err / 180.0).square().mean() : 0.0;
+  }
+  ar.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_axis).count();
+  ar.cpu_seconds = static_cast<double>(std::clock() - cpu_axis) / CLOCKS_PER_SEC;
+  return net;
+}
+
+/// End to end on fresh random joints (|A| >= min_tilt, where C is defined): rotary nets first,
+/// their A and C into the position nets, exactly as NeuralIk::predict runs in the IK stage.
+void evaluate_end_to_end(const NeuralIk& model, const MachineKinematics& m, const NeuralTrainingOptions& o,
+                         const JointRanges& ranges, std::mt19937_64& rng, NeuralTrainingReport& rep) {
   constexpr int kEndToEnd = 5000;
   std::vector<ToolPose> poses(kEndToEnd);
   std::vector<Axes> truth(kEndToEnd);
@@ -374,6 +350,46 @@ NeuralIk train_neural_ik(const MachineKinematics& m, const std::string& machine_
     }
   }
   for (int a = kX; a <= kZ; ++a) rep.position_only.rms[a] = std::sqrt(linear_sq[a] / kEndToEnd);
+}
+
+}  // namespace
+
+NeuralIk train_neural_ik(const MachineKinematics& m, const std::string& machine_name,
+                         const NeuralTrainingOptions& o, NeuralTrainingReport* report,
+                         const NeuralProgressCallback& progress) {
+  using Clock = std::chrono::steady_clock;
+  const auto t_start = Clock::now();
+  const std::clock_t cpu_start = std::clock();
+  NeuralTrainingReport local_report;
+  NeuralTrainingReport& rep = report ? *report : local_report;
+  rep = {};
+
+  for (int a = 0; a < kNumAxes; ++a)
+    for (int h : o.hidden[a])
+      if (h < 1 || h > 1024)
+        throw std::invalid_argument(std::string("neural training: hidden layer of net ") +
+                                    kAxisLetters[a] + " has " + std::to_string(h) +
+                                    " units; must be in [1, 1024]");
+  if (!(o.min_tilt >= 0 && o.min_tilt < 90))
+    throw std::invalid_argument("neural training: min_tilt " + std::to_string(o.min_tilt) +
+                                " deg outside [0, 90)");
+
+  std::mt19937_64 rng(o.seed);
+  const int branch = training_branch_sign(m);
+  const JointRanges ranges = joint_ranges(m, o, branch);
+
+  // Data and splits first, then the nets in X Y Z A C order: the stream of draws is fixed.
+  const RawData pos = position_data(m, o, ranges, rng);
+  const Split pos_split = split_indices(pos.inputs.cols(), o.position_split, rng, "position");
+  const RawData rot = rotary_data(m, o, ranges, rng);
+  const Split rot_split = split_indices(rot.inputs.cols(), o.rotary_split, rng, "rotary");
+
+  AxisNets nets;
+  for (int axis = 0; axis < kNumAxes; ++axis)
+    nets[axis] = train_axis(axis, pos, rot, pos_split, rot_split, ranges, o, rng, progress, rep.axes[axis]);
+
+  NeuralIk model({machine_name, o.preset, o.seed}, branch, o.c_output, std::move(nets));
+  evaluate_end_to_end(model, m, o, ranges, rng, rep);
   rep.seconds = std::chrono::duration<double>(Clock::now() - t_start).count();
   rep.cpu_seconds = static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
   return model;
