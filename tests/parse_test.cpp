@@ -2,6 +2,7 @@
 // golden arc files and every real program under ../shared/data.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <regex>
 #include <fstream>
@@ -308,7 +309,9 @@ TEST(ParseExpressions, ParametersFunctionsAndPrecedence) {
   EXPECT_DOUBLE_EQ(b[4].target[kX], 3);
   EXPECT_DOUBLE_EQ(b[4].target[kY], 1);  // LinuxCNC: non-negative remainder
   EXPECT_DOUBLE_EQ(b[4].target[kZ], 8);
-  EXPECT_DOUBLE_EQ(b[6].target[kX], 0);  // #3 = #2 read the old #2 (0): assignments apply after the line
+  // #3 = #2 read the old #2: assignments apply after the line. That #2 was never set, so in the
+  // Fanuc dialect #3 is vacant and X#3 leaves X where it was (X3); LinuxCNC reads 0.
+  EXPECT_DOUBLE_EQ(b[6].target[kX], 3);
   EXPECT_DOUBLE_EQ(b[7].target[kX], -5);
   EXPECT_DOUBLE_EQ(b[7].target[kY], 2);
   EXPECT_DOUBLE_EQ(b[7].target[kZ], 3);
@@ -885,6 +888,65 @@ TEST(ParseIssue14, FanucPositionVariablesAndAlarm) {
   EXPECT_EQ(m.first_error()->column, 1u);
   EXPECT_EQ(m.blocks.size(), 1u);
   EXPECT_EQ(m.summary.lines_not_run, 1u);
+}
+
+// Fanuc Custom Macro B vacant ("null") variables, as the 0i-MF operator's manual B-64604EN,
+// Custom Macro, "Null variables" states them: #0 is always vacant, and so is a variable never set.
+//  - quotation: with #1 vacant, `G90 X100 Y#1` is `G90 X100` (the address is left out);
+//  - replacement: `#2 = #1` leaves #2 vacant; `#2 = #1 * 5` and `#2 = #1 + #1` give 0;
+//  - conditions: vacant differs from 0 only in EQ and NE: `#1 EQ #0` true, `#1 EQ 0` false,
+//    `#1 NE 0` true, `#1 GE #0` true, `#1 GT 0` false.
+// LinuxCNC has no vacancy: a parameter never set reads 0 (rs274 does the same).
+TEST(ParseIssue14, FanucVacantVariablesByTheManual) {
+  constexpr std::uint8_t kYWord = 1u << kY, kZWord = 1u << kZ;
+  Parsed q = parse_text("G90 G0 X5 Y7\nG90 G0 X100 Y#1\n");
+  ASSERT_EQ(q.first_error(), nullptr) << format(*q.first_error());
+  ASSERT_EQ(ends(q).size(), 2u);
+  EXPECT_DOUBLE_EQ(ends(q)[1][kX], 100);
+  EXPECT_DOUBLE_EQ(ends(q)[1][kY], 7);  // Y left out: the machine stays at Y7, not Y0
+  EXPECT_EQ(q.blocks[1].axis_words & kYWord, 0);
+
+  Parsed r = parse_text("#2 = #1\n#3 = #1 * 5\n#4 = #1 + #1\nG0 X1 Y#2\nG0 X#3 Y#4 Z#0\n");
+  ASSERT_EQ(r.first_error(), nullptr) << format(*r.first_error());
+  ASSERT_EQ(ends(r).size(), 2u);
+  const ResolvedBlock& first = *std::find_if(r.blocks.begin(), r.blocks.end(), [](const auto& b) { return b.line == 4; });
+  const ResolvedBlock& second = *std::find_if(r.blocks.begin(), r.blocks.end(), [](const auto& b) { return b.line == 5; });
+  EXPECT_EQ(first.axis_words & kYWord, 0);   // #2 stayed vacant
+  EXPECT_DOUBLE_EQ(ends(r)[1][kX], 0);       // #1 * 5 = 0, a value
+  EXPECT_NE(second.axis_words & kYWord, 0);  // #1 + #1 = 0, a value
+  EXPECT_EQ(second.axis_words & kZWord, 0);  // #0
+
+  // Each condition sets #11.. to 1 when it holds; G0 X.. Y.. Z.. reads them back in threes.
+  Parsed c = parse_text(
+      "#11 = 0\n#12 = 0\n#13 = 0\n#14 = 0\n#15 = 0\n#16 = 0\n"
+      "IF [#1 EQ #0] THEN #11 = 1\nIF [#1 EQ 0] THEN #12 = 1\nIF [#1 NE 0] THEN #13 = 1\n"
+      "IF [#1 GE #0] THEN #14 = 1\nIF [#1 GT 0] THEN #15 = 1\n#5 = 0\nIF [#5 EQ #0] THEN #16 = 1\n"
+      "G0 X#11 Y#12 Z#13\nG0 X#14 Y#15 Z#16\n");
+  ASSERT_EQ(c.first_error(), nullptr) << format(*c.first_error());
+  const auto e = ends(c);
+  ASSERT_EQ(e.size(), 2u);
+  EXPECT_DOUBLE_EQ(e[0][kX], 1);  // #1 EQ #0
+  EXPECT_DOUBLE_EQ(e[0][kY], 0);  // #1 EQ 0 is false
+  EXPECT_DOUBLE_EQ(e[0][kZ], 1);  // #1 NE 0
+  EXPECT_DOUBLE_EQ(e[1][kX], 1);  // #1 GE #0
+  EXPECT_DOUBLE_EQ(e[1][kY], 0);  // #1 GT 0 is false
+  EXPECT_DOUBLE_EQ(e[1][kZ], 0);  // 0 is a value, not vacant
+
+  // A variable cleared with #0 is vacant again; #0 itself cannot be set, and the rest still runs.
+  Parsed cleared = parse_text("#7 = 3\nG0 X#7\n#7 = #0\nG0 X1 Y#7\n");
+  ASSERT_EQ(cleared.first_error(), nullptr) << format(*cleared.first_error());
+  EXPECT_EQ(cleared.blocks.back().axis_words & kYWord, 0);
+  expect_error("#0 = 5\n", "#0 is the vacant variable", 2);
+  Parsed rest = parse_text("G0 X1\n#0 = 5\nG0 X2\n");
+  ASSERT_NE(rest.first_error(), nullptr);
+  EXPECT_EQ(rest.first_error()->line, 2u);
+  EXPECT_DOUBLE_EQ(ends(rest).back()[kX], 2);
+
+  // LinuxCNC: no vacancy, #0 is out of range, an unset parameter reads 0.
+  Parsed l = parse_text("G0 X5 Y7\nG0 X100 Y#1\n", linuxcnc());
+  ASSERT_EQ(l.first_error(), nullptr) << format(*l.first_error());
+  EXPECT_DOUBLE_EQ(ends(l)[1][kY], 0);
+  expect_error("G0 X#0\n", "parameter number", 5, linuxcnc());
 }
 
 namespace {

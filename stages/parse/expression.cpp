@@ -77,7 +77,7 @@ std::string normalise_parameter_name(std::string_view raw) {
 }
 
 bool ParameterStore::get_numbered(int n, double& v) const {
-  if (n < 1 || n > kMaxNumbered) return false;
+  if (n < (vacancy_ ? 0 : 1) || n > kMaxNumbered) return false;
   v = numbered_[static_cast<std::size_t>(n)];
   return true;
 }
@@ -87,7 +87,10 @@ bool ParameterStore::get_named(const std::string& name, double& v) const {
   v = it->second;
   return true;
 }
-void ParameterStore::set_numbered(int n, double v) { numbered_[static_cast<std::size_t>(n)] = v; }
+void ParameterStore::set_numbered(int n, double v) {
+  numbered_[static_cast<std::size_t>(n)] = v;
+  set_[static_cast<std::size_t>(n)] = 1;
+}
 void ParameterStore::set_named(const std::string& name, double v) { named_[name] = v; }
 
 bool ExpressionReader::fail(std::size_t pos, std::string msg) {
@@ -114,6 +117,7 @@ bool ExpressionReader::number(std::string_view s, std::size_t& p, double& out) {
   if (n == 0 || (n == 1 && buf[0] == '.')) return fail(start, "expected a number");
   auto [e, ec] = std::from_chars(buf, buf + n, out);
   if (ec != std::errc() || e != buf + n) return fail(start, "malformed number '" + std::string(buf, n) + "'");
+  vacant_ = false;
   return true;
 }
 
@@ -130,14 +134,17 @@ bool ExpressionReader::parameter(std::string_view s, std::size_t& p, double& out
     if (name.empty()) return fail(at, "empty parameter name '#<>'");
     if (!params_.get_named(name, out))
       return fail(at, "parameter #<" + name + "> is used before it is set");
+    vacant_ = false;
     return true;
   }
   double idx = 0;
   if (!unary(s, p, idx, depth + 1)) return false;
-  if (idx != std::floor(idx) || idx < 1 || idx > ParameterStore::kMaxNumbered)
-    return fail(at, "parameter number " + std::to_string(idx) + " is not a whole number in 1.." +
-                        std::to_string(ParameterStore::kMaxNumbered));
+  const double lowest = params_.vacancy() ? 0 : 1;  // Fanuc #0: always vacant
+  if (idx != std::floor(idx) || idx < lowest || idx > ParameterStore::kMaxNumbered)
+    return fail(at, "parameter number " + std::to_string(idx) + " is not a whole number in " +
+                        std::to_string(static_cast<int>(lowest)) + ".." + std::to_string(ParameterStore::kMaxNumbered));
   params_.get_numbered(static_cast<int>(idx), out);
+  vacant_ = params_.vacant(static_cast<int>(idx));
   return true;
 }
 
@@ -154,7 +161,7 @@ bool ExpressionReader::unary(std::string_view s, std::size_t& p, double& out, in
   if (c == '-' || c == '+') {
     ++p;
     if (!unary(s, p, out, depth + 1)) return false;
-    if (c == '-') out = -out;
+    if (c == '-') out = -out;  // a sign keeps vacancy: X-#1 with #1 vacant is no X word, as X#1
     return true;
   }
   if (c == '#') return parameter(s, p, out, depth);
@@ -170,6 +177,7 @@ bool ExpressionReader::unary(std::string_view s, std::size_t& p, double& out, in
     if (q >= s.size() || s[q] != '[') continue;
     const std::size_t fpos = p;
     p = q + 1;
+    vacant_ = false;  // set again below: a function's value is never vacant
     if (name == "exists") {
       // exists[#<name>]: 1 when the named parameter has been set.
       skip_blanks(s, p);
@@ -185,6 +193,7 @@ bool ExpressionReader::unary(std::string_view s, std::size_t& p, double& out, in
       skip_blanks(s, p);
       if (p >= s.size() || s[p] != ']') return fail(p, "missing ']' after exists[#<name>");
       ++p;
+      vacant_ = false;
       return true;
     }
     double a = 0;
@@ -199,6 +208,7 @@ bool ExpressionReader::unary(std::string_view s, std::size_t& p, double& out, in
       double b = 0;
       if (!expression(s, p, b, depth + 1)) return false;
       out = std::atan2(a, b) / kDeg;
+      vacant_ = false;
       return true;
     }
     if (name == "abs") out = std::fabs(a);
@@ -215,6 +225,7 @@ bool ExpressionReader::unary(std::string_view s, std::size_t& p, double& out, in
     else if (name == "sqrt") out = std::sqrt(a);
     if (!std::isfinite(out))
       return fail(fpos, std::string(name) + "[" + std::to_string(a) + "] is not a finite number");
+    vacant_ = false;
     return true;
   }
   return fail(p, std::string("unexpected '") + c + "' in expression");
@@ -223,16 +234,24 @@ bool ExpressionReader::unary(std::string_view s, std::size_t& p, double& out, in
 bool ExpressionReader::binary(std::string_view s, std::size_t& p, double& out, int min_prec, int depth) {
   if (depth > kMaxDepth) return fail(p, "expression nested too deeply");
   if (!unary(s, p, out, depth + 1)) return false;
+  bool out_vacant = vacant_;
   for (;;) {
     std::size_t end = 0;
     Op op = peek_op(s, p, end);
     int prec = precedence_of(op);
-    if (op == Op::kNone || prec < min_prec) return true;
+    if (op == Op::kNone || prec < min_prec) {
+      vacant_ = out_vacant;
+      return true;
+    }
     const std::size_t op_pos = p;
     p = end;
     double rhs = 0;
     // ** is right-associative; the others left-associative.
     if (!binary(s, p, rhs, op == Op::kPow ? prec : prec + 1, depth + 1)) return false;
+    const bool rhs_vacant = vacant_;
+    // Fanuc: vacant reads 0 in arithmetic and in GT GE LT LE, but EQ and NE tell it from 0.
+    const bool lhs_vacant = out_vacant, both_values = !lhs_vacant && !rhs_vacant;
+    out_vacant = false;
     switch (op) {
       case Op::kPow: out = std::pow(out, rhs); break;
       case Op::kMul: out *= rhs; break;
@@ -247,8 +266,8 @@ bool ExpressionReader::binary(std::string_view s, std::size_t& p, double& out, i
         break;
       case Op::kAdd: out += rhs; break;
       case Op::kSub: out -= rhs; break;
-      case Op::kEq: out = out == rhs; break;
-      case Op::kNe: out = out != rhs; break;
+      case Op::kEq: out = both_values ? out == rhs : lhs_vacant == rhs_vacant; break;
+      case Op::kNe: out = both_values ? out != rhs : lhs_vacant != rhs_vacant; break;
       case Op::kGt: out = out > rhs; break;
       case Op::kGe: out = out >= rhs; break;
       case Op::kLt: out = out < rhs; break;
@@ -293,6 +312,7 @@ bool ExpressionReader::read_target(std::string_view s, std::size_t& p, Assignmen
   }
   double idx = 0;
   if (!unary(s, p, idx, 1)) return false;
+  if (idx == 0 && params_.vacancy()) return fail(at, "#0 is the vacant variable: it cannot be set (use it to clear one: #1 = #0)");
   if (idx != std::floor(idx) || idx < 1 || idx > ParameterStore::kMaxNumbered)
     return fail(at, "parameter number " + std::to_string(idx) + " is not a whole number in 1.." +
                         std::to_string(ParameterStore::kMaxNumbered));

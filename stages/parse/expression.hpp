@@ -13,17 +13,28 @@
 namespace gcpipe {
 
 /// Numbered (#1..#5399) and named (#<name>) parameters. Names are case-insensitive, spaces ignored.
+///
+/// Fanuc Custom Macro B has vacant ("null") variables: #0 always, and every variable that was never
+/// set or was set from a vacant one. With enable_vacancy() (dialect fanuc) the store keeps that
+/// state and #0 reads as vacant; without it (LinuxCNC) a parameter never set reads 0, as rs274's.
 class ParameterStore {
  public:
   static constexpr int kMaxNumbered = 5399;
-  bool get_numbered(int n, double& v) const;  //!< false when out of range
+  bool get_numbered(int n, double& v) const;  //!< false when out of range (#0 is in range with vacancy)
   bool get_named(const std::string& name, double& v) const;  //!< false when never set
   void set_numbered(int n, double v);
   void set_named(const std::string& name, double v);
+  void enable_vacancy() { vacancy_ = true; }
+  bool vacancy() const { return vacancy_; }
+  /// With vacancy: #n holds no value (never set, set from a vacant value, or n = 0).
+  bool vacant(int n) const { return vacancy_ && (n == 0 || set_[static_cast<std::size_t>(n)] == 0); }
+  void set_vacant(int n) { numbered_[static_cast<std::size_t>(n)] = 0, set_[static_cast<std::size_t>(n)] = 0; }
 
  private:
   std::vector<double> numbered_ = std::vector<double>(kMaxNumbered + 1, 0.0);
+  std::vector<std::uint8_t> set_ = std::vector<std::uint8_t>(kMaxNumbered + 1, 0);
   std::unordered_map<std::string, double> named_;
+  bool vacancy_ = false;
 };
 
 /// A pending assignment: LinuxCNC applies all of a line's assignments after the line is read.
@@ -32,6 +43,7 @@ struct Assignment {
   int number = 0;
   std::string name;
   double value = 0;
+  bool vacant = false;  //!< Fanuc: `#2 = #1` with #1 vacant leaves #2 vacant
 };
 
 /// Reads one value at `pos` in `line`: a bracketed expression, a parameter reference, or a
@@ -45,6 +57,10 @@ class ExpressionReader {
   bool read_expression(std::string_view line, std::size_t& pos, double& out);
   /// Reads `#n` or `#<name>` as an assignment target (after '#').
   bool read_target(std::string_view line, std::size_t& pos, Assignment& target);
+  /// The value just read is a vacant variable as it stands (`#1`, `[#1]`, `-#1` with #1 vacant;
+  /// Fanuc only). An operation on it uses 0 and is not vacant: `#1 * 5` is 0 (0i-MF manual
+  /// B-64604EN, Custom Macro, "Null variables").
+  bool vacant() const { return vacant_; }
   const std::string& error() const { return error_; }
   std::size_t error_pos() const { return error_pos_; }
 
@@ -58,6 +74,7 @@ class ExpressionReader {
   const ParameterStore& params_;
   std::string error_;
   std::size_t error_pos_ = 0;
+  bool vacant_ = false;  //!< of the value the innermost read just produced
 };
 
 /// Lower-cases and removes blanks: LinuxCNC's rule for parameter names.

@@ -47,6 +47,7 @@ Parser::Impl::Impl(ParseOptions o, MachineConfig m, std::string f)
   // rs274 starts in R-plane retract (its output shows it); a Fanuc control powers up in G98.
   st.cycle_to_r = opt.dialect == Dialect::kLinuxCnc;
   offsets = machine.work_offsets;
+  if (opt.dialect == Dialect::kFanuc) params.enable_vacancy();  // Macro B: #0 and unset variables are vacant
   st.work_origin = machine.work_offsets[0];
   st.origin = st.work_origin;
   for (int a = 0; a < kNumAxes; ++a) st.position[a] = machine.initial_position[a] + st.origin[a];
@@ -118,6 +119,7 @@ void Parser::Impl::commit(ModalState& ns) {
   for (int i = 0; i < sc.nassign; ++i) {
     const Assignment& a = sc.assign[i];
     if (a.named) params.set_named(a.name, a.value);
+    else if (a.vacant) params.set_vacant(a.number);
     else params.set_numbered(a.number, a.value);
   }
 }

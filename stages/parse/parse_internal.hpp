@@ -34,6 +34,7 @@ struct Word {
   std::uint32_t col = 0;  // 1-based, 0 = absent
   bool point = false;     // written with a decimal point (Fanuc increment rule)
   bool expr = false;      // came from an expression or parameter (never in increments)
+  bool vacant = false;    // Fanuc: a vacant variable (X#1, #1 never set): the word is left out
 };
 
 struct Code {

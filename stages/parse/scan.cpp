@@ -87,6 +87,7 @@ bool Parser::Impl::read_expression_number(std::string_view s, std::size_t& p, ch
   w.value = v;
   w.point = true;
   w.expr = true;
+  w.vacant = er.vacant();
   return true;
 }
 
@@ -165,6 +166,10 @@ bool Parser::Impl::read_code(std::string_view s, std::size_t& p, char letter, in
   Word w;
   w.col = col;
   if (!read_number(s, p, letter, w)) return false;
+  if (w.vacant) {  // G#1 with #1 vacant: no code at all (Fanuc, "Null variables")
+    code = -1;
+    return true;
+  }
   double t = w.value * 10;
   if (w.value < 0 || w.value > 9999 || std::fabs(t - std::round(t)) > 1e-6)
     return fail(col, std::string(1, letter) + show(w.value) + " is not a valid " + letter +
@@ -248,6 +253,7 @@ bool Parser::Impl::scan_assignment(std::string_view s, std::size_t& p, std::uint
   if (!ok) return fail(static_cast<std::uint32_t>(er.error_pos() + 1), er.error());
   if (!std::isfinite(v)) return fail(col, "parameter value is not a finite number");
   a.value = v;
+  a.vacant = er.vacant();
   if (opt.dialect == Dialect::kFanuc && !a.named && !fanuc_system_assignment(s, p, a, col)) return false;
   ++sc.nassign;
   return true;
@@ -321,6 +327,7 @@ bool Parser::Impl::reject_character(std::string_view s, std::size_t p, char c, s
   if (L == 'G' || L == 'M') {
     int code = 0;
     if (!read_code(s, p, L, code, col)) return false;
+    if (code < 0) return true;
     if (L == 'G') {
       if (sc.ng == 8) return fail(col, "more than 8 G codes in one block");
       sc.g[sc.ng++] = {code, col};
@@ -343,6 +350,10 @@ bool Parser::Impl::reject_character(std::string_view s, std::size_t p, char c, s
   }
   w.col = col;
   if (!read_number(s, p, L, w)) return false;
+  if (w.vacant) {  // X#1 with #1 vacant: as if the block had no X word (Fanuc, "Null variables")
+    w = Word{};
+    return true;
+  }
   if (std::isinf(w.value)) return fail(col, std::string("value of ") + L + " overflows (more than 1.8e308)");
   return true;
 }
