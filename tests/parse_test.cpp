@@ -942,6 +942,9 @@ TEST(ParseIssue14, FanucVacantVariablesByTheManual) {
   EXPECT_EQ(rest.first_error()->line, 2u);
   EXPECT_DOUBLE_EQ(ends(rest).back()[kX], 2);
 
+  // A system variable gcpipe does not keep is an error where it is read, not a silent vacancy.
+  expect_error("#1 = #4003\n", "system variable #4003 is not modelled", 6);
+
   // LinuxCNC: no vacancy, #0 is out of range, an unset parameter reads 0.
   Parsed l = parse_text("G0 X5 Y7\nG0 X100 Y#1\n", linuxcnc());
   ASSERT_EQ(l.first_error(), nullptr) << format(*l.first_error());

@@ -143,8 +143,14 @@ bool ExpressionReader::parameter(std::string_view s, std::size_t& p, double& out
   if (idx != std::floor(idx) || idx < lowest || idx > ParameterStore::kMaxNumbered)
     return fail(at, "parameter number " + std::to_string(idx) + " is not a whole number in " +
                         std::to_string(static_cast<int>(lowest)) + ".." + std::to_string(ParameterStore::kMaxNumbered));
-  params_.get_numbered(static_cast<int>(idx), out);
-  vacant_ = params_.vacant(static_cast<int>(idx));
+  const int n = static_cast<int>(idx);
+  // Fanuc #1000 and up are system variables (modal state, offsets, clock, ...): reading one as
+  // vacant would silently take the wrong branch, so only those gcpipe keeps may be read.
+  if (params_.vacancy() && n >= 1000 && (n < 5001 || n > 5005))
+    return fail(at, "system variable #" + std::to_string(n) +
+                        " is not modelled (gcpipe keeps #5001..#5005, the position): expand it in CAM");
+  params_.get_numbered(n, out);
+  vacant_ = params_.vacant(n);
   return true;
 }
 
