@@ -1,5 +1,6 @@
 #include "shdr.hpp"
 
+#include <algorithm>
 #include <array>
 #include <charconv>
 #include <cmath>
@@ -80,33 +81,73 @@ bool parse_shdr_line(std::string_view line, ShdrRecord& record) {
   return true;
 }
 
+namespace {
+
+// "x y z": exactly three numbers separated by blanks.
+bool parse_path_pos(std::string_view rest, Vec3& p) {
+  int n = 0;
+  while (!rest.empty()) {
+    while (!rest.empty() && rest.front() == ' ') rest.remove_prefix(1);
+    if (rest.empty()) break;
+    const auto sp = rest.find(' ');
+    double v = 0;
+    if (n >= 3 || !parse_number(rest.substr(0, sp), v)) return false;
+    p[static_cast<std::size_t>(n++)] = v;
+    rest = sp == std::string_view::npos ? std::string_view() : rest.substr(sp);
+  }
+  return n == 3;
+}
+
+// The value of one record into its slot: UNAVAILABLE or a bad number empties the slot (the
+// cycle then gives no sample), counted apart.
+template <typename T, typename Parse>
+void take_value(std::string_view value, std::optional<T>& slot, ShdrStats& stats, Parse parse) {
+  T v{};
+  if (value == "UNAVAILABLE") {
+    ++stats.unavailable;
+    slot.reset();
+  } else if (parse(value, v)) {
+    slot = v;
+  } else {
+    ++stats.rejected;
+    slot.reset();
+  }
+}
+
+// The items of one adapter cycle (records less than cycle_gap apart), made a sample once the
+// cycle ends: only when every joint and the path position were reported.
+struct CycleState {
+  std::array<std::optional<double>, kNumAxes> joint;
+  std::optional<Vec3> path;
+  std::string program;
+  double start = -std::numeric_limits<double>::infinity();
+  bool open = false;
+
+  void emit(std::vector<KinematicSample>& out, ShdrStats& stats) {
+    if (!open) return;
+    open = false;
+    if (!path) return;
+    KinematicSample s;
+    for (std::size_t a = 0; a < kNumAxes; ++a) {
+      if (!joint[a]) return;
+      s.joints[a] = *joint[a];
+    }
+    s.time = start;
+    s.path_pos = *path;
+    s.program = program;
+    out.push_back(std::move(s));
+    ++stats.samples;
+  }
+};
+
+}  // namespace
+
 std::vector<KinematicSample> read_kinematic_trace(std::istream& in, ShdrStats& stats,
                                                   double cycle_gap) {
   static constexpr std::array<std::string_view, kNumAxes> kItems = {
       "Xposition", "Yposition", "Zposition", "Aposition", "Cposition"};
   std::vector<KinematicSample> out;
-  std::array<std::optional<double>, kNumAxes> joint;
-  std::optional<Vec3> path;
-  std::string program;
-  double cycle_start = -std::numeric_limits<double>::infinity();
-  bool cycle_open = false;
-
-  auto emit = [&] {
-    if (!cycle_open) return;
-    cycle_open = false;
-    if (!path) return;
-    KinematicSample s;
-    for (int a = 0; a < kNumAxes; ++a) {
-      if (!joint[static_cast<std::size_t>(a)]) return;
-      s.joints[static_cast<std::size_t>(a)] = *joint[static_cast<std::size_t>(a)];
-    }
-    s.time = cycle_start;
-    s.path_pos = *path;
-    s.program = program;
-    out.push_back(std::move(s));
-    ++stats.samples;
-  };
-
+  CycleState cycle;
   ShdrRecord r;
   for (std::string line; std::getline(in, line);) {
     ++stats.lines;
@@ -115,60 +156,22 @@ std::vector<KinematicSample> read_kinematic_trace(std::istream& in, ShdrStats& s
       continue;
     }
     ++stats.records;
-    if (r.time - cycle_start > cycle_gap || r.time < cycle_start) {
-      emit();
-      cycle_start = r.time;
+    if (r.time - cycle.start > cycle_gap || r.time < cycle.start) {
+      cycle.emit(out, stats);
+      cycle.start = r.time;
     }
-    cycle_open = true;
-    const bool unavailable = r.value == "UNAVAILABLE";
+    cycle.open = true;
     if (r.item == "program") {
-      program = unavailable ? std::string() : std::string(r.value);
+      cycle.program = r.value == "UNAVAILABLE" ? std::string() : std::string(r.value);
       continue;
     }
-    int axis = -1;
-    for (int a = 0; a < kNumAxes; ++a)
-      if (r.item == kItems[static_cast<std::size_t>(a)]) axis = a;
-    if (axis >= 0) {
-      auto& slot = joint[static_cast<std::size_t>(axis)];
-      double v = 0;
-      if (unavailable) {
-        ++stats.unavailable;
-        slot.reset();
-      } else if (parse_number(r.value, v)) {
-        slot = v;
-      } else {
-        ++stats.rejected;
-        slot.reset();
-      }
-    } else if (r.item == "path_pos") {
-      if (unavailable) {
-        ++stats.unavailable;
-        path.reset();
-        continue;
-      }
-      Vec3 p{};
-      std::string_view rest = r.value;
-      int n = 0;
-      bool ok = true;
-      while (ok && !rest.empty()) {
-        while (!rest.empty() && rest.front() == ' ') rest.remove_prefix(1);
-        if (rest.empty()) break;
-        const auto sp = rest.find(' ');
-        const std::string_view word = rest.substr(0, sp);
-        double v = 0;
-        if (n >= 3 || !parse_number(word, v)) ok = false;
-        else p[static_cast<std::size_t>(n++)] = v;
-        rest = sp == std::string_view::npos ? std::string_view() : rest.substr(sp);
-      }
-      if (ok && n == 3) {
-        path = p;
-      } else {
-        ++stats.rejected;
-        path.reset();
-      }
-    }
+    const auto axis = std::find(kItems.begin(), kItems.end(), r.item);
+    if (axis != kItems.end())
+      take_value(r.value, cycle.joint[static_cast<std::size_t>(axis - kItems.begin())], stats, parse_number);
+    else if (r.item == "path_pos")
+      take_value(r.value, cycle.path, stats, parse_path_pos);
   }
-  emit();
+  cycle.emit(out, stats);
   return out;
 }
 
