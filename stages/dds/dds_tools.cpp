@@ -120,14 +120,95 @@ int run_feed(Participant& participant, const FeedOptions& o, std::ostream& log) 
 
 // ---------------------------------------------------------------------------------------------
 
+namespace {
+
+// What the sink took of one program: the chunks in order into `out`, and the first error seen.
+struct SinkReceipt {
+  msg::GcodeChunk last;  //!< the end marker, when `complete`
+  std::uint64_t id = 0, next = 0, bytes = 0;
+  std::string error;
+  Clock::time_point t0;
+  bool complete = false;
+  int status = 0;  //!< when !complete: 1 idle, 130 stopped
+};
+
+// Takes the chunks of the first program published after the sink started (replays of older
+// programs are skipped and said so) until its end marker, checking the sequence numbers.
+SinkReceipt receive_program(Participant& participant, Reader<msg::GcodeChunk>& reader, const SinkOptions& o,
+                            std::ofstream& out, std::ostream& log) {
+  SinkReceipt r;
+  msg::GcodeChunk& chunk = r.last;
+  const double idle_timeout = participant.options().idle_timeout;
+  bool idle = false;
+  std::set<std::uint64_t> skipped;  // programs published before the sink started
+  double source_time = 0;
+  for (;;) {
+    if (!take_or_idle(reader, chunk, idle_timeout, idle, &source_time)) {
+      if (idle)
+        log << "gcpipe sink: nothing arrived on " << o.topic << " for " << idle_timeout << " s; giving up\n";
+      r.status = idle ? 1 : 130;
+      return r;
+    }
+    if (r.id == 0 && skipped.count(chunk.program_id()) != 0) continue;
+    if (r.id == 0 && participant.published_before_start(source_time)) {
+      // Replayed from a writer's history (a node serving with --forever): an old program.
+      if (skipped.insert(chunk.program_id()).second)
+        log << "gcpipe sink: skipping program " << chunk.program_id() << " ('" << chunk.file()
+            << "'), published before the sink started (--replay takes it)\n";
+      continue;
+    }
+    if (r.next == 0 && r.id == 0) {
+      r.id = chunk.program_id();
+      r.t0 = Clock::now();
+      if (chunk.sequence_number() != 0)
+        r.error = "joined program " + std::to_string(r.id) + " at chunk " + std::to_string(chunk.sequence_number()) +
+                  ": its beginning is lost";
+      r.next = chunk.sequence_number();
+    }
+    if (chunk.program_id() != r.id) continue;  // another program: the first one is ours
+    if (chunk.sequence_number() != r.next && r.error.empty())
+      r.error = "chunk " + std::to_string(r.next) + " is missing (got chunk " + std::to_string(chunk.sequence_number()) + ")";
+    r.next = chunk.sequence_number() + 1;
+    out.write(chunk.text().data(), static_cast<std::streamsize>(chunk.text().size()));
+    r.bytes += chunk.text().size();
+    if (chunk.end_of_program()) {
+      r.complete = true;
+      return r;
+    }
+  }
+}
+
+// The end marker's checks: the writer's byte count and the parser's own accounting (the block
+// and diagnostic counts were checked edge by edge by the nodes: an error would be in error()).
+void check_end_marker(SinkReceipt& r, const ParseSummary& s) {
+  auto add = [&r](const std::string& e) {
+    if (e.empty()) return;
+    if (!r.error.empty()) r.error += "; ";
+    r.error += e;
+  };
+  add(r.last.error());
+  if (r.last.byte_count() != r.bytes)
+    add("received " + std::to_string(r.bytes) + " bytes, the writer sent " + std::to_string(r.last.byte_count()));
+  if (s.blocks_emitted + s.lines_rejected + s.lines_deleted != s.lines_read)
+    add("the parser's counts do not add up: " + std::to_string(s.lines_read) + " lines read != " +
+        std::to_string(s.blocks_emitted) + " blocks + " + std::to_string(s.lines_rejected) + " rejected + " +
+        std::to_string(s.lines_deleted) + " deleted");
+}
+
+void log_sink_summary(const SinkReceipt& r, const ParseSummary& s, std::ostream& log) {
+  const msg::GcodeChunk& c = r.last;
+  log << "gcpipe sink: program " << r.id << " '" << c.file() << "': " << s.lines_read << " lines read, "
+      << s.blocks_emitted << " blocks parsed, " << s.lines_rejected << " rejected, " << s.lines_deleted
+      << " deleted; " << c.blocks_rejected() << " blocks rejected by later stages; written " << c.blocks_written()
+      << " blocks, " << c.diagnostics_written() << " diagnostics, " << r.bytes << " bytes in " << r.next << " chunks, "
+      << std::fixed << std::setprecision(3) << seconds_since(r.t0) << " s"
+      << (c.stopped() ? " (strict mode stopped at the first error)" : "") << "\n";
+}
+
+}  // namespace
+
 int run_sink(Participant& participant, const SinkOptions& o, std::ostream& log) {
   Reader<msg::GcodeChunk> reader(participant, o.topic);
-  const double idle_timeout = participant.options().idle_timeout;
-  msg::GcodeChunk chunk;
-  bool idle = false;
-  std::uint64_t id = 0;
-  std::uint64_t next = 0, bytes = 0;
-  std::string error;
   const std::filesystem::path part = o.output.string() + ".part";
   // Opened before anything arrives, so an unwritable path fails at once, not mid-program.
   std::ofstream out(part, std::ios::binary | std::ios::trunc);
@@ -135,78 +216,26 @@ int run_sink(Participant& participant, const SinkOptions& o, std::ostream& log) 
   // Scripts (and the tests) wait for this line before starting a feed: a program published
   // before the sink exists counts as a replay and is skipped without --replay.
   log << "gcpipe sink: ready on " << o.topic << "\n" << std::flush;
-  Clock::time_point t0;
-  std::set<std::uint64_t> skipped;  // programs published before the sink started
-  double source_time = 0;
-  for (;;) {
-    if (!take_or_idle(reader, chunk, idle_timeout, idle, &source_time)) {
-      if (idle)
-        log << "gcpipe sink: nothing arrived on " << o.topic << " for " << idle_timeout
-            << " s; giving up\n";
-      if (id != 0)
-        log << "gcpipe sink: INCOMPLETE, program " << id << " ended before its end marker; "
-            << bytes << " bytes left in '" << part.string() << "'\n";
-      return idle ? 1 : 130;
-    }
-    if (id == 0 && skipped.count(chunk.program_id()) != 0) continue;
-    if (id == 0 && participant.published_before_start(source_time)) {
-      // Replayed from a writer's history (a node serving with --forever): an old program.
-      if (skipped.insert(chunk.program_id()).second)
-        log << "gcpipe sink: skipping program " << chunk.program_id() << " ('" << chunk.file()
-            << "'), published before the sink started (--replay takes it)\n";
-      continue;
-    }
-    if (next == 0 && id == 0) {
-      id = chunk.program_id();
-      t0 = Clock::now();
-      if (chunk.sequence_number() != 0)
-        error = "joined program " + std::to_string(id) + " at chunk " +
-                std::to_string(chunk.sequence_number()) + ": its beginning is lost";
-      next = chunk.sequence_number();
-    }
-    if (chunk.program_id() != id) continue;  // another program: the first one is ours
-    if (chunk.sequence_number() != next && error.empty())
-      error = "chunk " + std::to_string(next) + " is missing (got chunk " +
-              std::to_string(chunk.sequence_number()) + ")";
-    next = chunk.sequence_number() + 1;
-    out.write(chunk.text().data(), static_cast<std::streamsize>(chunk.text().size()));
-    bytes += chunk.text().size();
-    if (chunk.end_of_program()) break;
+  SinkReceipt r = receive_program(participant, reader, o, out, log);
+  if (!r.complete) {
+    if (r.id != 0)
+      log << "gcpipe sink: INCOMPLETE, program " << r.id << " ended before its end marker; " << r.bytes
+          << " bytes left in '" << part.string() << "'\n";
+    return r.status;
   }
   out.close();
   if (!out) throw std::runtime_error("writing '" + part.string() + "' failed");
-
-  auto add = [&error](const std::string& e) {
-    if (e.empty()) return;
-    if (!error.empty()) error += "; ";
-    error += e;
-  };
-  add(chunk.error());
-  if (chunk.byte_count() != bytes)
-    add("received " + std::to_string(bytes) + " bytes, the writer sent " +
-        std::to_string(chunk.byte_count()));
-  // The block and diagnostic counts were checked edge by edge by the nodes (an error would be in
-  // chunk.error()); what is left to check here is the parser's own accounting.
-  const ParseSummary s = from_msg(chunk.summary());
-  if (s.blocks_emitted + s.lines_rejected + s.lines_deleted != s.lines_read)
-    add("the parser's counts do not add up: " + std::to_string(s.lines_read) + " lines read != " +
-        std::to_string(s.blocks_emitted) + " blocks + " + std::to_string(s.lines_rejected) +
-        " rejected + " + std::to_string(s.lines_deleted) + " deleted");
-  log << "gcpipe sink: program " << id << " '" << chunk.file() << "': " << s.lines_read
-      << " lines read, " << s.blocks_emitted << " blocks parsed, " << s.lines_rejected
-      << " rejected, " << s.lines_deleted << " deleted; " << chunk.blocks_rejected()
-      << " blocks rejected by later stages; written " << chunk.blocks_written() << " blocks, "
-      << chunk.diagnostics_written() << " diagnostics, " << bytes << " bytes in " << next
-      << " chunks, " << std::fixed << std::setprecision(3) << seconds_since(t0) << " s"
-      << (chunk.stopped() ? " (strict mode stopped at the first error)" : "") << "\n";
-  if (!error.empty()) {
-    log << "gcpipe sink: INCOMPLETE, output left in '" << part.string() << "': " << error << "\n";
+  const ParseSummary s = from_msg(r.last.summary());
+  check_end_marker(r, s);
+  log_sink_summary(r, s, log);
+  if (!r.error.empty()) {
+    log << "gcpipe sink: INCOMPLETE, output left in '" << part.string() << "': " << r.error << "\n";
     return 1;
   }
   std::filesystem::rename(part, o.output);
   // The exit status of `gcpipe batch` for the same program.
-  if (chunk.stopped()) return 1;
-  return s.lines_rejected + chunk.blocks_rejected() > 0 ? 3 : 0;
+  if (r.last.stopped()) return 1;
+  return s.lines_rejected + r.last.blocks_rejected() > 0 ? 3 : 0;
 }
 
 // ---------------------------------------------------------------------------------------------
