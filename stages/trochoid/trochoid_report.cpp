@@ -42,11 +42,44 @@ double block_length(const ResolvedBlock& b) {
 
 }  // namespace
 
-PathAnalysis analyse_path(const std::vector<ResolvedBlock>& blocks,
-                          const std::vector<TrochoidPart>* parts, const PathAnalysisOptions& opt) {
-  PathAnalysis a;
-  a.has_parts = parts != nullptr;
-  a.block_angle.assign(blocks.size(), 0.0);
+namespace {
+
+// The moves that end in the analysis plane as a polyline: lines split to the query spacing,
+// arcs as chords with a sagitta under 0.1 um; each vertex tagged with its block.
+struct PlanePolyline {
+  std::vector<Point2> verts;
+  std::vector<std::uint8_t> piece_start;  //!< 1 where a connected piece begins
+  std::vector<std::size_t> owner;         //!< block of each vertex
+
+  void add(double x, double y, std::size_t blk, bool start) {
+    verts.push_back({x, y});
+    piece_start.push_back(start ? 1 : 0);
+    owner.push_back(blk);
+  }
+  void add_line(const ResolvedBlock& b, std::size_t blk, double ds) {
+    const double len = std::hypot(b.target[kX] - b.start[kX], b.target[kY] - b.start[kY]);
+    const int n = std::max(1, int(std::ceil(len / ds)));
+    for (int k = 1; k <= n; ++k) {
+      const double t = double(k) / n;
+      add(b.start[kX] + (b.target[kX] - b.start[kX]) * t, b.start[kY] + (b.target[kY] - b.start[kY]) * t, blk, false);
+    }
+  }
+  void add_arc(const ResolvedBlock& b, std::size_t blk, double ds) {
+    const double cx = b.centre[0], cy = b.centre[1];
+    const double rho = std::hypot(b.start[kX] - cx, b.start[kY] - cy);
+    const double a0 = std::atan2(b.start[kY] - cy, b.start[kX] - cx);
+    const double sw = arc_sweep(b);
+    const double max_step = std::min(ds / rho, 2.0 * std::acos(std::max(0.0, 1.0 - 1e-4 / rho)));
+    const int n = std::max(1, int(std::ceil(std::abs(sw) / max_step)));
+    for (int k = 1; k <= n; ++k) {
+      const double t = a0 + sw * k / n;
+      add(cx + rho * std::cos(t), cy + rho * std::sin(t), blk, false);
+    }
+  }
+};
+
+// Move counts and lengths, and the lowest feed end point (the default analysis plane).
+double count_moves(const std::vector<ResolvedBlock>& blocks, PathAnalysis& a) {
   double zmin = std::numeric_limits<double>::infinity();
   for (const auto& b : blocks) {
     if (is_feed(b.motion)) {
@@ -58,68 +91,34 @@ PathAnalysis analyse_path(const std::vector<ResolvedBlock>& blocks,
       a.rapid_length += block_length(b);
     }
   }
-  a.z_cut = std::isnan(opt.z_cut) ? zmin : opt.z_cut;
-  if (!std::isfinite(a.z_cut)) return a;
+  return zmin;
+}
 
-  // The moves that end in the analysis plane as a polyline: lines split to the query spacing,
-  // arcs as chords with a sagitta under 0.1 um; each vertex tagged with its block.
-  std::vector<Point2> verts;
-  std::vector<std::uint8_t> piece_start;
-  std::vector<std::size_t> owner;
-  const double ds = opt.sample_spacing;
+PlanePolyline plane_polyline(const std::vector<ResolvedBlock>& blocks, double z_cut, double ds,
+                             std::vector<std::size_t>& breaks) {
+  PlanePolyline pl;
   bool joined = false;
-  auto add = [&](double x, double y, std::size_t blk, bool start) {
-    verts.push_back({x, y});
-    piece_start.push_back(start ? 1 : 0);
-    owner.push_back(blk);
-  };
   for (std::size_t i = 0; i < blocks.size(); ++i) {
     const auto& b = blocks[i];
-    if (!is_feed(b.motion) || b.target[kZ] > a.z_cut + 1e-6) {
+    if (!is_feed(b.motion) || b.target[kZ] > z_cut + 1e-6) {
       if (b.motion != Motion::kNone) joined = false;
       continue;
     }
     if (!joined) {
-      a.breaks.push_back(verts.size());
-      add(b.start[kX], b.start[kY], i, true);
+      breaks.push_back(pl.verts.size());
+      pl.add(b.start[kX], b.start[kY], i, true);
     }
     joined = true;
-    if (b.motion == Motion::kLinear) {
-      const double len = std::hypot(b.target[kX] - b.start[kX], b.target[kY] - b.start[kY]);
-      const int n = std::max(1, int(std::ceil(len / ds)));
-      for (int k = 1; k <= n; ++k) {
-        const double t = double(k) / n;
-        add(b.start[kX] + (b.target[kX] - b.start[kX]) * t, b.start[kY] + (b.target[kY] - b.start[kY]) * t, i,
-            false);
-      }
-    } else {
-      const double cx = b.centre[0], cy = b.centre[1];
-      const double rho = std::hypot(b.start[kX] - cx, b.start[kY] - cy);
-      const double a0 = std::atan2(b.start[kY] - cy, b.start[kX] - cx);
-      const double sw = arc_sweep(b);
-      const double max_step = std::min(ds / rho, 2.0 * std::acos(std::max(0.0, 1.0 - 1e-4 / rho)));
-      const int n = std::max(1, int(std::ceil(std::abs(sw) / max_step)));
-      for (int k = 1; k <= n; ++k) {
-        const double t = a0 + sw * k / n;
-        add(cx + rho * std::cos(t), cy + rho * std::sin(t), i, false);
-      }
-    }
+    if (b.motion == Motion::kLinear) pl.add_line(b, i, ds);
+    else pl.add_arc(b, i, ds);
   }
-  if (verts.empty()) return a;
-  ExactEngagement eng(verts, piece_start, opt.tool_radius, opt.min_chip);
-  a.x.reserve(verts.size());
-  a.y.reserve(verts.size());
-  a.angle.reserve(verts.size());
-  for (std::size_t i = 0; i < verts.size(); ++i) {
-    const double ang = eng.angle_at(i);
-    const std::size_t blk = owner[i];
-    a.block_angle[blk] = std::max(a.block_angle[blk], ang);
-    a.x.push_back(verts[i].x);
-    a.y.push_back(verts[i].y);
-    a.angle.push_back(ang);
-  }
-  a.block = std::move(owner);
-  for (std::size_t i = 0; i < blocks.size(); ++i) {
+  return pl;
+}
+
+// The largest engagement per block, over all blocks and over the cutting part of a cycle (the
+// entry and the start circle finish the entry wedge; air moves are reported apart).
+void block_maxima(const std::vector<TrochoidPart>* parts, std::size_t nblocks, PathAnalysis& a) {
+  for (std::size_t i = 0; i < nblocks; ++i) {
     const double ang = a.block_angle[i];
     a.max_angle_all = std::max(a.max_angle_all, ang);
     const TrochoidPart p = parts && i < parts->size() ? (*parts)[i] : TrochoidPart::kLoops;
@@ -132,6 +131,34 @@ PathAnalysis analyse_path(const std::vector<ResolvedBlock>& blocks,
     }
     if (p == TrochoidPart::kAir) a.max_air_angle = std::max(a.max_air_angle, ang);
   }
+}
+
+}  // namespace
+
+PathAnalysis analyse_path(const std::vector<ResolvedBlock>& blocks,
+                          const std::vector<TrochoidPart>* parts, const PathAnalysisOptions& opt) {
+  PathAnalysis a;
+  a.has_parts = parts != nullptr;
+  a.block_angle.assign(blocks.size(), 0.0);
+  const double zmin = count_moves(blocks, a);
+  a.z_cut = std::isnan(opt.z_cut) ? zmin : opt.z_cut;
+  if (!std::isfinite(a.z_cut)) return a;
+  PlanePolyline pl = plane_polyline(blocks, a.z_cut, opt.sample_spacing, a.breaks);
+  if (pl.verts.empty()) return a;
+  ExactEngagement eng(pl.verts, pl.piece_start, opt.tool_radius, opt.min_chip);
+  a.x.reserve(pl.verts.size());
+  a.y.reserve(pl.verts.size());
+  a.angle.reserve(pl.verts.size());
+  for (std::size_t i = 0; i < pl.verts.size(); ++i) {
+    const double ang = eng.angle_at(i);
+    const std::size_t blk = pl.owner[i];
+    a.block_angle[blk] = std::max(a.block_angle[blk], ang);
+    a.x.push_back(pl.verts[i].x);
+    a.y.push_back(pl.verts[i].y);
+    a.angle.push_back(ang);
+  }
+  a.block = std::move(pl.owner);
+  block_maxima(parts, blocks.size(), a);
   return a;
 }
 
