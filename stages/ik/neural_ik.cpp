@@ -414,6 +414,46 @@ double denormalise(const AxisNet& net, const std::vector<float>& y, Eigen::Index
                                    (net.output_max[row] - net.output_min[row]);
 }
 
+// The rotary nets' inputs of every pose (A: the axis' tilt as (|xy|, z); C: its (x, y)) and the
+// unit tool axis; a pose that is not finite is marked so, with +Z in its place to keep the batch
+// finite (its result is discarded).
+void fill_rotary_inputs(std::span<const ToolPose> poses, double tool_length, Eigen::MatrixXd& a_in,
+                        Eigen::MatrixXd& c_in, Eigen::Matrix3Xd& unit_axis, std::span<NeuralIkPrediction> out) {
+  for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(poses.size()); ++i) {
+    const ToolPose& pose = poses[i];
+    Eigen::Vector3d axis(pose.axis[0], pose.axis[1], pose.axis[2]);
+    const double norm = axis.norm();
+    const bool ok = std::isfinite(norm) && norm > 1e-12 && std::isfinite(pose.tip[0]) &&
+                    std::isfinite(pose.tip[1]) && std::isfinite(pose.tip[2]) &&
+                    std::isfinite(tool_length);
+    out[i] = NeuralIkPrediction{};
+    out[i].finite = ok;
+    if (!ok) axis = Eigen::Vector3d::UnitZ();
+    else axis /= norm;
+    unit_axis.col(i) = axis;
+    a_in(0, i) = std::hypot(axis.x(), axis.y());
+    a_in(1, i) = axis.z();
+    c_in(0, i) = axis.x();
+    c_in(1, i) = axis.y();
+  }
+}
+
+// Which nets were asked outside the box they were trained on, per prediction.
+void flag_envelope(const AxisNets& nets, const Eigen::MatrixXd& a_in, const Eigen::MatrixXd& c_in,
+                   const Eigen::MatrixXd& p_in, std::span<NeuralIkPrediction> out) {
+  for (Eigen::Index i = 0; i < a_in.cols(); ++i) {  // the batch's poses
+    NeuralIkPrediction& r = out[i];
+    EnvelopeBits bits = 0;
+    for (int axis = kX; axis <= kZ; ++axis)
+      if (outside(nets[axis], p_in.col(i))) bits |= 1u << axis;
+    if (outside(nets[kA], a_in.col(i))) bits |= 1u << kA;
+    // Below the smallest trained tilt C is (nearly) undefined, whatever the (Oi, Oj) box says.
+    if (outside(nets[kC], c_in.col(i)) || a_in(0, i) < nets[kA].input_min[0]) bits |= 1u << kC;
+    r.outside_envelope = bits;
+    for (double v : r.joints) r.finite = r.finite && std::isfinite(v);
+  }
+}
+
 }  // namespace
 
 void NeuralIk::predict_block(std::span<const ToolPose> poses, double tool_length,
@@ -443,23 +483,7 @@ void NeuralIk::predict_block(std::span<const ToolPose> poses, double tool_length
   std::vector<float>& c_y = buffers.c_y;
   std::vector<float>& y = buffers.y;
 
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const ToolPose& pose = poses[i];
-    Eigen::Vector3d axis(pose.axis[0], pose.axis[1], pose.axis[2]);
-    const double norm = axis.norm();
-    const bool ok = std::isfinite(norm) && norm > 1e-12 && std::isfinite(pose.tip[0]) &&
-                    std::isfinite(pose.tip[1]) && std::isfinite(pose.tip[2]) &&
-                    std::isfinite(tool_length);
-    out[i] = NeuralIkPrediction{};
-    out[i].finite = ok;
-    if (!ok) axis = Eigen::Vector3d::UnitZ();  // keeps the batch finite; the result is discarded
-    else axis /= norm;
-    unit_axis.col(i) = axis;
-    a_in(0, i) = std::hypot(axis.x(), axis.y());
-    a_in(1, i) = axis.z();
-    c_in(0, i) = axis.x();
-    c_in(1, i) = axis.y();
-  }
+  fill_rotary_inputs(poses, tool_length, a_in, c_in, unit_axis, out);
 
   const AxisNet& a_net = nets_[kA];
   const AxisNet& c_net = nets_[kC];
@@ -497,17 +521,7 @@ void NeuralIk::predict_block(std::span<const ToolPose> poses, double tool_length
     for (Eigen::Index i = 0; i < n; ++i) out[i].joints[axis] = denormalise(net, y, 0, i, n);
   }
 
-  for (Eigen::Index i = 0; i < n; ++i) {
-    NeuralIkPrediction& r = out[i];
-    EnvelopeBits bits = 0;
-    for (int axis = kX; axis <= kZ; ++axis)
-      if (outside(nets_[axis], p_in.col(i))) bits |= 1u << axis;
-    if (outside(a_net, a_in.col(i))) bits |= 1u << kA;
-    // Below the smallest trained tilt C is (nearly) undefined, whatever the (Oi, Oj) box says.
-    if (outside(c_net, c_in.col(i)) || a_in(0, i) < a_net.input_min[0]) bits |= 1u << kC;
-    r.outside_envelope = bits;
-    for (double v : r.joints) r.finite = r.finite && std::isfinite(v);
-  }
+  flag_envelope(nets_, a_in, c_in, p_in, out);
 }
 
 NeuralIkPrediction NeuralIk::predict_linear(const ToolPose& pose, double tool_length, double a_deg,
