@@ -122,6 +122,16 @@ struct MonitorArgs : DdsArgs {
   double period = 1.0;
 };
 int run_monitor(const MonitorArgs& args);
+struct LaunchArgs {
+  std::string pipeline;  //!< the pipeline file
+  std::optional<int> domain;
+  bool verbose = false;
+};
+int run_launch(const LaunchArgs& args);
+struct StreamArgs : LaunchArgs {
+  std::string input, output;
+};
+int run_stream(const StreamArgs& args);
 #endif
 
 }  // namespace gcpipe::cli

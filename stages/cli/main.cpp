@@ -217,6 +217,32 @@ void add_monitor(CLI::App& app, MonitorArgs& a) {
   s->add_option("--period", a.period, "seconds between summaries")->check(CLI::Range(0.05, 3600.0));
   add_dds_options(*s, a);
 }
+
+void add_launch_options(CLI::App& s, LaunchArgs& a) {
+  s.add_option("--domain", a.domain, "DDS domain id (default: the pipeline file's)")->check(CLI::Range(0, 232));
+  s.add_flag("-v,--verbose", a.verbose, "print every line of every process, prefixed with its name");
+}
+
+void add_launch(CLI::App& app, LaunchArgs& a) {
+  auto* s = app.add_subcommand("launch", "start and supervise a whole pipeline of DDS nodes from a pipeline file");
+  s->add_option("pipeline", a.pipeline, "the pipeline file (e.g. pipeline_configs/streaming.yaml)")->required()->check(CLI::ExistingFile);
+  add_launch_options(*s, a);
+  s->footer("One process per stage, any start order; one status line per process; Ctrl-C stops them all. A crashed stage "
+            "stops the pipeline (exit 1, naming it) or is started again, as the file's on_crash says. Programs are "
+            "fed with: gcpipe feed IN.nc --domain D. Format: stages/dds/README.md.");
+}
+
+void add_stream(CLI::App& app, StreamArgs& a) {
+  auto* s = app.add_subcommand("stream", "run one program through the DDS pipeline: the files gcpipe batch writes for it");
+  s->add_option("input", a.input, "the program")->required()->check(CLI::ExistingFile);
+  s->add_option("-o,--output", a.output, "output folder: output.nc and, with the compensate node, compensated.nc")
+      ->required()->check(kNonEmpty);
+  s->add_option("--pipeline", a.pipeline, "the pipeline file (default pipeline_configs/streaming.yaml)")->check(CLI::ExistingFile);
+  add_launch_options(*s, a);
+  s->footer("Launches the file's nodes, a feed and one sink per written program, and stops when the program is "
+            "through. output.nc and compensated.nc are byte-identical to gcpipe batch's with the same config. "
+            "Exit status: as gcpipe batch (0, 3 lines rejected, 1 failed: the stage is named).");
+}
 #endif
 
 }  // namespace
@@ -259,6 +285,10 @@ int main(int argc, char** argv) {
   add_node(app, node);
   add_sink(app, sink);
   add_monitor(app, monitor);
+  LaunchArgs launch;
+  StreamArgs stream;
+  add_launch(app, launch);
+  add_stream(app, stream);
 #endif
   try {
     app.parse(argc, argv);
@@ -283,6 +313,8 @@ int main(int argc, char** argv) {
     if (name == "node") return run_node(node);
     if (name == "sink") return run_sink(sink);
     if (name == "monitor") return run_monitor(monitor);
+    if (name == "launch") return run_launch(launch);
+    if (name == "stream") return run_stream(stream);
 #endif
   } catch (const std::exception& e) {
     // A long step polls for SIGINT/SIGTERM through its progress callback, which throws.

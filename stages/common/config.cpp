@@ -1,5 +1,7 @@
 #include "gcpipe/config.hpp"
 
+#include <algorithm>
+
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
@@ -233,6 +235,24 @@ std::vector<double> Config::numbers(std::string_view key, std::size_t n, std::st
     if (v < min || v > max)
       throw error(key, "element " + std::to_string(i + 1) + " (" + shown(node[i]) +
                            ") is outside the valid range " + range_text(min, max, unit));
+    out.push_back(v);
+  }
+  return out;
+}
+
+std::vector<std::string> Config::strings(std::string_view key, const std::vector<std::string>& allowed) const {
+  if (!has(key)) throw error(key, "required list of names is missing");
+  YAML::Node node = impl_->node[std::string(key)];
+  if (!node.IsSequence() || node.size() == 0) throw error(key, "expected a list of names, found " + shown(node));
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    if (!node[i].IsScalar()) throw error(key, "element " + std::to_string(i + 1) + " (" + shown(node[i]) + ") is not a name");
+    const std::string v = node[i].Scalar();
+    if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), v) == allowed.end()) {
+      std::string list;
+      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+      throw error(key, "element " + std::to_string(i + 1) + " '" + v + "' is not one of: " + list);
+    }
     out.push_back(v);
   }
   return out;

@@ -17,6 +17,10 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& path) {
   return pc;
 }
 
+std::filesystem::path default_streaming_file() {
+  return std::filesystem::path(GCPIPE_SOURCE_DIR) / "pipeline_configs" / "streaming.yaml";
+}
+
 std::filesystem::path default_pipeline_config() {
   if (const char* env = std::getenv("GCPIPE_CONFIG")) return env;
   return std::filesystem::path(GCPIPE_SOURCE_DIR) / "pipeline_configs" / "default.yaml";

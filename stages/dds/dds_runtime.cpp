@@ -330,6 +330,9 @@ int RawReader::matched_writers() const {
 
 int run_stage_node(const std::string& node, Participant& participant, RawWriter& output, bool forever,
                    const std::function<Taken(double timeout)>& take, int& status) {
+  // `gcpipe launch` takes this line as "started": the participant, reader and writer exist.
+  std::cerr << "gcpipe node " << node << ": up on domain " << participant.options().domain << ", waiting for "
+            << participant.options().subscribers << " reader(s) of " << output.topic() << std::endl;
   if (!output.wait_for_readers()) return 130;
   std::cerr << "gcpipe node " << node << ": ready, " << output.matched_readers() << " reader(s) of "
             << output.topic() << " matched" << std::endl;

@@ -60,6 +60,9 @@ class Config {
   std::vector<double> numbers(std::string_view key, std::size_t n, std::string_view unit,
                               double min, double max) const;
 
+  /// A required non-empty sequence of strings (names), each one of `allowed` when that is given.
+  std::vector<std::string> strings(std::string_view key, const std::vector<std::string>& allowed = {}) const;
+
   /// Dotted path of this mapping from the document root ("" for the root).
   const std::string& path() const;
   /// File this config was read from.

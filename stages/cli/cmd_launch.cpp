@@ -1,0 +1,113 @@
+// gcpipe launch PIPELINE.yaml and gcpipe stream IN.nc -o OUTDIR: the supervisor of
+// stages/dds/launcher.hpp around the nodes that the pipeline file names.
+#include <algorithm>
+#include <filesystem>
+#include <map>
+#include <iostream>
+
+#include "commands.hpp"
+#include "dds_runtime.hpp"
+#include "gcpipe/pipeline_config.hpp"
+#include "stage.hpp"
+#include "launcher.hpp"
+
+namespace gcpipe::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path self_exe() { return fs::read_symlink("/proc/self/exe"); }
+
+dds::LaunchPlan plan_of(const LaunchArgs& a) {
+  const fs::path file = a.pipeline.empty() ? default_streaming_file() : fs::path(a.pipeline);
+  dds::LaunchPlan plan = dds::load_launch_plan(file);
+  if (a.domain) plan.domain = *a.domain;
+  return plan;
+}
+
+bool runs(const dds::LaunchPlan& plan, const std::string& stage) {
+  return std::find(plan.nodes.begin(), plan.nodes.end(), stage) != plan.nodes.end();
+}
+
+// A sink writing `file` from `topic`; exit 3 (lines rejected) is a result, as batch's.
+dds::LaunchProcess sink_process(const dds::LaunchPlan& plan, const std::string& name, const std::string& topic,
+                                const fs::path& file) {
+  dds::LaunchProcess p;
+  p.name = name;
+  p.args = {"sink", "--in", topic, "-o", file.string()};
+  const auto dds = dds::plan_dds_args(plan);
+  p.args.insert(p.args.end(), dds.begin(), dds.end());
+  p.ready_text = "gcpipe sink: ready";
+  p.one_shot = true;
+  p.ok_statuses = {0, 3};
+  return p;
+}
+
+}  // namespace
+
+int run_launch(const LaunchArgs& a) {
+  const dds::LaunchPlan plan = plan_of(a);
+  dds::install_stop_handlers();
+  dds::Supervisor sup(self_exe(), plan, std::cerr, a.verbose);
+  for (auto& p : dds::node_processes(plan, /*forever=*/true)) sup.add(std::move(p));
+  if (!sup.start()) {
+    std::cerr << "gcpipe launch: " << sup.message() << "\n";
+    return 1;
+  }
+  const int status = sup.run();
+  if (status == 1) std::cerr << "gcpipe launch: " << sup.message() << "\n";
+  return status;
+}
+
+int run_stream(const StreamArgs& a) {
+  const dds::LaunchPlan plan = plan_of(a);
+  if (!runs(plan, "write") && !runs(plan, "compensate"))
+    throw std::invalid_argument("the pipeline file runs neither the write nor the compensate node: nothing to write");
+  const fs::path out = a.output;
+  fs::create_directories(out);
+  // Files of an earlier run must not look like this run's: they are replaced or removed.
+  for (const char* f : {"output.nc", "compensated.nc", "output.nc.part", "compensated.nc.part"}) fs::remove(out / f);
+
+  std::map<std::string, int> sinks;
+  std::vector<dds::LaunchProcess> extra;
+  if (runs(plan, "write")) {
+    extra.push_back(sink_process(plan, "sink output.nc", dds::kGcodeTopicName, out / "output.nc"));
+    ++sinks[dds::kGcodeTopicName];
+  }
+  if (runs(plan, "compensate")) {
+    const std::string topic = pipeline::find_stage("compensate").topic;
+    extra.push_back(sink_process(plan, "sink compensated.nc", topic, out / "compensated.nc"));
+    ++sinks[topic];
+  }
+  dds::LaunchProcess feed;
+  feed.name = "feed";
+  feed.args = {"feed", a.input, "--config", plan.config.string()};
+  const auto dds_args = dds::plan_dds_args(plan);
+  feed.args.insert(feed.args.end(), dds_args.begin(), dds_args.end());
+  feed.one_shot = true;
+
+  dds::install_stop_handlers();
+  dds::Supervisor sup(self_exe(), plan, std::cerr, a.verbose);
+  for (auto& p : extra) sup.add(std::move(p));
+  for (auto& p : dds::node_processes(plan, /*forever=*/false, sinks)) sup.add(std::move(p));
+  sup.add(std::move(feed));
+  if (!sup.start()) {
+    std::cerr << "gcpipe stream: " << sup.message() << "\n";
+    return 1;
+  }
+  const int status = sup.run();
+  if (status != 0) {
+    if (status == 1) std::cerr << "gcpipe stream: " << sup.message() << "\n";
+    return status;
+  }
+  // The sinks' status is batch mode's: 3 when lines or cycles were rejected.
+  int result = 0;
+  for (const auto& name : {"sink output.nc", "sink compensated.nc"})
+    if (sup.exit_status(name) == 3) result = 3;
+  std::cerr << "gcpipe stream: wrote " << (runs(plan, "write") ? (out / "output.nc").string() : std::string())
+            << (runs(plan, "compensate") ? " " + (out / "compensated.nc").string() : std::string()) << "\n";
+  return result;
+}
+
+}  // namespace gcpipe::cli

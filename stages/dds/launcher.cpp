@@ -1,0 +1,372 @@
+#include "launcher.hpp"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdlib>
+#include <fstream>
+#include <chrono>
+#include <cstdio>
+#include <ostream>
+#include <set>
+#include <thread>
+
+#include "dds_runtime.hpp"
+#include "gcpipe/config.hpp"
+#include "stage.hpp"
+
+extern char** environ;
+
+namespace gcpipe::dds {
+
+namespace {
+
+constexpr std::size_t kTailLines = 20;
+
+// The topic stage `name` reads in a plan: the output topic of its nearest upstream that runs in
+// the plan (a stage left out is skipped over, as `--in` would be given by hand), or the program.
+std::string plan_input_topic(const std::vector<std::string>& nodes, const std::string& name) {
+  std::string up = pipeline::find_stage(name).upstream;
+  while (!up.empty()) {
+    if (std::find(nodes.begin(), nodes.end(), up) != nodes.end()) return pipeline::find_stage(up).topic;
+    up = pipeline::find_stage(up).upstream;
+  }
+  return pipeline::kProgramTopic;
+}
+
+std::vector<std::string> stages_with_nodes() {
+  std::vector<std::string> out;
+  for (const auto& info : pipeline::registry())
+    if (*info.topic != '\0') out.emplace_back(info.name);
+  return out;
+}
+
+std::string describe(int status) {
+  if (status >= 128) return "killed by signal " + std::to_string(status - 128);
+  return "exit status " + std::to_string(status);
+}
+
+// The Fast DDS shared-memory files (segments, port queues, their semaphores) `pid` has mapped.
+void add_shm_files_of(int pid, std::set<std::string>& out) {
+  std::ifstream maps("/proc/" + std::to_string(pid) + "/maps");
+  for (std::string line; std::getline(maps, line);) {
+    const auto at = line.find("/dev/shm/");
+    if (at == std::string::npos || line.find("fastrtps", at) == std::string::npos) continue;
+    if (line.size() >= 10 && line.compare(line.size() - 10, 10, " (deleted)") == 0) continue;
+    out.insert(line.substr(at));
+  }
+}
+
+// Removes those of `files` that no live process on this host maps any more. A killed process's
+// port queue stays mapped by nobody and `fastdds shm clean` leaves it (it has no lock file);
+// a file some process still maps (another pipeline, a monitor) is left alone.
+void remove_unmapped(const std::set<std::string>& files) {
+  std::set<std::string> live;
+  for (const auto& entry : std::filesystem::directory_iterator("/proc")) {
+    const std::string name = entry.path().filename().string();
+    if (name.empty() || name.find_first_not_of("0123456789") != std::string::npos) continue;
+    add_shm_files_of(std::stoi(name), live);
+  }
+  std::error_code ec;
+  for (const auto& f : files) {
+    if (live.count(f) != 0) continue;
+    std::filesystem::remove(f, ec);
+    // A port queue's named semaphore (sem_open maps it only while in use): goes with its queue.
+    const std::string name = std::filesystem::path(f).filename().string();
+    if (name.rfind("fastrtps_port", 0) == 0) std::filesystem::remove("/dev/shm/sem." + name + "_mutex", ec);
+  }
+}
+
+}  // namespace
+
+LaunchPlan load_launch_plan(const std::filesystem::path& file) {
+  const Config root = Config::load_file(file);
+  root.reject_unknown({"pipeline", "nodes"});
+  const Config p = root.section("pipeline");
+  p.reject_unknown({"name", "domain", "config", "profiles", "on_crash", "max_restarts", "ready_timeout", "stop_timeout",
+                    "timeout"});
+  LaunchPlan plan;
+  plan.name = p.string("name", file.stem().string());
+  plan.domain = static_cast<int>(p.integer("domain", 0, 0, 232));
+  plan.config = p.file_path("config", "the pipeline config the nodes read");
+  if (p.has("profiles")) plan.profiles = p.file_path("profiles", "the DDS profiles XML");
+  plan.restart = p.choice("on_crash", "stop", {"stop", "restart"}) == "restart";
+  plan.max_restarts = static_cast<int>(p.integer("max_restarts", 3, 0, 100));
+  plan.ready_timeout = p.number("ready_timeout", 30, "s", 0.1, 3600);
+  plan.stop_timeout = p.number("stop_timeout", 5, "s", 0.1, 600);
+  plan.timeout = p.number("timeout", 30, "s", 0.1, 1e6);
+  plan.nodes = root.strings("nodes", stages_with_nodes());
+  std::set<std::string> seen;
+  for (const auto& n : plan.nodes)
+    if (!seen.insert(n).second) throw root.error("nodes", "stage '" + n + "' is listed twice: one node per stage");
+  return plan;
+}
+
+std::vector<std::string> plan_dds_args(const LaunchPlan& plan) {
+  std::vector<std::string> a{"--domain", std::to_string(plan.domain)};
+  if (!plan.profiles.empty()) a.insert(a.end(), {"--profiles", plan.profiles.string()});
+  return a;
+}
+
+std::vector<LaunchProcess> node_processes(const LaunchPlan& plan, bool forever,
+                                          const std::map<std::string, int>& extra_readers) {
+  std::map<std::string, int> readers = extra_readers;
+  for (const auto& n : plan.nodes) ++readers[plan_input_topic(plan.nodes, n)];
+  std::vector<LaunchProcess> out;
+  for (const auto& n : plan.nodes) {
+    const std::string topic = pipeline::find_stage(n).topic;
+    LaunchProcess p;
+    p.name = n;
+    p.args = {"node", n, "--config", plan.config.string(), "--in", plan_input_topic(plan.nodes, n),
+              "--subscribers", std::to_string(std::max(1, readers[topic]))};
+    if (forever) p.args.emplace_back("--forever");
+    const auto dds = plan_dds_args(plan);
+    p.args.insert(p.args.end(), dds.begin(), dds.end());
+    p.args.insert(p.args.end(), {"--timeout", std::to_string(plan.timeout)});
+    p.ready_text = "gcpipe node " + n + ": up";
+    p.one_shot = !forever;
+    out.push_back(std::move(p));
+  }
+  return out;
+}
+
+Supervisor::Supervisor(std::filesystem::path exe, const LaunchPlan& plan, std::ostream& log, bool verbose)
+    : exe_(std::move(exe)), plan_(plan), log_(log), verbose_(verbose) {}
+
+Supervisor::~Supervisor() { stop_all(); }
+
+void Supervisor::add(LaunchProcess p) {
+  Child c;
+  c.spec = std::move(p);
+  children_.push_back(std::move(c));
+}
+
+double Supervisor::now() const {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count() - t0_;
+}
+
+void Supervisor::status_line(const Child& c, const std::string& what) {
+  char when[32];
+  std::snprintf(when, sizeof when, "%7.2f s", now());
+  log_ << "gcpipe launch " << plan_.name << ": " << when << "  " << c.spec.name << ": " << what << std::endl;
+}
+
+// The child's stdout and stderr go to one pipe that the supervisor reads line by line.
+bool Supervisor::spawn(Child& c) {
+  int fds[2];
+  if (pipe2(fds, O_CLOEXEC) != 0) return false;
+  std::vector<char*> argv;
+  const std::string exe = exe_.string();
+  argv.push_back(const_cast<char*>(exe.c_str()));
+  for (const auto& a : c.spec.args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_adddup2(&fa, fds[1], 1);
+  posix_spawn_file_actions_adddup2(&fa, fds[1], 2);
+  posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, exe.c_str(), &fa, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  close(fds[1]);
+  if (rc != 0) {
+    close(fds[0]);
+    return false;
+  }
+  fcntl(fds[0], F_SETFL, O_NONBLOCK);
+  c.pid = pid;
+  c.out_fd = fds[0];
+  c.ready = c.spec.ready_text.empty();
+  c.status = -1;
+  c.started_at = now();
+  status_line(c, "started (pid " + std::to_string(pid) + ")");
+  return true;
+}
+
+bool Supervisor::start() {
+  t0_ = 0;
+  t0_ = now();
+  for (Child& c : children_)
+    if (!spawn(c)) {
+      message_ = "could not start " + c.spec.name + " (" + exe_.string() + ")";
+      stop_all();
+      return false;
+    }
+  return true;
+}
+
+void Supervisor::on_line(Child& c, const std::string& line) {
+  if (verbose_) log_ << "[" << c.spec.name << "] " << line << "\n";
+  c.tail.push_back(line);
+  if (c.tail.size() > kTailLines) c.tail.pop_front();
+  if (!c.ready && line.find(c.spec.ready_text) != std::string::npos) {
+    c.ready = true;
+    char took[48];
+    std::snprintf(took, sizeof took, "ready after %.2f s", now() - c.started_at);
+    status_line(c, took);
+    sample_shm();
+    if (!all_ready_said_ && std::all_of(children_.begin(), children_.end(), [](const Child& k) { return k.ready; })) {
+      all_ready_said_ = true;
+      log_ << "gcpipe launch " << plan_.name << ": all " << children_.size() << " processes ready (DDS domain "
+           << plan_.domain << ")" << std::endl;
+    }
+  }
+}
+
+void Supervisor::read_output(Child& c, bool drain) {
+  if (c.out_fd < 0) return;
+  char buf[4096];
+  for (;;) {
+    const ssize_t n = read(c.out_fd, buf, sizeof buf);
+    if (n > 0) {
+      c.partial.append(buf, static_cast<std::size_t>(n));
+      std::size_t nl;
+      while ((nl = c.partial.find('\n')) != std::string::npos) {
+        on_line(c, c.partial.substr(0, nl));
+        c.partial.erase(0, nl + 1);
+      }
+      continue;
+    }
+    if (n == 0 || (n < 0 && errno != EAGAIN && errno != EINTR)) {  // closed: the child is gone
+      if (!c.partial.empty()) on_line(c, c.partial), c.partial.clear();
+      close(c.out_fd);
+      c.out_fd = -1;
+    }
+    if (!drain || c.out_fd < 0 || (n < 0 && errno == EAGAIN)) return;
+  }
+}
+
+// True when `c` ended; `fatal` when that ends the pipeline (a crash not restarted).
+bool Supervisor::reap(Child& c, bool& fatal) {
+  if (c.pid <= 0) return false;
+  int st = 0;
+  if (waitpid(c.pid, &st, WNOHANG) != c.pid) return false;
+  read_output(c, true);
+  c.pid = -1;
+  c.status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+  if (WIFSIGNALED(st)) any_killed_ = true;
+  const auto& ok = c.spec.ok_statuses;
+  if (c.spec.one_shot && std::find(ok.begin(), ok.end(), c.status) != ok.end()) {
+    status_line(c, "finished, " + describe(c.status));
+    return true;
+  }
+  status_line(c, "stopped unexpectedly, " + describe(c.status));
+  for (const auto& l : c.tail) log_ << "    | " << l << "\n";
+  if (plan_.restart && c.restarts < plan_.max_restarts && !c.spec.one_shot) {
+    ++c.restarts;
+    status_line(c, "restarting (" + std::to_string(c.restarts) + " of " + std::to_string(plan_.max_restarts) + ")");
+    if (spawn(c)) return true;
+  }
+  fatal = true;
+  message_ = "stage " + c.spec.name + " stopped (" + describe(c.status) + "); the pipeline was stopped";
+  return true;
+}
+
+int Supervisor::run() {
+  for (;;) {
+    std::vector<pollfd> fds;
+    for (const Child& c : children_)
+      if (c.out_fd >= 0) fds.push_back({c.out_fd, POLLIN, 0});
+    if (!fds.empty()) poll(fds.data(), fds.size(), 100);
+    else std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    bool fatal = false;
+    if (now() > next_shm_sample_) sample_shm();
+    for (Child& c : children_) {
+      read_output(c, false);
+      reap(c, fatal);
+      if (fatal) break;
+    }
+    if (fatal) {
+      stop_all();
+      return 1;
+    }
+    if (stop_requested()) {
+      log_ << "gcpipe launch " << plan_.name << ": stopping every process (signal)" << std::endl;
+      stop_all();
+      return 130;
+    }
+    for (const Child& c : children_)
+      if (c.pid > 0 && !c.ready && now() - c.started_at > plan_.ready_timeout) {
+        message_ = c.spec.name + " did not say it was ready within " + std::to_string(plan_.ready_timeout) + " s";
+        for (const auto& l : c.tail) log_ << "    | " << l << "\n";
+        stop_all();
+        return 1;
+      }
+    // Done when there are one-shot processes (a stream: feed, nodes, sinks) and all have ended.
+    const bool any_one_shot = std::any_of(children_.begin(), children_.end(), [](const Child& c) { return c.spec.one_shot; });
+    const bool one_shots_done = std::all_of(children_.begin(), children_.end(), [](const Child& c) {
+      return !c.spec.one_shot || c.pid <= 0;
+    });
+    if (any_one_shot && one_shots_done) {
+      stop_all();
+      return 0;
+    }
+  }
+}
+
+// SIGTERM to every process still running, SIGKILL after stop_timeout; then the shared memory of
+// any process that did not exit by itself (Fast DDS leaves its segments behind a killed process).
+// What each live process maps now (its own port queue and its peers'): a process killed later
+// leaves its queue mapped by nobody, and stop_all() then knows it was the pipeline's.
+void Supervisor::sample_shm() {
+  next_shm_sample_ = now() + 0.5;
+  for (const Child& c : children_)
+    if (c.pid > 0) add_shm_files_of(c.pid, shm_seen_);
+}
+
+void Supervisor::stop_all() {
+  sample_shm();
+  bool any = false;
+  for (Child& c : children_)
+    if (c.pid > 0) kill(c.pid, SIGTERM), any = true;
+  const double deadline = now() + plan_.stop_timeout;
+  while (any) {
+    any = false;
+    for (Child& c : children_) {
+      if (c.pid <= 0) continue;
+      read_output(c, false);
+      int st = 0;
+      if (waitpid(c.pid, &st, WNOHANG) == c.pid) {
+        c.status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+        c.pid = -1;
+        read_output(c, true);
+        status_line(c, "stopped, " + describe(c.status));
+        continue;
+      }
+      if (now() > deadline) {
+        kill(c.pid, SIGKILL);
+        waitpid(c.pid, &st, 0);
+        c.status = 128 + SIGKILL;
+        c.pid = -1;
+        any_killed_ = true;
+        status_line(c, "killed after " + std::to_string(plan_.stop_timeout) + " s");
+        continue;
+      }
+      any = true;
+    }
+    if (any) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  for (Child& c : children_)
+    if (c.out_fd >= 0) close(c.out_fd), c.out_fd = -1;
+  if (any_killed_) {
+    any_killed_ = false;
+    // Segments whose owner died: `fastdds shm clean` removes those whose lock nobody holds.
+    [[maybe_unused]] const int rc = std::system("fastdds shm clean >/dev/null 2>&1");
+  }
+  remove_unmapped(shm_seen_);
+  shm_seen_.clear();
+}
+
+int Supervisor::exit_status(const std::string& name) const {
+  for (const Child& c : children_)
+    if (c.spec.name == name) return c.status;
+  return -1;
+}
+
+}  // namespace gcpipe::dds

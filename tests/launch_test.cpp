@@ -1,0 +1,155 @@
+// gcpipe launch and gcpipe stream (stages/dds/launcher.hpp): the supervised pipeline writes batch
+// mode's bytes, stops loudly and within a bound when a stage dies, starts a stage again when the
+// pipeline file says so, stops everything on SIGINT, and leaves no shared memory behind. Each test
+// runs on a DDS domain of its own, so that tests running side by side never mix.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <regex>
+#include <thread>
+
+#include "cli_helpers.hpp"
+
+namespace {
+
+const fs::path kSource = GCPIPE_SOURCE_DIR;
+
+// A pipeline file for `domain` with the shipped default config; `extra` adds pipeline: keys.
+fs::path pipeline_file(const fs::path& dir, int domain, const std::string& extra = "",
+                       const std::string& nodes = "[parse, trochoid, write, force, compensate]") {
+  const fs::path f = dir / "pipeline.yaml";
+  std::ofstream(f) << "pipeline:\n  name: test\n  domain: " << domain << "\n  config: "
+                   << (kSource / "pipeline_configs" / "default.yaml").string() << "\n" << extra << "nodes: " << nodes << "\n";
+  return f;
+}
+
+bool wait_for(const fs::path& log, const std::string& text, double limit_s) {
+  const auto t0 = std::chrono::steady_clock::now();
+  while (slurp(log).find(text) == std::string::npos) {
+    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > limit_s) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  return true;
+}
+
+// Exit status of `pid`, or -1 when it has not ended within `limit_s` (then it is killed).
+int wait_exit(pid_t pid, double limit_s, double* took = nullptr) {
+  const auto t0 = std::chrono::steady_clock::now();
+  int st = 0;
+  for (;;) {
+    if (waitpid(pid, &st, WNOHANG) == pid) break;
+    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > limit_s) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &st, 0);
+      return -1;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  if (took) *took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+}
+
+// The pid of the node process `stage` that the launcher started for `domain`.
+pid_t node_pid(const fs::path& log, const std::string& stage) {
+  const std::regex re("  " + stage + ": started \\(pid ([0-9]+)\\)");
+  std::smatch m;
+  const std::string text = slurp(log);
+  pid_t pid = -1;
+  for (auto it = std::sregex_iterator(text.begin(), text.end(), re); it != std::sregex_iterator(); ++it)
+    pid = std::stoi((*it)[1]);  // the newest start
+  return pid;
+}
+
+// Shared-memory files of the ports of `domain` (Fast DDS: 7400 + 250 domain + 10 + participant).
+std::vector<std::string> shm_of_domain(int domain) {
+  std::vector<std::string> left;
+  const int base = 7400 + 250 * domain + 10;
+  for (const auto& e : fs::directory_iterator("/dev/shm")) {
+    const std::string n = e.path().filename().string();
+    for (int k = 0; k < 20; ++k)
+      if (n.find("fastrtps_port" + std::to_string(base + k)) != std::string::npos) left.push_back(n);
+  }
+  return left;
+}
+
+}  // namespace
+
+TEST(Stream, WritesBatchModesBytesOnTheSamples) {
+  for (const char* sample : {"five_axis_demo.nc", "trochoid_slot_seed000.nc"}) {
+    SCOPED_TRACE(sample);
+    const fs::path dir = tmpdir(std::string("stream_") + sample);
+    const fs::path in = kSource / "samples" / sample;
+    const Outcome batch = gcpipe({"batch", in.string(), "-o", (dir / "batch").string(), "--quiet"});
+    ASSERT_EQ(batch.status, 0) << batch.err;
+    // A stale file in the output folder must not survive the run.
+    fs::create_directories(dir / "stream");
+    std::ofstream(dir / "stream" / "compensated.nc") << "stale\n";
+    const Outcome s = gcpipe({"stream", in.string(), "-o", (dir / "stream").string(), "--domain", "61"});
+    ASSERT_EQ(s.status, 0) << s.err;
+    EXPECT_NE(s.err.find("all 8 processes ready"), std::string::npos) << s.err;
+    EXPECT_TRUE(slurp(dir / "stream" / "output.nc") == slurp(dir / "batch" / "output.nc"));
+    EXPECT_TRUE(slurp(dir / "stream" / "compensated.nc") == slurp(dir / "batch" / "compensated.nc"));
+  }
+  EXPECT_TRUE(shm_of_domain(61).empty());
+}
+
+TEST(Stream, APipelineWithoutTheForceNodeReadsTheToolpathDirectly) {
+  const fs::path dir = tmpdir("stream_noforce");
+  const fs::path in = kSource / "samples" / "five_axis_demo.nc";
+  const fs::path file = pipeline_file(dir, 62, "", "[parse, trochoid, write, compensate]");
+  const Outcome batch = gcpipe({"batch", in.string(), "-o", (dir / "batch").string(), "--quiet"});
+  ASSERT_EQ(batch.status, 0);
+  const Outcome s = gcpipe({"stream", in.string(), "-o", (dir / "stream").string(), "--pipeline", file.string()});
+  ASSERT_EQ(s.status, 0) << s.err;
+  // Without a force section the force stage passes blocks through, so the bytes are batch's.
+  EXPECT_TRUE(slurp(dir / "stream" / "compensated.nc") == slurp(dir / "batch" / "compensated.nc"));
+}
+
+TEST(Launch, ADeadStageStopsThePipelineNamingItAndLeavesNoSharedMemory) {
+  const fs::path dir = tmpdir("launch_kill");
+  for (const char* stage : {"trochoid", "compensate"}) {
+    SCOPED_TRACE(stage);
+    const fs::path log = dir / (std::string(stage) + ".log");
+    const pid_t launch = spawn_gcpipe({"launch", pipeline_file(dir, 63).string()}, dir / "out", log);
+    ASSERT_TRUE(wait_for(log, "all 5 processes ready", 60)) << slurp(log);
+    const pid_t victim = node_pid(log, stage);
+    ASSERT_GT(victim, 0);
+    ASSERT_EQ(kill(victim, SIGKILL), 0);
+    double took = 0;
+    EXPECT_EQ(wait_exit(launch, 30, &took), 1) << slurp(log);
+    EXPECT_LT(took, 10) << "the pipeline took too long to stop";
+    EXPECT_NE(slurp(log).find(std::string("stage ") + stage + " stopped (killed by signal 9)"), std::string::npos) << slurp(log);
+    EXPECT_TRUE(shm_of_domain(63).empty()) << "shared memory left after the pipeline stopped";
+  }
+}
+
+TEST(Launch, RestartsACrashedStageWhenTheFileSaysSoAndStopsOnSigint) {
+  const fs::path dir = tmpdir("launch_restart");
+  const fs::path log = dir / "launch.log";
+  const pid_t launch = spawn_gcpipe({"launch", pipeline_file(dir, 64, "  on_crash: restart\n").string()}, dir / "out", log);
+  ASSERT_TRUE(wait_for(log, "all 5 processes ready", 60)) << slurp(log);
+  const pid_t first = node_pid(log, "write");
+  ASSERT_GT(first, 0);
+  kill(first, SIGKILL);
+  ASSERT_TRUE(wait_for(log, "write: restarting (1 of 3)", 20)) << slurp(log);
+  ASSERT_TRUE(wait_for(log, "write: ready after", 20));
+  EXPECT_NE(node_pid(log, "write"), first);
+  kill(launch, SIGINT);
+  EXPECT_EQ(wait_exit(launch, 30), 130) << slurp(log);
+  EXPECT_TRUE(shm_of_domain(64).empty());
+}
+
+TEST(Launch, PipelineFileErrorsNameTheKey) {
+  const fs::path dir = tmpdir("launch_errors");
+  auto run_with = [&](const std::string& nodes, const std::string& extra = "") {
+    return gcpipe({"launch", pipeline_file(dir, 65, extra, nodes).string()});
+  };
+  Outcome unknown = run_with("[parse, simulate]");
+  EXPECT_EQ(unknown.status, 1);
+  EXPECT_NE(unknown.err.find("'simulate' is not one of"), std::string::npos) << unknown.err;
+  Outcome twice = run_with("[parse, parse]");
+  EXPECT_NE(twice.err.find("listed twice"), std::string::npos) << twice.err;
+  Outcome crash = run_with("[parse]", "  on_crash: retry\n");
+  EXPECT_NE(crash.err.find("on_crash"), std::string::npos) << crash.err;
+  EXPECT_EQ(gcpipe({"launch", (dir / "missing.yaml").string()}).status, 2);  // CLI: no such file
+}
