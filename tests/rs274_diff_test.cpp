@@ -265,6 +265,61 @@ std::vector<std::pair<std::string, std::string>> generated_programs() {
   };
 }
 
+// Cutter radius compensation (G41/G42/G40, LinuxCNC's geometry). The radius comes from G10 L1
+// R in the program: standalone rs274 reads the .tbl's D in inches, as it does Z (see
+// add_length), gcpipe in mm.
+constexpr const char* kCompHead = "G21 G90 G17 F100\nT1 M6\nG10 L1 P1 R1\nG10 L1 P2 R2\n";
+
+std::vector<std::pair<std::string, std::string>> cutter_programs() {
+  const std::string h = kCompHead;
+  return {
+      // Entry with a convex corner, two concave corners, the last move's offset end, G40 exit.
+      {"comp_left_square", h + "G0 X-5 Y-5 Z0\nG41 D1\nG1 X0 Y0\nG1 X10 Y0\nG1 X10 Y10\nG1 X0 Y10\nG1 X0 Y0\n"
+                               "G40\nG1 X-5 Y-5\nM2\n"},
+      // G42 with the loaded tool; a concave entry corner; blocks held behind a move (M8, a Z
+      // move, F); tangent G3 outside and G2 inside; a convex arc/line corner; G0 compensated;
+      // G40 with the exit move on the next line.
+      {"comp_right_arcs_held_blocks", h + "G0 X-5 Y-5 Z0\nG42\nG1 X0 Y0\nG1 X10 Y0\nM8\nG1 Z-1\nF200\n"
+                                          "G3 X20 Y10 R10\nG2 X30 Y0 I10 J0\nG1 X30 Y-10\nG0 X20 Y-10\nG40\n"
+                                          "G0 X-5 Y-5\nM2\n"},
+      // Convex corners with Z moves held between them; the program ends in compensation.
+      {"comp_convex_corners_z_end", h + "G0 X-5 Y0 Z0\nG42 D1\nG1 X0 Y0\nG1 X10 Y0\nG1 Z-1\nG1 X10 Y10\n"
+                                        "G1 Z-2\nG1 X0 Y10\nM2\n"},
+      // G41.1/G42.1: D is the diameter.
+      {"comp_dynamic_diameter", "G21 G90 G17 F100\nG0 X-5 Y0 Z0\nG41.1 D2\nG1 X0 Y0\nG1 X10 Y0\nG1 X10 Y10\n"
+                                "G40\nG1 X20 Y20\nG42.1 D3\nG1 X30 Y20\nG1 X30 Y30\nG40 G0 X40 Y40\nM2\n"},
+      // A step as long as the radius (zero-length offset moves), a narrow V, reversal.
+      {"comp_steps_v_reversal", h + "G0 X-5 Y0 Z0\nG41 D1\nG1 X0 Y0\nG1 X10 Y0\nG1 X10 Y1\nG1 X20 Y1\n"
+                                    "G1 X20 Y0\nG1 X30 Y0\nG1 X30.5 Y5\nG1 X31 Y0\nG1 X40 Y0\nG1 X30 Y0\n"
+                                    "G40 G1 X25 Y-5\nM2\n"},
+      // Corners of 0.02, 0.04 and 0.06 rad, both ways: up to 0.05 rad joined as they are.
+      {"comp_small_corners", h + "G0 X-5 Y0 Z0\nG41 D1\nG1 X0 Y0\nG1 X10 Y0\nG1 X20 Y-0.2\nG1 X30 Y0.2\n"
+                                 "G1 X40 Y-0.2\nG1 X50 Y-1\nG1 X60 Y-0.4\nG1 X70 Y0.2\nG40 G1 X75 Y5\nM2\n"},
+      // Concave line/arc, arc/line and arc/arc corners; a convex arc/arc corner; helical Z.
+      {"comp_arc_corners", h + "G0 X-5 Y0 Z0\nG41 D1\nG1 X0 Y0\nG1 X10 Y0\nG2 X20 Y0 R5\nG1 X30 Y0\n"
+                               "G2 X40 Y0 R5 Z-1\nG2 X48 Y4 R6\nG3 X56 Y0 R6\nG1 X60 Y-6\nG40 G1 X65 Y-10\nM2\n"},
+      // G42 around a circle pocket wall from inside and a boss from outside, D2 from G10.
+      {"comp_circles_d2", h + "G0 X-20 Y0 Z0\nG42 D2\nG1 X-10 Y0\nG2 X-10 Y0 I10 J0\nG40 G1 X-20 Y0\n"
+                              "G41 D2\nG1 X-10 Y0\nG3 X-10 Y0 I10 J0\nG1 X-10 Y-10\nG40 G0 X-20 Y-20\nM2\n"},
+      // Inch program, incremental moves, a rapid entry.
+      {"comp_inch_incremental", "G20 G90 G17 F10\nG10 L1 P1 R0.1\nT1 M6\nG0 X-1 Y-1 Z0\nG41\nG0 X0 Y0\nG91 G1 X2\n"
+                                "Y1\nG3 X-1 Y1 R1\nG1 X-1\nG90 G1 X0 Y0\nG40 G0 X-1 Y-1\nM2\n"},
+  };
+}
+
+// Errors both interpreters find on the same line. rs274 drops its held move at an error, gcpipe
+// keeps it (the next line continues the contour), so only the rejected lines are compared.
+std::vector<std::pair<std::string, std::string>> cutter_error_programs() {
+  const std::string h = kCompHead;
+  return {
+      {"comp_arc_smaller_than_tool", h + "G0 X-5 Y0 Z0\nG41 D1\nG1 X0 Y0\nG1 X10 Y0\nG3 X10 Y1 R0.5\nM2\n"},
+      {"comp_dynamic_errors", "G21 G90 G17 F100\nG0 X-5 Y0 Z0\nG41.1\nG41.1 D2\nG1 X0 Y0\nG42.1 D4\nM2\n"},
+      {"comp_short_entry", h + "G0 X0 Y0 Z0\nG41 D1\nG1 X0 Y0.5\nM2\n"},
+      {"comp_forbidden_under_comp", h + "G0 X-5 Y0 Z0\nG41 D1\nG1 X0 Y0\nG41 D1\nG18\nG81 X1 Y1 Z-1 R1\nG28\n"
+                                        "G53 G0 X0\nG92 X0\nT2 M6\nG1 X10 Y0\nM2\n"},
+  };
+}
+
 }  // namespace
 
 TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
@@ -280,6 +335,30 @@ TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
     ++n;
   }
   EXPECT_EQ(n, 14);
+}
+
+TEST(Rs274Diff, CutterCompensationMatchesLinuxCnc) {
+  if (rs274_path().empty())
+    GTEST_SKIP() << "rs274 is absent (Debian package linuxcnc-uspace): the LinuxCNC differential test did not run";
+  const fs::path dir = work_dir();
+  fs::create_directories(dir);
+  std::size_t points = 0;
+  for (const auto& [name, text] : cutter_programs()) {
+    const fs::path file = dir / (name + ".ngc");
+    std::ofstream(file) << text;
+    expect_same(text, file, name);
+    points += run_gcpipe(text, name).ends.size();
+  }
+  for (const auto& [name, text] : cutter_error_programs()) {
+    SCOPED_TRACE(name);
+    const fs::path file = dir / (name + ".ngc");
+    std::ofstream(file) << text;
+    const auto theirs = run_rs274(file, text);
+    EXPECT_FALSE(theirs.rejected.empty());
+    EXPECT_EQ(run_gcpipe(text, name).rejected, theirs.rejected);
+  }
+  std::printf("cutter compensation: %zu programs, %zu end points compared; %zu error programs\n",
+              cutter_programs().size(), points, cutter_error_programs().size());
 }
 
 TEST(Rs274Diff, SharedLinuxCncProgramsMatchLinuxCnc) {
