@@ -114,6 +114,14 @@ bool intersect(const OffsetMove& p, const OffsetMove& n, P2& x) {
   return circle_circle(p.centre, p.radius, n.centre, n.radius, p.corner, x);
 }
 
+// A concave corner at `x` keeps both moves running forwards: the held one `p` (from where it
+// starts now) and the new one `n` (whose block is `b`) up to their offset ends.
+bool corner_reachable(const OffsetMove& p, const OffsetMove& n, P2 x, const ResolvedBlock& b) {
+  const bool full_circle = n.arc && norm(xy(b.start) - xy(b.target)) < kEps;
+  const double n_len = full_circle ? kTwoPi : along(n, n.end);
+  return (p.entry || along(p, x) >= along(p, p.start) - kEps) && along(n, x) <= n_len + kEps;
+}
+
 const char* side_name(int side) { return side > 0 ? "G41" : "G42"; }
 
 }  // namespace
@@ -219,9 +227,14 @@ bool Parser::Impl::next_move(const ModalState& ns, ResolvedBlock& b) {
   if (!offset_path(ns, b, n)) return false;
   const OffsetMove& p = comp_next.move;
   const double turn = std::atan2(cross(p.end_tangent, n.start_tangent), dot(p.end_tangent, n.start_tangent));
-  // Outside the turn is convex: a right turn (turn < 0) with the tool on the left. A reversal
-  // goes round the end of the path, whatever the sign rounding gives it.
-  const bool convex = ns.comp_side * turn < 0 || std::fabs(turn) > std::numbers::pi - kEps;
+  // Outside the turn is convex: a right turn (turn < 0) with the tool on the left. At a reversal
+  // the sign is rounding: there the paths' curvature decides, seen in whether the offset paths
+  // meet (the cusp between two arcs on the tool side) or not (a line turning back, the outside
+  // of a cusp): rs274 cuts the first at the intersection and goes round the second.
+  const bool reversal = std::fabs(turn) > std::numbers::pi - 1e-6;
+  P2 x;
+  const bool convex = reversal ? !(intersect(p, n, x) && corner_reachable(p, n, x, block))
+                               : ns.comp_side * turn < 0;
   P2 held_end = p.end;
   bool arc = false;
   if (std::fabs(turn) <= kSmoothCorner) {
@@ -261,15 +274,10 @@ bool Parser::Impl::concave_corner(const ModalState& ns, OffsetMove& n) {
   const OffsetMove& p = comp_next.move;
   P2 x;
   const bool met = intersect(p, n, x);
-  const bool p_ok = met && (p.entry || along(p, x) >= along(p, p.start) - kEps);
-  const double n_len = n.arc ? (norm(xy(block.start) - xy(block.target)) < kEps ? kTwoPi : along(n, n.end))
-                             : along(n, n.end);
-  const bool n_ok = met && along(n, x) <= n_len + kEps;
-  if (!p_ok || !n_ok)
+  if (!met || !corner_reachable(p, n, x, block))
     return fail(move_col(sc), std::string("concave corner with ") + side_name(ns.comp_side) + ": the tool (radius " +
-                                  show(ns.comp_radius) + " mm) cannot reach " +
-                                  (!met ? "this corner" : !n_ok ? "this move" : "the move before") +
-                                  " without gouging (the move is shorter than the tool needs)");
+                                  show(ns.comp_radius) + " mm) cannot reach " + (met ? "it" : "this corner") +
+                                  " without gouging: a move next to it is shorter than the tool needs");
   n.start = x;
   return true;
 }
