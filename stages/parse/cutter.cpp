@@ -290,10 +290,13 @@ void Parser::Impl::finish_pending(P2 end) {
   set_xy(f.target, end);
   if (c.move.arc) f.radius = norm(c.move.start - c.move.centre);
   f.axis_words = static_cast<std::uint8_t>(f.axis_words | (1u << kX) | (1u << kY));
+  Axes at = f.target;
   comp_out.push_back(std::move(f));
-  for (ResolvedBlock& h : c.held) {
-    set_xy(h.start, end);
+  for (ResolvedBlock& h : c.held) {  // from where the one before left the tool (a flow-control
+    h.start = at;                    // statement's block carries no position of its own)
+    if (h.motion == Motion::kNone || h.motion == Motion::kDwell) h.target = at;
     set_xy(h.target, end);
+    at = h.target;
     comp_out.push_back(std::move(h));
   }
   c.held.clear();
