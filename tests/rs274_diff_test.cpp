@@ -305,6 +305,9 @@ std::vector<std::pair<std::string, std::string>> cutter_programs() {
       // the other side convex (an arc round it).
       {"comp_cusps", h + "G0 X0 Y5 Z0\nG41 D1\nG1 X10 Y0\nG2 X20 Y0 R5\nG2 X30 Y0 R5\nG1 X40 Y0\nG40 G1 X45 Y-5\n"
                          "G42 D1\nG1 X50 Y0\nG2 X60 Y0 R5\nG2 X70 Y0 R5\nG1 X80 Y0\nG40 G1 X85 Y-5\nM2\n"},
+      // Convex corners before G0 are straight traverses, before G1 arcs; no F until G1.
+      {"comp_rapids", "G21 G90 G17\nT1 M6\nG10 L1 P1 R1\nG0 X-5 Y-5 Z0\nG41 D1\nG0 X0 Y0\nG0 X10 Y0\nG0 X10 Y-10\n"
+                      "G1 X0 Y-10 F100\nG0 X-10 Y-10\nG40 G0 X-20 Y-20\nM2\n"},
       // Inch program, incremental moves, a rapid entry.
       {"comp_inch_incremental", "G20 G90 G17 F10\nG10 L1 P1 R0.1\nT1 M6\nG0 X-1 Y-1 Z0\nG41\nG0 X0 Y0\nG91 G1 X2\n"
                                 "Y1\nG3 X-1 Y1 R1\nG1 X-1\nG90 G1 X0 Y0\nG40 G0 X-1 Y-1\nM2\n"},

@@ -208,7 +208,8 @@ bool Parser::Impl::offset_path(const ModalState& ns, const ResolvedBlock& b, Off
   // counter-clockwise one, else inside, where the offset radius shrinks.
   const double grow = (ns.comp_side > 0) == m.cw ? r : -r;
   const double rs = norm(s - m.centre), re = norm(e - m.centre);
-  if (std::min(rs, re) + grow <= kEps)
+  // (re can be 0 only on an arc within the parser's radius tolerance of nothing: no direction.)
+  if (std::min(rs, re) + grow <= kEps || re <= kEps)
     return fail(move_col(sc), std::string(g) + ": tool radius " + show(r) + " mm not less than arc radius " + show(rs) +
                                   " mm with " + side_name(ns.comp_side) + " (the tool runs inside this arc): it "
                                   "cannot be cut with this tool");
@@ -251,13 +252,16 @@ bool Parser::Impl::next_move(const ModalState& ns, ResolvedBlock& b) {
     ResolvedBlock a = b;
     a.comment.clear();
     a.stop = ProgramStop::kNone;
-    a.motion = ns.comp_side > 0 ? Motion::kArcCW : Motion::kArcCCW;
+    // Before a G0 rs274 goes round the corner in a straight traverse (an arc is always a feed
+    // move, and a G0 may have no feed to give it).
+    const bool rapid = b.motion == Motion::kRapid;
+    a.motion = rapid ? Motion::kRapid : ns.comp_side > 0 ? Motion::kArcCW : Motion::kArcCCW;
     a.target = a.start;
     set_xy(a.start, held_end);
     set_xy(a.target, n.start);
     a.plane = Plane::kXY;
-    a.centre = {corner.x, corner.y, a.start[kZ]};
-    a.radius = ns.comp_radius;
+    a.centre = rapid ? Vec3{0, 0, 0} : Vec3{corner.x, corner.y, a.start[kZ]};
+    a.radius = rapid ? 0 : ns.comp_radius;
     a.turns = 1;
     a.axis_words = static_cast<std::uint8_t>((1u << kX) | (1u << kY));
     comp_out.push_back(std::move(a));
