@@ -1025,6 +1025,13 @@ TEST(ParseIssue14, CutterCompErrorsRejectTheirLineOnly) {
   EXPECT_EQ(p.summary.lines_rejected, 1u);
   expect_continuous(p);
   const auto e = ends(p);
+  // A spike of 2.5 deg into the tool's side: concave, and the tool (radius 5) would have to go
+  // 115 mm back into it: an error. (rs274 goes round its tip with an arc and cuts into the part.)
+  const double a = (180 - 2.5) * std::acos(-1.0) / 180;
+  char spike[64];
+  std::snprintf(spike, sizeof spike, "G1 X%.6f Y%.6f\n", 100 + 20 * std::cos(a), -20 * std::sin(a));
+  expect_error("G0 X-50 Y0\nG42 D1\nG1 X0 F100\nG1 X100\n" + std::string(spike), "cannot reach it without gouging", 4,
+               linuxcnc());
   // The rapid, the entry, X100, X200 joined to it without a corner (0.02 rad), the exit.
   ASSERT_EQ(e.size(), 5u);
   EXPECT_NEAR(e[3][kX], 200 - 5 * std::sin(std::atan(0.02)), 1e-9);

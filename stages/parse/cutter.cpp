@@ -72,9 +72,16 @@ double swept(P2 c, P2 a, P2 p, bool cw) {
   return t > kTwoPi - 1e-7 ? 0 : t;
 }
 
-// How far along a move's offset path `p` lies from where the path starts [mm or rad].
-double along(const OffsetMove& m, P2 p) {
-  return m.arc ? swept(m.centre, m.path_start, p, m.cw) : dot(p - m.path_start, m.dir);
+// How far `to` lies ahead of `from` along a move's offset path [mm, or rad in [0, 2 pi)].
+double ahead(const OffsetMove& m, P2 from, P2 to) {
+  return m.arc ? swept(m.centre, from, to, m.cw) : dot(to - from, m.dir);
+}
+
+// The length of what is left of a move from where the tool starts it: a full circle that no
+// corner has shortened is a whole turn, not nothing.
+double remaining(const OffsetMove& m) {
+  if (m.full_circle && norm(m.start - m.path_start) < kEps) return kTwoPi;
+  return ahead(m, m.start, m.end);
 }
 
 // The intersection nearer to `near` of a line (point, unit direction) and a circle.
@@ -101,7 +108,9 @@ bool circle_circle(P2 c1, double r1, P2 c2, double r2, P2 near, P2& x) {
   return true;
 }
 
-// Where the offset paths of two moves meet near their programmed corner.
+// Where the offset paths of two moves meet near their programmed corner. An arc's offset circle
+// has its radius at the corner: the held arc's end radius, the new arc's start radius (an I J
+// arc's radii may differ within the tolerance; rs274 then lands up to that difference away).
 bool intersect(const OffsetMove& p, const OffsetMove& n, P2& x) {
   if (!p.arc && !n.arc) {
     const double den = cross(p.dir, n.dir);
@@ -110,16 +119,42 @@ bool intersect(const OffsetMove& p, const OffsetMove& n, P2& x) {
     return true;
   }
   if (!p.arc) return line_circle(p.end, p.dir, n.centre, n.radius, p.corner, x);
-  if (!n.arc) return line_circle(n.start, n.dir, p.centre, p.radius, p.corner, x);
-  return circle_circle(p.centre, p.radius, n.centre, n.radius, p.corner, x);
+  if (!n.arc) return line_circle(n.start, n.dir, p.centre, p.end_radius, p.corner, x);
+  return circle_circle(p.centre, p.end_radius, n.centre, n.radius, p.corner, x);
 }
 
-// A concave corner at `x` keeps both moves running forwards: the held one `p` (from where it
-// starts now) and the new one `n` (whose block is `b`) up to their offset ends.
-bool corner_reachable(const OffsetMove& p, const OffsetMove& n, P2 x, const ResolvedBlock& b) {
-  const bool full_circle = n.arc && norm(xy(b.start) - xy(b.target)) < kEps;
-  const double n_len = full_circle ? kTwoPi : along(n, n.end);
-  return (p.entry || along(p, x) >= along(p, p.start) - kEps) && along(n, x) <= n_len + kEps;
+// A concave corner at `x` keeps both moves running forwards: the held one `p` from where it
+// starts now, the new one `n` up to its offset end.
+bool corner_reachable(const OffsetMove& p, const OffsetMove& n, P2 x) {
+  const double p_at = ahead(p, p.start, x);
+  const bool p_ok = p.entry || (p.arc ? p_at <= remaining(p) + kEps : p_at >= -kEps);
+  return p_ok && ahead(n, n.start, x) <= remaining(n) + kEps;
+}
+
+// Signed curvature of a move's programmed path: + turning left (G3), - right (G2).
+double curvature(const OffsetMove& m, bool at_end) {
+  if (!m.arc) return 0;
+  return (m.cw ? -1 : 1) / (at_end ? m.path_end_radius : m.path_radius);
+}
+
+// Outside the turn is convex: a right turn (turn < 0) with the tool on the left. An exact
+// reversal has no sign: there the curvatures decide. Leaving the corner, the held move (run
+// backwards) and the new one bend apart or together; if the tool's side of the one overlaps the
+// other's, the cusp is a pocket the tool cuts into (concave: rs274 cuts the cusp between two G2
+// bumps on their outside at the intersection), else the tool goes round it (a line turning back,
+// the inside of the bumps).
+//
+// Not as rs274: a turn into the tool's side within 0.05 rad of a reversal (a spike narrower than
+// 5.7 deg) is concave here, cut at the intersection if the moves are long enough, else an error.
+// rs274 goes round its tip with an arc when a line is involved, and the tool then cuts into the
+// part (measured: 1.56 mm deep with a 1 mm radius on a 177.5 deg turn).
+bool corner_is_convex(int side, double turn, const OffsetMove& p, const OffsetMove& n) {
+  if (std::numbers::pi - std::fabs(turn) > 1e-9) return side * turn < 0;
+  // Lateral offsets leaving the corner (left of the new move's direction, per s^2/2): the new
+  // move's is its curvature, the held move's run backwards its curvature negated. The tool
+  // stands left of the new move and right of the reversed held one for G41, mirrored for G42.
+  const double y_held = -curvature(p, true), y_new = curvature(n, false);
+  return side > 0 ? !(y_held > y_new + kEps) : !(y_held < y_new - kEps);
 }
 
 const char* side_name(int side) { return side > 0 ? "G41" : "G42"; }
@@ -202,6 +237,7 @@ bool Parser::Impl::offset_path(const ModalState& ns, const ResolvedBlock& b, Off
     return fail(sc.has('P') ? sc.w('P').col : move_col(sc),
                 std::string(g) + " P" + std::to_string(b.turns) + " (several turns) under cutter compensation is not supported");
   m.arc = true;
+  m.full_circle = norm(e - s) < kEps;
   m.cw = b.motion == Motion::kArcCW;
   m.centre = {b.centre[kX], b.centre[kY]};
   // The tool runs outside the arc when it is left of a clockwise arc or right of a
@@ -214,6 +250,9 @@ bool Parser::Impl::offset_path(const ModalState& ns, const ResolvedBlock& b, Off
                                   " mm with " + side_name(ns.comp_side) + " (the tool runs inside this arc): it "
                                   "cannot be cut with this tool");
   m.radius = rs + grow;
+  m.end_radius = re + grow;
+  m.path_radius = rs;
+  m.path_end_radius = re;
   m.path_start = m.start = m.centre + unit(s - m.centre) * (rs + grow);
   m.end = m.centre + unit(e - m.centre) * (re + grow);
   m.start_tangent = arc_tangent(m.centre, s, m.cw);
@@ -228,14 +267,7 @@ bool Parser::Impl::next_move(const ModalState& ns, ResolvedBlock& b) {
   if (!offset_path(ns, b, n)) return false;
   const OffsetMove& p = comp_next.move;
   const double turn = std::atan2(cross(p.end_tangent, n.start_tangent), dot(p.end_tangent, n.start_tangent));
-  // Outside the turn is convex: a right turn (turn < 0) with the tool on the left. At a reversal
-  // the sign is rounding: there the paths' curvature decides, seen in whether the offset paths
-  // meet (the cusp between two arcs on the tool side) or not (a line turning back, the outside
-  // of a cusp): rs274 cuts the first at the intersection and goes round the second.
-  const bool reversal = std::fabs(turn) > std::numbers::pi - 1e-6;
-  P2 x;
-  const bool convex = reversal ? !(intersect(p, n, x) && corner_reachable(p, n, x, block))
-                               : ns.comp_side * turn < 0;
+  const bool convex = corner_is_convex(ns.comp_side, turn, p, n);
   P2 held_end = p.end;
   bool arc = false;
   if (std::fabs(turn) <= kSmoothCorner) {
@@ -278,7 +310,7 @@ bool Parser::Impl::concave_corner(const ModalState& ns, OffsetMove& n) {
   const OffsetMove& p = comp_next.move;
   P2 x;
   const bool met = intersect(p, n, x);
-  if (!met || !corner_reachable(p, n, x, block))
+  if (!met || !corner_reachable(p, n, x))
     return fail(move_col(sc), std::string("concave corner with ") + side_name(ns.comp_side) + ": the tool (radius " +
                                   show(ns.comp_radius) + " mm) cannot reach " + (met ? "it" : "this corner") +
                                   " without gouging: a move next to it is shorter than the tool needs");

@@ -164,13 +164,16 @@ struct P2 {
 // start and end move with the corners: a concave corner cuts both moves at the intersection.
 struct OffsetMove {
   bool arc = false, cw = false;
+  bool full_circle = false;  // arc: it ends where it starts
   bool entry = false;  // the entry move: it starts where the tool stands, off the offset path
   P2 path_start;       // where the offset path starts (before a corner moves `start`)
   P2 start;            // where the tool starts this move
   P2 end;              // the offset end point (before the corner with the next move moves it)
   P2 corner;           // the programmed end: the corner with the next move
   P2 centre;           // arc: the programmed centre
-  double radius = 0;   // arc: the offset radius
+  double radius = 0;      // arc: the offset radius at the start
+  double end_radius = 0;  // arc: at the end (the programmed radii differ within tolerance)
+  double path_radius = 0, path_end_radius = 0;  // arc: the programmed radii, start and end
   P2 dir;              // line: unit direction
   P2 start_tangent, end_tangent;  // unit tangents of the programmed move
 };
