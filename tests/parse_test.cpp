@@ -1002,3 +1002,99 @@ TEST(ParseIssue14, FanucBoringCyclesByHand) {
   expect_error("G0 Z50\nG76 X1 Z-5 R2 F100\n", "positive shift Q", 1);
   expect_error("G87 X1 Z-5 R-25 Q2 F100\n", "not LinuxCNC G-code", 1, linuxcnc());
 }
+
+// Cutter radius compensation (LinuxCNC dialect; the geometry is compared with rs274 in
+// rs274_diff_test.cpp). Here: what the stream looks like and the errors.
+namespace {
+
+// Every block starts where the one before it left the tool, lines come out in order, and every
+// line is accounted for.
+void expect_continuous(const Parsed& p) {
+  for (std::size_t i = 1; i < p.blocks.size(); ++i) {
+    SCOPED_TRACE("block " + std::to_string(i) + ", line " + std::to_string(p.blocks[i].line));
+    EXPECT_LE(p.blocks[i - 1].line, p.blocks[i].line);
+    for (int a = 0; a < kNumAxes; ++a) EXPECT_NEAR(p.blocks[i].start[a], p.blocks[i - 1].target[a], 1e-9) << a;
+    if (p.blocks[i].motion == Motion::kArcCW || p.blocks[i].motion == Motion::kArcCCW) {
+      const auto& b = p.blocks[i];
+      const double rs = std::hypot(b.start[kX] - b.centre[0], b.start[kY] - b.centre[1]);
+      EXPECT_NEAR(rs, b.radius, 1e-9);
+    }
+  }
+  const ParseSummary& s = p.summary;
+  EXPECT_EQ(s.lines_read, s.blocks_emitted + s.lines_rejected + s.lines_deleted);
+}
+
+}  // namespace
+
+TEST(ParseIssue14, CutterCompHoldsOneMoveInOrder) {
+  // Tool 2 of the machine's table: diameter 20, radius 10.
+  Parsed p = parse_text("G21 G90 G17 F100\nG0 X-50 Y-50 Z0\nG41 D2\nG1 X0 Y0 (entry)\nG1 X100\nM8\nG1 Z-5\n"
+                        "o1 if [1]\n  G1 Y100\no1 endif\nG1 X0\nG40\nG0 Z10\nG0 X-50 Y-50\n",
+                        linuxcnc());
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  expect_continuous(p);
+  const auto e = ends(p);
+  // the rapid, the entry, the corner arc, X100 cut at the concave corner, the Z move there,
+  // Y100, X0 (held until G40 ends it at its offset end), the exit move with Z, the last rapid.
+  ASSERT_EQ(e.size(), 9u);
+  EXPECT_NEAR(e[1][kX], -10 / std::sqrt(2.0), 1e-9);  // perpendicular to the entry, left
+  EXPECT_NEAR(e[2][kY], 10, 1e-9);                     // round the convex corner at X0 Y0
+  EXPECT_NEAR(e[3][kX], 90, 1e-9);                     // concave: the intersection
+  EXPECT_NEAR(e[4][kZ], -5, 1e-9);
+  EXPECT_NEAR(e[4][kX], 90, 1e-9);                     // the Z move stands at the held move's end
+  EXPECT_NEAR(e[5][kY], 90, 1e-9);
+  EXPECT_NEAR(e[6][kX], 0, 1e-9);
+  EXPECT_NEAR(e[6][kY], 90, 1e-9);                     // G40: the offset end
+  EXPECT_NEAR(e[7][kZ], 10, 1e-9);
+  EXPECT_NEAR(e[7][kY], 100, 1e-9);                    // the exit move reaches the programmed point
+  EXPECT_EQ(p.summary.lines_rejected, 0u);
+  // A program that stops in compensation: finish() hands out the held move.
+  Parsed q = parse_text("G0 X-50 Y0\nG42 D1\nG1 X0 F100\nG1 X100\n", linuxcnc());
+  ASSERT_EQ(q.first_error(), nullptr);
+  ASSERT_EQ(ends(q).size(), 3u);
+  EXPECT_NEAR(ends(q).back()[kY], -5, 1e-9);  // G42: right of +X
+  expect_continuous(q);
+}
+
+TEST(ParseIssue14, CutterCompErrorsRejectTheirLineOnly) {
+  const std::string head = "G21 G90 G17 F100\nG0 X-50 Y0 Z0\nG41 D1\nG1 X0 Y0\nG1 X100 Y0\n";
+  expect_error(head + "G3 X100 Y6 R3\n", "tool radius 5 mm not less than arc radius 3 mm with G41", 4, linuxcnc());
+  expect_error("G0 X0 Y0\nG41 D1\nG1 X3 F100\n", "entry move is 3 mm long, not longer than the tool radius 5 mm", 4,
+               linuxcnc());
+  expect_error("G0 X0 Y0\nG41 D1\nG2 X20 Y0 R10 F100\n", "the entry move of cutter compensation must be a straight line", 4,
+               linuxcnc());
+  expect_error(head + "G40\nG2 X120 Y20 R20\n", "the move that leaves cutter compensation must be a straight line", 4,
+               linuxcnc());
+  expect_error(head + "G42 D1\n", "already on: program G40 first", 1, linuxcnc());
+  expect_error(head + "G18\n", "cannot use a plane change with cutter radius compensation on", 1, linuxcnc());
+  expect_error(head + "G81 X1 Y1 Z-1 R1\n", "cannot use a canned cycle with cutter radius compensation on", 1, linuxcnc());
+  expect_error(head + "T2 M6\n", "cannot use a tool change", 4, linuxcnc());
+  expect_error("G18 G41 D1\n", "outside the XY plane", 5, linuxcnc());
+  expect_error("G41 D7\n", "tool 7 is not in", 5, linuxcnc());
+  expect_error("G41\n", "without a tool", 1, linuxcnc());
+  expect_error("G41.1\n", "G41.1 needs D: the tool diameter", 1, linuxcnc());
+  expect_error("G40 D1\n", "word D1 has no meaning here", 5, linuxcnc());
+  expect_error("G41 D1\n", "not supported in the Fanuc dialect", 1);
+  expect_error("G42.1 D3\n", "not Fanuc G-code", 1);
+  // A step shorter than the radius into a concave corner: the short move is rejected (rs274
+  // reports it one line later, at the move that ends it) and the contour goes on without it.
+  Parsed p = parse_text(head + "G1 X100 Y2\nG1 X200 Y2\nG40 G1 X250 Y0\n", linuxcnc());
+  ASSERT_NE(p.first_error(), nullptr);
+  EXPECT_EQ(p.first_error()->line, 6u);
+  EXPECT_NE(p.first_error()->message.find("cannot reach it without gouging"), std::string::npos) << p.first_error()->message;
+  EXPECT_EQ(p.summary.lines_rejected, 1u);
+  expect_continuous(p);
+  const auto e = ends(p);
+  // A spike of 2.5 deg into the tool's side: concave, and the tool (radius 5) would have to go
+  // 115 mm back into it: an error. (rs274 goes round its tip with an arc and cuts into the part.)
+  const double a = (180 - 2.5) * std::acos(-1.0) / 180;
+  char spike[64];
+  std::snprintf(spike, sizeof spike, "G1 X%.6f Y%.6f\n", 100 + 20 * std::cos(a), -20 * std::sin(a));
+  expect_error("G0 X-50 Y0\nG42 D1\nG1 X0 F100\nG1 X100\n" + std::string(spike), "cannot reach it without gouging", 4,
+               linuxcnc());
+  // The rapid, the entry, X100, X200 joined to it without a corner (0.02 rad), the exit.
+  ASSERT_EQ(e.size(), 5u);
+  EXPECT_NEAR(e[3][kX], 200 - 5 * std::sin(std::atan(0.02)), 1e-9);
+  EXPECT_NEAR(e[3][kY], 2 + 5 * std::cos(std::atan(0.02)), 1e-9);
+  EXPECT_NEAR(e.back()[kX], 250, 1e-9);
+}

@@ -295,3 +295,24 @@ TEST(WriteFormat, LinuxcncDialectRefusesToolVectorBlocks) {
   EXPECT_DOUBLE_EQ(moves[1].target[kX], 4);
   EXPECT_FALSE(moves[1].tcp);
 }
+
+// Cutter compensation (LinuxCNC dialect) is resolved in the parser: the tool-centre path is
+// written as plain moves without G41/G42, and reads back to the same blocks in either dialect.
+TEST(WriteRoundTrip, CutterCompensatedPathBecomesPlainMoves) {
+  const std::string program =
+      "G21 G90 G17 F300\nG0 X-30 Y-30 Z5\nG41 D1\nG1 X0 Y0\nG1 Z-2\nG1 X40 (concave next)\nG1 Y30\n"
+      "G3 X20 Y50 R20\nG2 X0 Y30 R20\nG1 Y0.5\nM8\nG40\nG0 Z5\nG42.1 D6\nG0 X-10 Y-10\nG1 X10 Y10 Z-1\n"
+      "G1 X30 Y10.5\nG40 G0 X40 Y0\nM2\n";
+  ParseOptions lc;
+  lc.dialect = Dialect::kLinuxCnc;
+  Parsed first = parse_text(program, lc);
+  ASSERT_EQ(first.first_error(), nullptr) << format(*first.first_error());
+  ASSERT_GT(first.summary.blocks_out, first.summary.blocks_emitted);  // corner arcs
+  for (Dialect d : {Dialect::kLinuxCnc, Dialect::kFanuc}) {
+    WriteOptions wo;
+    wo.dialect = d;
+    ParseOptions back;
+    back.dialect = d;
+    expect_round_trip(first, back, wo, kTol, d == Dialect::kFanuc ? "fanuc" : "linuxcnc");
+  }
+}

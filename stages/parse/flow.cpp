@@ -951,6 +951,7 @@ bool Parser::Impl::skip_after_alarm(std::uint64_t n) {
 bool Parser::Impl::finish() {
   input_done = true;
   run_ready();
+  flush_compensation();  // a move still held (no G40 or program end) ends at its offset end
   close_owner();
   Frame& m = frames[0];
   if (alarm_line != 0) {  // the program stopped at an alarm: what it left open never ran on

@@ -106,11 +106,31 @@ Parser::Impl::Outcome Parser::Impl::run_line(std::string_view line, std::uint64_
   }
   block.percent = sc.percent;
   block.program_number = sc.program_number;
+  publish(block, ns);  // before commit: compensation holds complete blocks
+  bool plain_emit = true;
+  const bool compensated = comp_involved(ns);
+  if (compensated && !compensate(ns, plain_emit)) {
+    moves.clear();
+    comp_out.clear();
+    why = error;
+    col = error_col;
+    return Outcome::kRejected;
+  }
   commit(ns);
-  publish(block);
+  if (compensated) hand_out_compensated();
+  if (!plain_emit) return Outcome::kBlocks;
   if (moves.empty()) emit(block);
   else emit_moves();
   return Outcome::kBlocks;
+}
+
+// The line was valid under compensation: its state becomes the compensation's, and the moves it
+// completed go out.
+void Parser::Impl::hand_out_compensated() {
+  comp = std::move(comp_next);
+  for (const ResolvedBlock& b : comp_out)
+    if (!hand_out(b)) break;
+  comp_out.clear();
 }
 
 void Parser::Impl::commit(ModalState& ns) {
@@ -125,8 +145,7 @@ void Parser::Impl::commit(ModalState& ns) {
 }
 
 // The modal state in force after the line, into its block.
-void Parser::Impl::publish(ResolvedBlock& b) const {
-  const ModalState& s = st;
+void Parser::Impl::publish(ResolvedBlock& b, const ModalState& s) const {
   b.plane = b.motion == Motion::kArcCW || b.motion == Motion::kArcCCW ? b.plane : s.plane;
   b.feed = s.feed;
   b.feed_mode = s.feed_mode;
@@ -148,7 +167,23 @@ void Parser::Impl::publish(ResolvedBlock& b) const {
   if (b.motion != Motion::kTrochoidSlot) b.slot = TrochoidSlot{};
 }
 
+// A block in program order: behind a move that compensation holds, if there is one.
 bool Parser::Impl::emit(const ResolvedBlock& b) {
+  if (comp.pending) {
+    comp.held.push_back(b);
+    owner.blocks = true;
+    return !stopped;
+  }
+  if (comp.off_path && b.motion == Motion::kNone) {  // after G40: it stands where the tool is
+    expanded = b;
+    expanded.start[kX] = expanded.target[kX] = comp.at.x;
+    expanded.start[kY] = expanded.target[kY] = comp.at.y;
+    return hand_out(expanded);
+  }
+  return hand_out(b);
+}
+
+bool Parser::Impl::hand_out(const ResolvedBlock& b) {
   ++summary.blocks_out;
   owner.blocks = true;
   if (stopped) return false;

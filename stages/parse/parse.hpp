@@ -107,7 +107,9 @@ class Parser {
   /// Reads the next line of the program (no terminator) and hands what it makes to `sink`: for
   /// a plain program exactly one block or one diagnostic per line, at once. Inside flow control
   /// output may come later (a loop runs when its end is read; a call to a subroutine defined
-  /// further down waits for the definition). `overlong_length` > 0 tells that the reader cut the
+  /// further down waits for the definition; under cutter compensation, G41/G42, each XY move
+  /// and the blocks after it come out when the next XY move is read). `overlong_length` > 0
+  /// tells that the reader cut the
   /// line at max_line_length and it really had that many bytes. Returns false once the sink
   /// asked to stop.
   bool feed(std::string_view line, const ParseSink& sink, std::size_t overlong_length = 0);

@@ -95,6 +95,10 @@ struct ModalState {
   bool shift_suspended = false;  // G92.2: the shift is kept but not applied
   Axes origin{};       // origin program values are measured from: the program's G5x origin + shift
   Axes position{};     // machine coordinates
+  // Cutter radius compensation (G41/G42, LinuxCNC's geometry, cutter.cpp): +1 the tool left of
+  // the path (G41), -1 right (G42), 0 off (G40); the radius is latched when it is turned on.
+  int comp_side = 0;
+  double comp_radius = 0;  // [mm]
   bool ended = false;
 };
 
@@ -150,6 +154,40 @@ struct ArcGeometry {
   bool inch;
   char gname[3];
   std::uint32_t col;
+};
+
+// A point in the XY plane, the plane cutter compensation works in.
+struct P2 {
+  double x = 0, y = 0;
+};
+
+// One programmed move's path offset by the tool radius (cutter compensation, cutter.cpp). Its
+// start and end move with the corners: a concave corner cuts both moves at the intersection.
+struct OffsetMove {
+  bool arc = false, cw = false;
+  bool full_circle = false;  // arc: it ends where it starts
+  bool entry = false;  // the entry move: it starts where the tool stands, off the offset path
+  P2 path_start;       // where the offset path starts (before a corner moves `start`)
+  P2 start;            // where the tool starts this move
+  P2 end;              // the offset end point (before the corner with the next move moves it)
+  P2 corner;           // the programmed end: the corner with the next move
+  P2 centre;           // arc: the programmed centre
+  double radius = 0;      // arc: the offset radius at the start
+  double end_radius = 0;  // arc: at the end (the programmed radii differ within tolerance)
+  double path_radius = 0, path_end_radius = 0;  // arc: the programmed radii, start and end
+  P2 dir;              // line: unit direction
+  P2 start_tangent, end_tangent;  // unit tangents of the programmed move
+};
+
+// What compensation holds back: the move whose end waits for the next move (LinuxCNC's one-move
+// look-behind) and the blocks read after it, which must come out after it.
+struct CutterComp {
+  bool pending = false;
+  OffsetMove move;
+  ResolvedBlock block;              // the pending move's block, as resolved
+  std::vector<ResolvedBlock> held;  // blocks after it that do not move in XY
+  bool off_path = false;  // after G40 (or before an entry): the tool stands at `at`, not at the
+  P2 at;                  // programmed XY, until the next move
 };
 
 // A line kept for flow control: a subroutine body, or a loop's lines to run again.
@@ -230,6 +268,9 @@ struct Parser::Impl {
   std::vector<parse_detail::Move> moves;  // expansion of the current line, empty for one block
   ResolvedBlock block;                    // the block being resolved (reused: no allocation)
   ResolvedBlock expanded;                 // one move of an expansion
+  parse_detail::CutterComp comp;          // cutter compensation's held moves (cutter.cpp)
+  parse_detail::CutterComp comp_next;     // the same after the current line, until it commits
+  std::vector<ResolvedBlock> comp_out;    // blocks the current line hands out under compensation
   const ParseSink* sink = nullptr;
   bool stopped = false;  // the sink asked to stop
   std::uint64_t alarm_line = 0;  // a Fanuc #3000 alarm stopped the program on this line (0: none)
@@ -275,8 +316,11 @@ struct Parser::Impl {
                    std::uint32_t& col);
   void reset_block(std::string_view line, std::uint64_t lineno);
   void commit(ModalState& ns);
-  void publish(ResolvedBlock& b) const;
+  void publish(ResolvedBlock& b) const { publish(b, st); }
+  void publish(ResolvedBlock& b, const ModalState& s) const;
   bool emit(const ResolvedBlock& b);
+  bool hand_out(const ResolvedBlock& b);
+  void hand_out_compensated();
   bool emit_moves();
   bool emit_diagnostic(std::uint64_t line, std::uint32_t col, Severity sev, std::string msg);
 
@@ -302,6 +346,9 @@ struct Parser::Impl {
   bool apply_feed_speed_tool(const BlockCodes& c, ModalState& ns, ResolvedBlock& b);
   bool apply_tool_length(const BlockCodes& c, ModalState& ns);
   bool apply_modes(const BlockCodes& c, ModalState& ns, ResolvedBlock& b);
+  bool apply_cutter_comp(const BlockCodes& c, ModalState& ns);
+  bool comp_radius(const BlockCodes& c, const ModalState& ns, double& radius);
+  bool check_under_comp(const BlockCodes& c, const ModalState& ns);
   bool check_word_use(const BlockCodes& c, const ModalState& ns, bool vector_words);
   bool check_lengths(bool vector_words, const ModalState& ns);
   bool read_tool_vector(Vec3& vector);
@@ -325,6 +372,20 @@ struct Parser::Impl {
   void update_origin(ModalState& ns) const;
   bool set_offsets(const BlockCodes& c, ModalState& ns, std::uint8_t mask);
   bool set_tool_entry(const BlockCodes& c, ModalState& ns, std::uint8_t mask);
+
+  // -- cutter.cpp
+  bool comp_involved(const ModalState& ns) const {
+    return ns.comp_side != 0 || st.comp_side != 0 || comp.pending || comp.off_path;
+  }
+  bool compensate(const ModalState& ns, bool& plain_emit);
+  bool entry_move(const ModalState& ns, ResolvedBlock& b);
+  bool next_move(const ModalState& ns, ResolvedBlock& b);
+  bool offset_path(const ModalState& ns, const ResolvedBlock& b, parse_detail::OffsetMove& m);
+  bool join(const ModalState& ns, parse_detail::OffsetMove& n, const ResolvedBlock& b);
+  bool concave_corner(const ModalState& ns, parse_detail::OffsetMove& n);
+  void finish_pending(parse_detail::P2 end);
+  bool leave_offset(ResolvedBlock& b, const ModalState& ns, bool& plain_emit);
+  bool flush_compensation();
 
   // -- cycles.cpp
   bool cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, std::uint8_t mask);

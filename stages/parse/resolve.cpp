@@ -48,6 +48,9 @@ int g_group(int code, Dialect d) {
     case 930: case 940: return kGFeedMode;
     case 200: case 210: return kGUnits;
     case 400: return kGCutterComp;
+    // Compensation follows LinuxCNC's geometry (cutter.cpp); Fanuc's start-up and corner rules
+    // differ, so there G41/G42 stay unsupported.
+    case 410: case 420: case 411: case 421: return d == Dialect::kLinuxCnc ? kGCutterComp : kGUnsupported;
     case 430: case 434: case 435: case 490: return kGToolLength;
     case 540: case 550: case 560: case 570: case 580: case 590: return kGCoordSystem;
     case 610: case 611: case 640: return kGPathMode;
@@ -73,8 +76,11 @@ std::string unsupported_g(int code, Dialect d) {
   const std::string g = code_text('G', code);
   switch (code) {
     case 410: case 420:
-      return g + " (cutter radius compensation) is not supported: post-process the tool-centre path "
-                 "(CAM compensation 'computer')";
+      return g + " (cutter radius compensation) is not supported in the Fanuc dialect: Fanuc's start-up "
+                 "and corner rules differ from LinuxCNC's, the ones gcpipe implements; post-process the "
+                 "tool-centre path (CAM compensation 'computer'), or parse a LinuxCNC program with dialect linuxcnc";
+    case 411: case 421:
+      return g + " (LinuxCNC dynamic cutter compensation) is not Fanuc G-code: parse with dialect linuxcnc";
     case 950: return "G95 (feed per revolution) is not supported: use G94 (mm/min) or G93 (inverse time)";
     case 960: case 970: return g + " (constant surface speed) is not supported on this milling machine";
     case 330: case 331: return g + " (threading) is not supported";
@@ -143,7 +149,7 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
   if (!sort_g_codes(c) || !sort_m_codes(c)) return false;
   if (c.has(kGUnits)) ns.units = c.group_code[kGUnits] == 200 ? Units::kInch : Units::kMillimetre;
   if (!check_block_number() || !apply_feed_speed_tool(c, ns, b) || !apply_tool_length(c, ns)) return false;
-  if (!apply_modes(c, ns, b) || !read_fanuc_call(c)) return false;
+  if (!apply_modes(c, ns, b) || !apply_cutter_comp(c, ns) || !read_fanuc_call(c)) return false;
   const bool arc_mode = !c.g4 && !c.g275 && c.non_modal == 0 && ns.cycle == 0 &&
                         (ns.motion == Motion::kArcCW || ns.motion == Motion::kArcCCW);
   // In G43.5, I J K of a block that is not an arc are the tool axis (on arcs they stay centres).
@@ -427,6 +433,84 @@ GCPIPE_STEP bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, 
   return true;
 }
 
+// Step 5b: G40 / G41 / G42 / G41.1 / G42.1 (geometry in cutter.cpp), and what LinuxCNC does not
+// allow while compensation is on. M2/M30 end compensation, as in LinuxCNC.
+GCPIPE_STEP bool Parser::Impl::apply_cutter_comp(const BlockCodes& c, ModalState& ns) {
+  if (c.has(kGCutterComp)) {
+    const int code = c.group_code[kGCutterComp];
+    const std::uint32_t col = c.group_col[kGCutterComp];
+    if (code == 400) {
+      ns.comp_side = 0;
+    } else {
+      if (st.comp_side != 0)
+        return fail(col, code_text('G', code) + ": cutter radius compensation is already on: program G40 first");
+      if (ns.plane != Plane::kXY)
+        return fail(col, code_text('G', code) + " outside the XY plane: gcpipe compensates the cutter radius in G17 only");
+      if (ns.tcp || ns.tool_vector_mode)
+        return fail(col, code_text('G', code) + " with tool centre point control (G43.4/G43.5/M428) on: not supported");
+      if (!comp_radius(c, ns, ns.comp_radius)) return false;
+      ns.comp_side = code == 410 || code == 411 ? 1 : -1;
+    }
+  }
+  if ((st.comp_side != 0 || ns.comp_side != 0) && !check_under_comp(c, ns)) return false;
+  const int stop = c.m_col[kMStop] ? c.m_code[kMStop] : 0;
+  if (stop == 20 || stop == 300) ns.comp_side = 0;
+  return true;
+}
+
+// The radius G41/G42 use: D's tool (else the tool in the spindle) from the tool table, whose
+// diameter LinuxCNC's .tbl gives as D; G41.1/G42.1 take the diameter itself in D.
+bool Parser::Impl::comp_radius(const BlockCodes& c, const ModalState& ns, double& radius) {
+  const int code = c.group_code[kGCutterComp];
+  const std::uint32_t col = c.group_col[kGCutterComp];
+  const std::string g = code_text('G', code);
+  if (code == 411 || code == 421) {
+    if (!sc.has('D')) return fail(col, g + " needs D: the tool diameter");
+    const double d = linear_value(sc.w('D'), ns.units);
+    if (d <= 0) return fail(sc.w('D').col, g + " D" + show(sc.w('D').value) + ": the tool diameter must be positive");
+    radius = d / 2;
+    return true;
+  }
+  int tool = ns.tool_in_spindle;
+  if (sc.has('D')) {
+    const Word& w = sc.w('D');
+    if (w.value < 0 || w.value > 9999 || w.value != std::floor(w.value))
+      return fail(w.col, g + " D" + show(w.value) + ": D is a tool number 0..9999");
+    tool = static_cast<int>(w.value);
+  }
+  const std::uint32_t at = sc.has('D') ? sc.w('D').col : col;
+  if (tool == 0) return fail(at, g + " without a tool: give D<tool number>, or load a tool (T<n> M6)");
+  auto it = machine.tools.find(tool);
+  if (it == machine.tools.end())
+    return fail(at, g + ": tool " + std::to_string(tool) + " is not in " + tool_table_name(machine) + ": add it there");
+  if (it->second.diameter <= 0)
+    return fail(at, g + ": tool " + std::to_string(tool) + " has no diameter in " + tool_table_name(machine) +
+                        ": cutter compensation needs it");
+  radius = it->second.diameter / 2;
+  return true;
+}
+
+// What cannot run while compensation is on (LinuxCNC rejects the same): it would move the
+// programmed path under the held move or change the frame the offsets are computed in.
+bool Parser::Impl::check_under_comp(const BlockCodes& c, const ModalState& ns) {
+  const char* why = nullptr;
+  std::uint32_t col = 1;
+  if (c.has(kGPlane) && c.group_code[kGPlane] != 170) why = "a plane change", col = c.group_col[kGPlane];
+  else if (ns.cycle != 0) why = "a canned cycle", col = c.motion_col ? c.motion_col : 1;
+  else if (c.non_modal == 280 || c.non_modal == 300) why = "G28/G30", col = c.non_modal_col;
+  else if (c.non_modal == 530) why = "G53", col = c.non_modal_col;
+  else if (c.non_modal == 520 || (c.non_modal >= 920 && c.non_modal <= 923)) why = "a change of axis offsets (G92/G52)", col = c.non_modal_col;
+  else if (c.non_modal == 100 && sc.has('L') && (sc.w('L').value == 2 || sc.w('L').value == 20))
+    why = "a change of axis offsets (G10 L2/L20)", col = c.non_modal_col;
+  else if (c.has(kGCoordSystem)) why = "a change of coordinate system", col = c.group_col[kGCoordSystem];
+  else if (c.m_col[kMToolChange]) why = "a tool change", col = c.m_col[kMToolChange];
+  else if (c.g275) why = "the G275 slot cycle", col = sc.g[0].col;
+  else if (c.m_col[kMKins] || (c.has(kGToolLength) && (c.group_code[kGToolLength] == 434 || c.group_code[kGToolLength] == 435)))
+    why = "tool centre point control", col = c.m_col[kMKins] ? c.m_col[kMKins] : c.group_col[kGToolLength];
+  if (why == nullptr) return true;
+  return fail(col, std::string("cannot use ") + why + " with cutter radius compensation on: program G40 first");
+}
+
 // Step 6: words that only some blocks may carry.
 GCPIPE_STEP bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalState& ns, bool vector_words) {
   const Scan& s = sc;
@@ -458,11 +542,13 @@ GCPIPE_STEP bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalSt
     const bool g10_word = c.non_modal == 100 && (L == 'L' || L == 'P' || (L == 'R' && g10_tool));
     const bool m98_word = c.m_code[kMSubprogram] == 980 && (L == 'P' || L == 'L');
     const bool look_word = (look == 50 || look == 80) ? L == 'P' : look == 51 ? (L == 'Q' || L == 'R') : false;
-    if ((c.g275 && slot_word) || (arc_mode && arc_word) || (L == 'P' && c.g4) || (path && (L == 'P' || L == 'Q')) ||
+    const bool comp_word = L == 'D' && c.has(kGCutterComp) && c.group_code[kGCutterComp] != 400;
+    if ((c.g275 && slot_word) || comp_word || (arc_mode && arc_word) || (L == 'P' && c.g4) || (path && (L == 'P' || L == 'Q')) ||
         (cycle_block && cycle_word) || g10_word || m98_word || look_word)
       continue;
     std::string where = L == 'L' ? "canned cycles (repeats) and G10"
-                        : L == 'D' || L == 'W' ? "the G275 slot cycle"
+                        : L == 'D' ? "G41/G42 (tool number), G41.1/G42.1 (diameter) and the G275 slot cycle"
+                        : L == 'W' ? "the G275 slot cycle"
                         : L == 'Q' ? "G73/G83 (peck), G64 and G275"
                         : L == 'P' ? "G4 (dwell), G2/G3 (turns), canned cycles, G64 or G275"
                                    : "G2/G3 arcs, canned cycles (R) and G275 (K, R)";
