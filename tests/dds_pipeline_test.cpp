@@ -599,3 +599,35 @@ TEST_F(DdsPipeline, ForceNodePlansTheFeedsAsBatchModeDoes) {
   const std::string planned = slurp(dir / "batch" / "compensated.nc");
   EXPECT_NE(planned.find("F"), std::string::npos);
 }
+
+// kill -9 of the middle node while a program flows, with no supervisor: the node after it finds
+// its input's writer gone (the participant's lease, 5 s in dds_profiles.xml) and ends the program
+// with an end marker that says so; the sink then stops with that reason, non-zero, and leaves no
+// file under the final name. Upstream, the parse node is not held up.
+TEST_F(DdsPipeline, KilledMiddleNodeEndsTheProgramDownstreamWithTheReason) {
+  const fs::path input = generate_program(dir_, 400000);
+  const fs::path out = dir_ / "sink.nc";
+  Process sink("sink", dds_args({"sink", "-o", out.string()}), dir_);
+  wait_until_ready(sink);
+  Process write("write", dds_args({"node", "write", "--config", kConfig}), dir_);
+  Process trochoid("trochoid", dds_args({"node", "trochoid", "--config", kConfig}), dir_);
+  Process parse("parse", dds_args({"node", "parse", "--config", kConfig}), dir_);
+  ASSERT_TRUE(wait_for_log(parse, "ready")) << slurp(parse.log);
+  Process feed("feed", dds_args({"feed", input.string(), "--config", kConfig}), dir_);
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  ASSERT_EQ(kill(trochoid.pid, SIGKILL), 0);
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_EQ(write.wait(30), 1) << slurp(write.log);
+  EXPECT_EQ(sink.wait(30), 1) << slurp(sink.log);
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_LT(took, 10) << "downstream took too long to give up";
+  EXPECT_NE(slurp(write.log).find("the writer of gcpipe_toolpath went away mid-program"), std::string::npos)
+      << slurp(write.log);
+  EXPECT_NE(slurp(sink.log).find("INCOMPLETE"), std::string::npos) << slurp(sink.log);
+  EXPECT_NE(slurp(sink.log).find("went away mid-program"), std::string::npos) << slurp(sink.log);
+  EXPECT_FALSE(fs::exists(out));
+  trochoid.wait(5);
+  parse.wait(60);
+  feed.wait(60);
+  any_killed_ = true;
+}

@@ -154,6 +154,12 @@ class BatchIntake {
   }
 
   void erase(std::uint64_t id) { programs_.erase(id); }
+  /// Calls f(id, program) for every program in flight, then forgets them all.
+  template <class F>
+  void drain(F f) {
+    for (auto& [id, prog] : programs_) f(id, prog);
+    programs_.clear();
+  }
 
  private:
   std::string node_;

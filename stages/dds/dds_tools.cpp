@@ -37,11 +37,16 @@ std::uint64_t random_program_id() {
 // Takes the next sample; false after idle_timeout without one (0 = never) or on a stop request.
 template <class T>
 bool take_or_idle(Reader<T>& reader, T& sample, double idle_timeout, bool& idle,
-                  double* source_time) {
+                  double* source_time, bool* writer_lost = nullptr) {
   const auto t0 = Clock::now();
   idle = false;
   while (!stop_requested()) {
     if (reader.take(sample, 0.1, source_time)) return true;
+    // Mid-program and nothing left to take: a writer that went away sends nothing more.
+    if (writer_lost != nullptr && reader.matched_writers() == 0) {
+      *writer_lost = true;
+      return false;
+    }
     if (idle_timeout > 0 && seconds_since(t0) > idle_timeout) {
       idle = true;
       return false;
@@ -143,10 +148,14 @@ SinkReceipt receive_program(Participant& participant, Reader<msg::GcodeChunk>& r
   std::set<std::uint64_t> skipped;  // programs published before the sink started
   double source_time = 0;
   for (;;) {
-    if (!take_or_idle(reader, chunk, idle_timeout, idle, &source_time)) {
+    bool lost = false;
+    if (!take_or_idle(reader, chunk, idle_timeout, idle, &source_time, r.id != 0 ? &lost : nullptr)) {
       if (idle)
         log << "gcpipe sink: nothing arrived on " << o.topic << " for " << idle_timeout << " s; giving up\n";
-      r.status = idle ? 1 : 130;
+      if (lost)
+        log << "gcpipe sink: the writer of " << o.topic << " went away after chunk " << r.next
+            << " of the program (its stage stopped or died): the rest is lost\n";
+      r.status = idle || lost ? 1 : 130;
       return r;
     }
     if (r.id == 0 && skipped.count(chunk.program_id()) != 0) continue;

@@ -264,6 +264,7 @@ struct StageNode::Impl {
     });
     ended = false;
     if (found == nullptr) return true;
+    intake_busy = true;
     Program& prog = *found;
     prog.out->id = id;
     if (prog.error.empty()) process(prog, id, batch);
@@ -274,6 +275,7 @@ struct StageNode::Impl {
     if (info.output == Port::kBlocks) finish_blocks(prog, id, upstream.summary, upstream.stopped, upstream.blocks_rejected);
     else finish_text(prog, id, batch);
     intake.erase(id);
+    intake_busy = false;  // one program at a time reaches a node (the feeder's order)
     return true;
   }
 
@@ -361,6 +363,31 @@ struct StageNode::Impl {
   }
 
   bool ended = false;
+
+  // The writer of our input went away while programs were in flight (its stage stopped or died;
+  // everything it had sent is in our history, and take() found nothing more). Each such program
+  // is ended now with an end marker that carries the reason, so every stage downstream and the
+  // sink stop at once with it, instead of waiting for batches that will never come.
+  bool end_orphaned_programs() {
+    if (reader->matched_writers() > 0 || (chunk_programs.empty() && !intake_busy)) return false;
+    const std::string why = "the writer of " + options.input_topic + " went away mid-program (its stage stopped or died)";
+    bool any = false;
+    for (auto& [id, prog] : chunk_programs) {
+      fail(prog, id, why + " after chunk " + std::to_string(prog.next_chunk) + " of the program: the rest is lost");
+      finish_blocks(prog, id, parse_summary_of(*prog.stage), false, 0);
+      any = true;
+    }
+    chunk_programs.clear();
+    intake.drain([&](std::uint64_t id, Program& prog) {
+      fail(prog, id, why + " after batch " + std::to_string(prog.next_batch) + " of the program: the rest is lost");
+      if (info.output == Port::kBlocks) finish_blocks(prog, id, ParseSummary{}, false, 0);
+      else finish_text(prog, id, msg::BlockBatch{});
+      any = true;
+    });
+    intake_busy = false;
+    return any;
+  }
+  bool intake_busy = false;  // a BlockBatch program is in flight
 };
 
 StageNode::StageNode(Participant& participant, const PipelineConfig& config, StageNodeOptions options)
@@ -378,7 +405,7 @@ int StageNode::run() {
       m.options.stage, m.participant, *m.writer, m.options.forever,
       [&m](double timeout) {
         const bool took = m.info.input == Port::kProgram ? m.take_chunk(timeout) : m.take_batch(timeout);
-        if (!took) return Taken::kNothing;
+        if (!took) return m.end_orphaned_programs() ? Taken::kProgramEnd : Taken::kNothing;
         return m.ended ? Taken::kProgramEnd : Taken::kHandled;
       },
       m.status);
