@@ -383,6 +383,8 @@ struct Parser::Impl {
   bool offset_path(const ModalState& ns, const ResolvedBlock& b, parse_detail::OffsetMove& m);
   bool join(const ModalState& ns, parse_detail::OffsetMove& n, const ResolvedBlock& b);
   bool concave_corner(const ModalState& ns, parse_detail::OffsetMove& n);
+  bool fanuc_corner(const ModalState& ns, ResolvedBlock& b, parse_detail::OffsetMove& n);
+  void corner_moves(const ResolvedBlock& b, const std::vector<parse_detail::P2>& pts);
   void finish_pending(parse_detail::P2 end);
   bool leave_offset(ResolvedBlock& b, const ModalState& ns, bool& plain_emit);
   bool flush_compensation();
