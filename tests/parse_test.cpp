@@ -1238,6 +1238,9 @@ TEST(ParseIssue14, FanucCutterCompErrors) {
   expect_error("G0 X-10 Y0\nG41 D1 G1 X0 F100\nX50\nG42 D1\n", "already on", 1);
   expect_error("G18 G41 D1\n", "outside the XY plane", 5);
   expect_error("G41.1 D3\n", "not Fanuc G-code", 1);
+  // Not implemented: I J K direction words in the start-up block, G39 corner arcs.
+  expect_error("G0 X-10 Y0\nG41 D1 G1 X0 I1 J0 F100\n", "word I1 has no meaning here", 14);
+  expect_error("G0 X-10 Y0\nG41 D1 G1 X0 F100\nG39 X1\n", "G39 is not a supported G code", 1);
   // An error rejects its own line; the contour goes on without it.
   Parsed p = parse_text("G0 X-10 Y0 Z0\nG41 D1 G1 X0 F100\nX50\nG3 X53 Y6 R3\nY40\nG40 X60 Y50\n");
   ASSERT_NE(p.first_error(), nullptr);

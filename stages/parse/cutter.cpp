@@ -1,4 +1,4 @@
-// Cutter radius compensation (G41/G42 on, G40 off) in the XY plane, LinuxCNC dialect.
+// Cutter radius compensation (G41/G42 on, G40 off) in the XY plane, LinuxCNC dialect (Fanuc below).
 //
 // The behaviour is LinuxCNC's, as its interpreter shows it (rs274 -g, see the README section and
 // tests/rs274_diff_test.cpp), not its code:
