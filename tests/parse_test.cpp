@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <random>
 #include <regex>
 #include <fstream>
 
@@ -1250,4 +1252,67 @@ TEST(ParseIssue14, FanucCutterCompErrors) {
   expect_continuous(p);
   expect_path(p, 1, {{Motion::kLinear, 0, 5}, {Motion::kLinear, 45, 5}, {Motion::kLinear, 45, 40},
                      {Motion::kLinear, 60, 50}});
+}
+
+// Seeded random Fanuc contours (lines, I J arcs either way, G0 and G1, Z moves between, both
+// sides): every block starts where the one before ended and every line is accounted for. On the
+// all-line contours (which may cross themselves) each end point of the tool centre after the
+// start-up keeps at least the radius from its own line's programmed segment and the one before.
+TEST(ParseIssue14, FanucCutterCompRandomContoursStayContinuous) {
+  std::size_t checked = 0;
+  for (unsigned seed = 1; seed <= 300; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    std::mt19937 rng(seed);
+    auto uni = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
+    const bool lines_only = seed % 2 == 0;
+    std::string t = rng() % 2 ? "G21 G90 G17 F200\nG0 X-30 Y-30 Z1\nG41 D1\n" : "G21 G90 G17 F200\nG0 X-30 Y-30 Z1\nG42 D1\n";
+    std::uint64_t line = 4;
+    std::map<std::uint64_t, std::array<double, 4>> segs;  // programmed lines after the start-up, by line
+    std::map<std::uint64_t, std::uint64_t> before;         // the XY line before each
+    double x = uni(-5, 5), y = uni(-5, 5);
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "G1 X%.8f Y%.8f\n", x, y);
+    t += buf;
+    std::uint64_t prev = line++;
+    const int n = 6 + static_cast<int>(rng() % 8);
+    for (int i = 0; i < n; ++i) {
+      const double len = uni(12, 30), dir = uni(0, 2 * std::acos(-1.0));
+      const double nx = x + len * std::cos(dir), ny = y + len * std::sin(dir);
+      const int kind = lines_only ? static_cast<int>(rng() % 3) : static_cast<int>(rng() % 5);
+      if (kind == 2) t += "G1 Z" + std::to_string(uni(-3, 0)) + "\n", ++line;
+      if (kind <= 2) {
+        std::snprintf(buf, sizeof buf, "G%d X%.8f Y%.8f\n", kind == 0 ? 0 : 1, nx, ny);
+        segs[line] = {x, y, nx, ny};
+      } else {
+        const double h = uni(-1, 1) * len;
+        const double cx = (x + nx) / 2 - h * std::sin(dir), cy = (y + ny) / 2 + h * std::cos(dir);
+        std::snprintf(buf, sizeof buf, "G%d X%.8f Y%.8f I%.8f J%.8f\n", kind == 3 ? 2 : 3, nx, ny, cx - x, cy - y);
+      }
+      t += buf;
+      before[line] = prev;
+      prev = line++;
+      x = nx;
+      y = ny;
+    }
+    t += "G40 G1 X-30 Y30\nG0 Z5\nM30\n";
+    SCOPED_TRACE(t);
+    Parsed p = parse_text(t);
+    expect_continuous(p);
+    if (!lines_only || p.summary.lines_rejected != 0) continue;
+    for (const auto& b : p.blocks) {
+      if (segs.count(b.line) == 0 || (b.motion != Motion::kLinear && b.motion != Motion::kRapid)) continue;
+      const double ex = b.target[kX] - b.work_origin[kX], ey = b.target[kY] - b.work_origin[kY];
+      double d = 1e9;
+      for (std::uint64_t l : {b.line, before[b.line]}) {
+        if (segs.count(l) == 0) continue;
+        const auto& s = segs[l];
+        const double vx = s[2] - s[0], vy = s[3] - s[1];
+        const double u = std::clamp(((ex - s[0]) * vx + (ey - s[1]) * vy) / (vx * vx + vy * vy), 0.0, 1.0);
+        d = std::min(d, std::hypot(ex - s[0] - u * vx, ey - s[1] - u * vy));
+      }
+      ++checked;
+      EXPECT_GE(d, 5 - 1e-6) << "line " << b.line << " ends at " << ex << " " << ey;
+    }
+  }
+  EXPECT_GT(checked, 300u);
 }
