@@ -1230,6 +1230,14 @@ TEST(ParseIssue14, FanucCutterCompArcsTangentAndObtuse) {
   EXPECT_NEAR(arc->radius, 15, 1e-9);
   EXPECT_NEAR(arc->centre[0] - arc->work_origin[kX], 50, 1e-9);
   EXPECT_NEAR(arc->centre[1] - arc->work_origin[kY], 20, 1e-9);
+  // A line into an arc at an outer corner of alpha = 90 deg (obtuse rule): +X to (50,0), then G2
+  // about (40,0) to (30,0) (start tangent -Y, the tool outside: offset radius 15). The line's
+  // offset y = 5 runs on to the arc's offset tangent line x = 55: (55,5); a G1 goes down the
+  // tangent to the arc's offset start (55,0); the arc ends at (25,0) (G40 next).
+  Parsed q = parse_text("G0 X-20 Y-10 Z0\nG41 D1 G1 X0 Y0 F300\nX50\nG2 X30 Y0 I-10 J0\nG40 G1 X0 Y20\n");
+  ASSERT_EQ(q.first_error(), nullptr) << format(*q.first_error());
+  expect_continuous(q);
+  expect_path(q, 1, {{L, 0, 5}, {L, 55, 5}, {L, 55, 0}, {Motion::kArcCW, 25, 0}, {L, 0, 20}});
 }
 
 // What stays an error in the Fanuc dialect, each on its own line (line:col).
