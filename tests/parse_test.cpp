@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <random>
 #include <regex>
 #include <fstream>
 
@@ -239,7 +241,7 @@ TEST(ParseErrors, EachClassNamesWordValueAndColumn) {
   expect_error("G1 X0 Y0 F1\nG2 X1 I1e5\n", "'E' is not a word", 9);
   expect_error("G1 X0 Y0 F1\nG2 X1 I[10**60]\n", "I1e+60 is out of range", 7);
   expect_error("G1 X1e5 F1\n", "'E' is not a word", 6);
-  expect_error("G41 X1\n", "cutter radius compensation", 1);
+  expect_error("G41 X1\n", "G41 without a tool", 1);
   expect_error("M98 P100\n", "subprogram O100 is not defined", 1);
   expect_error("M123\n", "not a supported M code", 1);
   expect_error("G12.5\n", "not a supported G code", 1);
@@ -1074,7 +1076,7 @@ TEST(ParseIssue14, CutterCompErrorsRejectTheirLineOnly) {
   expect_error("G41\n", "without a tool", 1, linuxcnc());
   expect_error("G41.1\n", "G41.1 needs D: the tool diameter", 1, linuxcnc());
   expect_error("G40 D1\n", "word D1 has no meaning here", 5, linuxcnc());
-  expect_error("G41 D1\n", "not supported in the Fanuc dialect", 1);
+  expect_error("G0 X0 Y0\nG41 D1\nG2 X20 Y0 R10 F100\n", "Fanuc alarm PS0034", 4);
   expect_error("G42.1 D3\n", "not Fanuc G-code", 1);
   // A step shorter than the radius into a concave corner: the short move is rejected (rs274
   // reports it one line later, at the move that ends it) and the contour goes on without it.
@@ -1097,4 +1099,228 @@ TEST(ParseIssue14, CutterCompErrorsRejectTheirLineOnly) {
   EXPECT_NEAR(e[3][kX], 200 - 5 * std::sin(std::atan(0.02)), 1e-9);
   EXPECT_NEAR(e[3][kY], 2 + 5 * std::cos(std::atan(0.02)), 1e-9);
   EXPECT_NEAR(e.back()[kX], 250, 1e-9);
+}
+
+// Fanuc cutter compensation C (FANUC 0i-MF / 30i operator's manual, "Cutter compensation C",
+// Type A start-up and cancel, SUP = 0), worked by hand. alpha is the angle between the two moves
+// on the workpiece side; D is the tool number whose table diameter / 2 is the radius (tool 1:
+// r = 5, tool 2: r = 10). Default dialect: Fanuc.
+namespace {
+
+struct XY {
+  Motion motion;
+  double x, y;
+};
+
+// The moving blocks of `p` (from the `from`-th on), in program coordinates.
+void expect_path(const Parsed& p, std::size_t from, const std::vector<XY>& want) {
+  std::vector<const ResolvedBlock*> got;
+  for (const auto& b : p.blocks)
+    if (b.motion == Motion::kRapid || b.motion == Motion::kLinear || b.motion == Motion::kArcCW ||
+        b.motion == Motion::kArcCCW)
+      got.push_back(&b);
+  ASSERT_EQ(got.size(), from + want.size());
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    const ResolvedBlock& b = *got[from + i];
+    SCOPED_TRACE("move " + std::to_string(from + i) + ", line " + std::to_string(b.line));
+    EXPECT_EQ(b.motion, want[i].motion);
+    EXPECT_NEAR(b.target[kX] - b.work_origin[kX], want[i].x, 1e-6);
+    EXPECT_NEAR(b.target[kY] - b.work_origin[kY], want[i].y, 1e-6);
+  }
+}
+
+}  // namespace
+
+// (1) A 40 x 40 square, G41 r = 5, clockwise round its outside (climb). Every corner is an outer
+// corner with alpha = 90 deg: obtuse rule (90 <= alpha < 180), no corner arc, the tool goes to the
+// intersection of the two offset lines: the corners of the 50 x 50 square (-5,-5) .. (45,45).
+// Start-up Type A: the entry ends at (0,0) offset perpendicular to the next move's start
+// direction (+Y, left: -X): (-5,0). Cancel Type A: the held Y10 ends perpendicular to its end
+// direction, (-5,10), and the G40 move goes straight to its programmed end.
+TEST(ParseIssue14, FanucCutterCompSquareOuterCornersMeetAtIntersections) {
+  const auto L = Motion::kLinear;
+  Parsed p = parse_text("G21 G90 G17\nG0 X-20 Y-20 Z5\nG1 Z-2 F300\nG41 D1 G1 X0 Y0\nY40\nX40\nY0\nX0\nY10\n"
+                        "G40 G1 X-20 Y-20\nG0 Z5\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  expect_continuous(p);
+  expect_path(p, 2, {{L, -5, 0}, {L, -5, 45}, {L, 45, 45}, {L, 45, -5}, {L, -5, -5}, {L, -5, 10}, {L, -20, -20},
+                     {Motion::kRapid, -20, -20}});
+  EXPECT_EQ(p.summary.lines_rejected, 0u);
+  EXPECT_EQ(p.summary.blocks_out, p.summary.blocks_emitted);  // no corner moves added
+}
+
+// (2) An outer corner of alpha = 60 deg (acute rule, alpha < 90): +X to (50,0), then 20 mm
+// towards -120 deg to (40,-17.3205081). G41 r = 5, corner c = (50,0), t1 = (1,0), n1 = (0,1),
+// t2 = (-1/2, -sqrt3/2), n2 = (sqrt3/2, -1/2):
+//   P1 = c + r n1 + r t1 = (55, 5): the first move runs on along its offset line to it;
+//   P2 = c + r n2 - r t2 = (50 + 2.5 sqrt3 + 2.5, -2.5 + 2.5 sqrt3) = (56.8301270, 1.8301270):
+//   one extra G1 (a block of the second move's line) from P1 to P2;
+//   the second move then runs from P2 along its offset line to its end, held until G40 ends it
+//   perpendicular to its end direction: (40 + 2.5 sqrt3, -17.3205081 - 2.5) = (44.3301270, -19.8205081).
+TEST(ParseIssue14, FanucCutterCompAcuteOuterCornerGoesRoundByTwoPoints) {
+  const auto L = Motion::kLinear;
+  Parsed p = parse_text("G21 G90 G17\nG0 X-20 Y10 Z0\nG41 D1 G1 X0 Y0 F300\nX50\nX40 Y-17.3205081\nG40 X60 Y-30\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  expect_continuous(p);
+  const double s3 = std::sqrt(3.0);
+  expect_path(p, 1, {{L, 0, 5}, {L, 55, 5}, {L, 52.5 + 2.5 * s3, -2.5 + 2.5 * s3}, {L, 40 + 2.5 * s3, -17.3205081 - 2.5},
+                     {L, 60, -30}});
+  std::size_t on_line5 = 0;
+  for (const auto& b : p.blocks) on_line5 += b.line == 5;
+  EXPECT_EQ(on_line5, 2u);  // the P1 -> P2 move and the second move itself
+}
+
+// (3) An inner corner of alpha = 270 deg (+X then +Y with G41, the tool inside): the intersection
+// of the offset paths (y = 5 and x = 45): (45,5), as LinuxCNC's concave corner.
+TEST(ParseIssue14, FanucCutterCompInnerCornerEndsAtTheIntersection) {
+  const auto L = Motion::kLinear;
+  Parsed p = parse_text("G0 X-20 Y-20 Z0\nG41 D1 G1 X0 Y0 F300\nX50\nY40\nG40 X70 Y60\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  expect_continuous(p);
+  expect_path(p, 1, {{L, 0, 5}, {L, 45, 5}, {L, 45, 40}, {L, 70, 60}});
+  // Too short a move into an inner corner would gouge: an error on that line only.
+  Parsed g = parse_text("G0 X-20 Y-20 Z0\nG41 D1 G1 X0 Y0 F300\nX50\nY4\nX0\nG40 X-20 Y-20\n");
+  ASSERT_NE(g.first_error(), nullptr);
+  EXPECT_EQ(g.first_error()->line, 4u);  // Y4: its offset end (45,4) lies before the corner (45,5)
+  EXPECT_NE(g.first_error()->message.find("without gouging"), std::string::npos) << g.first_error()->message;
+  expect_continuous(g);
+  EXPECT_EQ(g.summary.lines_read, g.summary.blocks_emitted + g.summary.lines_rejected + g.summary.lines_deleted);
+}
+
+// (4) Start-up Type A with G42 D2 (r = 10) on a line of its own: the first move after it (a
+// diagonal entry from (-30,-10) to (0,0)) ends at (0,0) offset perpendicular to the START
+// direction of the next move (+Y, right: +X): (10,0), not perpendicular to the entry itself as in
+// LinuxCNC. Cancel Type A: Y50 ends at (10,50), offset perpendicular to its end direction; the
+// G40 move goes from there straight to (-30,60). Fanuc has no minimum start-up length.
+TEST(ParseIssue14, FanucCutterCompStartUpAndCancelTypeA) {
+  const auto L = Motion::kLinear;
+  Parsed p = parse_text("G0 X-30 Y-10 Z0\nG42 D2\nG1 X0 Y0 F200\nG1 Y50\nG40 G1 X-30 Y60\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  expect_continuous(p);
+  expect_path(p, 1, {{L, 10, 0}, {L, 10, 50}, {L, -30, 60}});
+  Parsed l = parse_text("G0 X-30 Y-10 Z0\nG42 D2\nG1 X0 Y0 F200\nG1 Y50\nG40 G1 X-30 Y60\n", linuxcnc());
+  ASSERT_EQ(l.first_error(), nullptr) << format(*l.first_error());
+  EXPECT_GT(std::fabs(ends(l)[1][kX] - 10), 1);  // LinuxCNC's entry ends elsewhere
+  // A start-up move shorter than the radius (LinuxCNC rejects it).
+  Parsed s = parse_text("G0 X0 Y-3 Z0\nG41 D1 G1 X0 Y0 F100\nX50\nG40 X60\n");
+  ASSERT_EQ(s.first_error(), nullptr) << format(*s.first_error());
+  expect_path(s, 1, {{L, 0, 5}, {L, 50, 5}, {L, 60, 0}});
+}
+
+// (5) A line into a tangent arc: G41 r = 5, +X to (50,0), G3 to (70,20) about (50,20) (start
+// tangent +X: turn 0, no corner; the tool inside the arc, offset radius 15): the line ends where
+// the arc's offset starts, (50,5), the arc ends at (65,20). Then the arc (end tangent +Y) into a
+// line to (90,40) (direction 45 deg): a right turn of 45 deg, an outer corner of alpha = 135 deg
+// (obtuse rule): the tangent line of the arc's offset at its end, x = 65, meets the line's offset
+// line (through (70,20) + 5 (-1,1)/sqrt2) at (65, 20 + 5 tan 22.5 deg) = (65, 22.0710678): the arc
+// ends at (65,20), a G1 goes on along the tangent to that point, the line starts there and ends
+// at (90,40) + 5 (-1,1)/sqrt2 = (86.4644661, 43.5355339) (G40 next).
+TEST(ParseIssue14, FanucCutterCompArcsTangentAndObtuse) {
+  const auto L = Motion::kLinear;
+  Parsed p = parse_text("G0 X-20 Y-10 Z0\nG41 D1 G1 X0 Y0 F300\nX50\nG3 X70 Y20 I0 J20\nG1 X90 Y40\nG40 X100 Y20\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  expect_continuous(p);
+  const double h = 5 / std::sqrt(2.0);
+  expect_path(p, 1, {{L, 0, 5}, {L, 50, 5}, {Motion::kArcCCW, 65, 20}, {L, 65, 20 + 5 * std::tan(std::acos(-1.0) / 8)},
+                     {L, 90 - h, 40 + h}, {L, 100, 20}});
+  const ResolvedBlock* arc = nullptr;
+  for (const auto& b : p.blocks)
+    if (b.motion == Motion::kArcCCW) arc = &b;
+  ASSERT_NE(arc, nullptr);
+  EXPECT_NEAR(arc->radius, 15, 1e-9);
+  EXPECT_NEAR(arc->centre[0] - arc->work_origin[kX], 50, 1e-9);
+  EXPECT_NEAR(arc->centre[1] - arc->work_origin[kY], 20, 1e-9);
+  // A line into an arc at an outer corner of alpha = 90 deg (obtuse rule): +X to (50,0), then G2
+  // about (40,0) to (30,0) (start tangent -Y, the tool outside: offset radius 15). The line's
+  // offset y = 5 runs on to the arc's offset tangent line x = 55: (55,5); a G1 goes down the
+  // tangent to the arc's offset start (55,0); the arc ends at (25,0) (G40 next).
+  Parsed q = parse_text("G0 X-20 Y-10 Z0\nG41 D1 G1 X0 Y0 F300\nX50\nG2 X30 Y0 I-10 J0\nG40 G1 X0 Y20\n");
+  ASSERT_EQ(q.first_error(), nullptr) << format(*q.first_error());
+  expect_continuous(q);
+  expect_path(q, 1, {{L, 0, 5}, {L, 55, 5}, {L, 55, 0}, {Motion::kArcCW, 25, 0}, {L, 0, 20}});
+}
+
+// What stays an error in the Fanuc dialect, each on its own line (line:col).
+TEST(ParseIssue14, FanucCutterCompErrors) {
+  expect_error("G0 X0 Y0\nG41 D1\nG3 X20 Y0 R10 F100\n", "Fanuc alarm PS0034: no arc in the start-up block", 4);
+  expect_error("G0 X-10 Y0\nG41 D1 G1 X0 F100\nX50\nG40\nG2 X70 Y20 R20\n", "no arc in the cancel block", 4);
+  expect_error("G0 X-10 Y0\nG41 D1 G1 X0 F100\nX50\nG18\n", "cannot use a plane change", 1);
+  expect_error("G0 X-10 Y0\nG41 D1 G1 X0 F100\nX50\nG42 D1\n", "already on", 1);
+  expect_error("G18 G41 D1\n", "outside the XY plane", 5);
+  expect_error("G41.1 D3\n", "not Fanuc G-code", 1);
+  // Not implemented: I J K direction words in the start-up block, G39 corner arcs.
+  expect_error("G0 X-10 Y0\nG41 D1 G1 X0 I1 J0 F100\n", "word I1 has no meaning here", 14);
+  expect_error("G0 X-10 Y0\nG41 D1 G1 X0 F100\nG39 X1\n", "G39 is not a supported G code", 1);
+  // An error rejects its own line; the contour goes on without it.
+  Parsed p = parse_text("G0 X-10 Y0 Z0\nG41 D1 G1 X0 F100\nX50\nG3 X53 Y6 R3\nY40\nG40 X60 Y50\n");
+  ASSERT_NE(p.first_error(), nullptr);
+  EXPECT_EQ(p.first_error()->line, 4u);
+  EXPECT_EQ(p.first_error()->file, "t.nc");
+  EXPECT_EQ(p.summary.lines_rejected, 1u);
+  expect_continuous(p);
+  expect_path(p, 1, {{Motion::kLinear, 0, 5}, {Motion::kLinear, 45, 5}, {Motion::kLinear, 45, 40},
+                     {Motion::kLinear, 60, 50}});
+}
+
+// Seeded random Fanuc contours (lines, I J arcs either way, G0 and G1, Z moves between, both
+// sides): every block starts where the one before ended and every line is accounted for. On the
+// all-line contours (which may cross themselves) each end point of the tool centre after the
+// start-up keeps at least the radius from its own line's programmed segment and the one before.
+TEST(ParseIssue14, FanucCutterCompRandomContoursStayContinuous) {
+  std::size_t checked = 0;
+  for (unsigned seed = 1; seed <= 300; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    std::mt19937 rng(seed);
+    auto uni = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
+    const bool lines_only = seed % 2 == 0;
+    std::string t = rng() % 2 ? "G21 G90 G17 F200\nG0 X-30 Y-30 Z1\nG41 D1\n" : "G21 G90 G17 F200\nG0 X-30 Y-30 Z1\nG42 D1\n";
+    std::uint64_t line = 4;
+    std::map<std::uint64_t, std::array<double, 4>> segs;  // programmed lines after the start-up, by line
+    std::map<std::uint64_t, std::uint64_t> before;         // the XY line before each
+    double x = uni(-5, 5), y = uni(-5, 5);
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "G1 X%.8f Y%.8f\n", x, y);
+    t += buf;
+    std::uint64_t prev = line++;
+    const int n = 6 + static_cast<int>(rng() % 8);
+    for (int i = 0; i < n; ++i) {
+      const double len = uni(12, 30), dir = uni(0, 2 * std::acos(-1.0));
+      const double nx = x + len * std::cos(dir), ny = y + len * std::sin(dir);
+      const int kind = lines_only ? static_cast<int>(rng() % 3) : static_cast<int>(rng() % 5);
+      if (kind == 2) t += "G1 Z" + std::to_string(uni(-3, 0)) + "\n", ++line;
+      if (kind <= 2) {
+        std::snprintf(buf, sizeof buf, "G%d X%.8f Y%.8f\n", kind == 0 ? 0 : 1, nx, ny);
+        segs[line] = {x, y, nx, ny};
+      } else {
+        const double h = uni(-1, 1) * len;
+        const double cx = (x + nx) / 2 - h * std::sin(dir), cy = (y + ny) / 2 + h * std::cos(dir);
+        std::snprintf(buf, sizeof buf, "G%d X%.8f Y%.8f I%.8f J%.8f\n", kind == 3 ? 2 : 3, nx, ny, cx - x, cy - y);
+      }
+      t += buf;
+      before[line] = prev;
+      prev = line++;
+      x = nx;
+      y = ny;
+    }
+    t += "G40 G1 X-30 Y30\nG0 Z5\nM30\n";
+    SCOPED_TRACE(t);
+    Parsed p = parse_text(t);
+    expect_continuous(p);
+    if (!lines_only || p.summary.lines_rejected != 0) continue;
+    for (const auto& b : p.blocks) {
+      if (segs.count(b.line) == 0 || (b.motion != Motion::kLinear && b.motion != Motion::kRapid)) continue;
+      const double ex = b.target[kX] - b.work_origin[kX], ey = b.target[kY] - b.work_origin[kY];
+      double d = 1e9;
+      for (std::uint64_t l : {b.line, before[b.line]}) {
+        if (segs.count(l) == 0) continue;
+        const auto& s = segs[l];
+        const double vx = s[2] - s[0], vy = s[3] - s[1];
+        const double u = std::clamp(((ex - s[0]) * vx + (ey - s[1]) * vy) / (vx * vx + vy * vy), 0.0, 1.0);
+        d = std::min(d, std::hypot(ex - s[0] - u * vx, ey - s[1] - u * vy));
+      }
+      ++checked;
+      EXPECT_GE(d, 5 - 1e-6) << "line " << b.line << " ends at " << ex << " " << ey;
+    }
+  }
+  EXPECT_GT(checked, 300u);
 }

@@ -316,3 +316,22 @@ TEST(WriteRoundTrip, CutterCompensatedPathBecomesPlainMoves) {
     expect_round_trip(first, back, wo, kTol, d == Dialect::kFanuc ? "fanuc" : "linuxcnc");
   }
 }
+
+// The same for Fanuc cutter compensation C: start-up Type A, outer obtuse and acute corners (the
+// extra corner moves), an inner corner, a tangent arc and an arc into an obtuse corner, a G0 under
+// compensation, cancel Type A: written as plain moves, read back the same in either dialect.
+TEST(WriteRoundTrip, FanucCutterCompensatedPathBecomesPlainMoves) {
+  const std::string program =
+      "G21 G90 G17 F300\nG0 X-30 Y-30 Z5\nG41 D1 G1 X0 Y0\nG1 Z-2\nG1 X40\nM8\nG1 Y30\nG3 X20 Y50 R20\n"
+      "G1 X10 Y70\nG1 X5 Y40\nG0 X0 Y20\nG1 Y0.5\nG1 X-20 Y10 (acute)\nG40 G1 X-30 Y-30\nG0 Z5\nM30\n";
+  Parsed first = parse_text(program);
+  ASSERT_EQ(first.first_error(), nullptr) << format(*first.first_error());
+  ASSERT_EQ(first.summary.blocks_out, first.summary.blocks_emitted + 2);  // arc->line obtuse, acute P1->P2
+  for (Dialect d : {Dialect::kLinuxCnc, Dialect::kFanuc}) {
+    WriteOptions wo;
+    wo.dialect = d;
+    ParseOptions back;
+    back.dialect = d;
+    expect_round_trip(first, back, wo, kTol, d == Dialect::kFanuc ? "fanuc" : "linuxcnc");
+  }
+}

@@ -1,4 +1,4 @@
-// Cutter radius compensation (G41/G42 on, G40 off) in the XY plane, LinuxCNC dialect.
+// Cutter radius compensation (G41/G42 on, G40 off) in the XY plane, LinuxCNC dialect (Fanuc below).
 //
 // The behaviour is LinuxCNC's, as its interpreter shows it (rs274 -g, see the README section and
 // tests/rs274_diff_test.cpp), not its code:
@@ -15,6 +15,24 @@
 //  - an arc whose offset radius would not be positive is an error;
 //  - G40 (and M2/M30): the held move ends at its offset end; the next move goes from there
 //    straight to its programmed end.
+//
+// In the Fanuc dialect the same machinery runs Fanuc's cutter compensation C (0i-MF / 30i
+// operator's manual, Type A start-up and cancel, parameter SUP = 0); only these rules differ
+// (fanuc_corner), alpha being the angle between the two moves on the workpiece side:
+//  - start-up (Type A): the entry move ends at the programmed end offset perpendicular to the
+//    START direction of the next move, i.e. where the next move's offset path starts; an arc as
+//    the start-up (or cancel) block is alarm PS0034; no minimum length;
+//  - inner corner (alpha >= 180 deg): the intersection of the offset paths, as LinuxCNC's
+//    concave corner (concave_corner, with its gouging check);
+//  - outer obtuse corner (90 <= alpha < 180): no corner arc; the tool goes to the intersection X
+//    of the two lines offset from the tangents at the corner (for two lines: of the offset lines).
+//    A line's end or start moves to X along itself; an arc ends (starts) at its own offset end
+//    (start) and a straight move joins it to X;
+//  - outer acute corner (alpha < 90): P1 = corner + r n1 + r t1, P2 = corner + r n2 - r t2
+//    (n the offset normals, t1 the held move's unit direction at its end, t2 the next move's at
+//    its start): the tool goes on to P1, straight to P2, then on along the next offset path;
+//  - a straight-through corner (turn within 1e-6 rad) joins as it is;
+//  - G40 (Type A): as LinuxCNC, from the held move's offset end straight to the programmed end.
 // Everything here works in machine coordinates [mm], so units and work offsets do not matter.
 #include <cmath>
 #include <numbers>
@@ -30,6 +48,9 @@ namespace {
 // rs274 joins moves whose directions differ by 0.04996 rad without a corner and puts an arc on a
 // convex corner of 0.0599 rad: LinuxCNC's threshold for a corner is 0.05 rad.
 constexpr double kSmoothCorner = 0.05;
+// Fanuc has no such threshold: a corner is straight through only within rounding of the
+// programmed numbers (at r = 10 mm a 1e-6 rad corner is 5e-6 mm).
+constexpr double kFanucStraight = 1e-6;
 constexpr double kEps = 1e-9;  // [mm] or [rad]: rounding, not geometry
 constexpr double kTwoPi = 2 * std::numbers::pi;
 
@@ -195,13 +216,15 @@ bool Parser::Impl::compensate(const ModalState& ns, bool& plain_emit) {
 // move. Held: its end moves if the corner with the next move is concave.
 bool Parser::Impl::entry_move(const ModalState& ns, ResolvedBlock& b) {
   const double r = ns.comp_radius;
+  const bool fanuc = opt.dialect == Dialect::kFanuc;
   if (is_arc(b.motion))
     return fail(move_col(sc), std::string(b.motion == Motion::kArcCW ? "G2" : "G3") + " as the first move after " +
                                   side_name(ns.comp_side) + ": the entry move of cutter compensation must be a "
-                                  "straight line (G0 or G1) to the contour");
+                                  "straight line (G0 or G1) to the contour" +
+                                  (fanuc ? " (Fanuc alarm PS0034: no arc in the start-up block)" : ""));
   const P2 s = comp_next.off_path ? comp_next.at : xy(b.start), e = xy(b.target);
   const double len = norm(e - s);
-  if (len <= r)
+  if (len <= r && !fanuc)  // Fanuc's Type A start-up has no minimum length
     return fail(move_col(sc), "cutter compensation entry move is " + show(len) + " mm long, not longer than the tool "
                               "radius " + show(r) + " mm: start the entry further from the contour");
   OffsetMove m;
@@ -265,6 +288,7 @@ bool Parser::Impl::offset_path(const ModalState& ns, const ResolvedBlock& b, Off
 bool Parser::Impl::next_move(const ModalState& ns, ResolvedBlock& b) {
   OffsetMove n;
   if (!offset_path(ns, b, n)) return false;
+  if (opt.dialect == Dialect::kFanuc) return fanuc_corner(ns, b, n);
   const OffsetMove& p = comp_next.move;
   const double turn = std::atan2(cross(p.end_tangent, n.start_tangent), dot(p.end_tangent, n.start_tangent));
   const bool convex = corner_is_convex(ns.comp_side, turn, p, n);
@@ -302,6 +326,63 @@ bool Parser::Impl::next_move(const ModalState& ns, ResolvedBlock& b) {
   comp_next.move = n;
   comp_next.block = b;
   return true;
+}
+
+// Fanuc's corner between the held move and the next one `n` (cutter compensation C, see the top
+// of the file): the points the tool passes from the held move's offset end to `n`'s offset start.
+bool Parser::Impl::fanuc_corner(const ModalState& ns, ResolvedBlock& b, OffsetMove& n) {
+  const OffsetMove& p = comp_next.move;
+  std::vector<P2> pts;  // [held move's end, extra points..., n's start]
+  const double turn = std::atan2(cross(p.end_tangent, n.start_tangent), dot(p.end_tangent, n.start_tangent));
+  if (p.entry) {  // Type A start-up: perpendicular to the next move's start direction
+    pts = {n.start};
+  } else if (std::fabs(turn) <= kFanucStraight) {
+    pts = {p.end};
+  } else if (!corner_is_convex(ns.comp_side, turn, p, n)) {  // inner corner: alpha >= 180 deg
+    if (!concave_corner(ns, n)) return false;
+    pts = {n.start};
+  } else {
+    const double r = ns.comp_radius;
+    const P2 t1 = p.end_tangent, t2 = n.start_tangent;
+    if (std::fabs(turn) <= std::numbers::pi / 2 + kEps) {  // obtuse (alpha >= 90): the tangent lines meet
+      const P2 x = p.end + t1 * (cross(n.start - p.end, t2) / cross(t1, t2));
+      pts = {p.end, x, n.start};
+    } else {  // acute: r on along the held move, r back before the next
+      const P2 n1 = left_normal(t1) * ns.comp_side, n2 = left_normal(t2) * ns.comp_side;
+      pts = {p.end, p.corner + n1 * r + t1 * r, p.corner + n2 * r - t2 * r, n.start};
+    }
+    // A line's own end (start) moves along it to the first (last) point.
+    if (!p.arc) pts.erase(pts.begin());
+    if (!n.arc) pts.pop_back();
+  }
+  n.start = pts.back();
+  finish_pending(pts.front());
+  corner_moves(b, pts);
+  comp_next.pending = true;
+  comp_next.move = n;
+  comp_next.block = b;
+  return true;
+}
+
+// Straight moves through `pts` (Fanuc's corner points), blocks of the next move's line: G0 before
+// a G0, else G1 at the next move's feed.
+void Parser::Impl::corner_moves(const ResolvedBlock& b, const std::vector<P2>& pts) {
+  for (std::size_t i = 0; i + 1 < pts.size(); ++i) {
+    if (norm(pts[i + 1] - pts[i]) <= kEps) continue;
+    ResolvedBlock a = b;
+    a.comment.clear();
+    a.stop = ProgramStop::kNone;
+    a.motion = b.motion == Motion::kRapid ? Motion::kRapid : Motion::kLinear;
+    a.target = a.start;
+    set_xy(a.start, pts[i]);
+    set_xy(a.target, pts[i + 1]);
+    a.plane = Plane::kXY;
+    a.centre = Vec3{0, 0, 0};
+    a.radius = 0;
+    a.turns = 1;
+    a.axis_words = static_cast<std::uint8_t>((1u << kX) | (1u << kY));
+    comp_out.push_back(std::move(a));
+  }
 }
 
 // A concave corner: both moves meet where their offset paths cross. Neither may run backwards
@@ -355,7 +436,8 @@ bool Parser::Impl::leave_offset(ResolvedBlock& b, const ModalState& ns, bool& pl
   if (is_arc(b.motion))
     return fail(move_col(sc), std::string(b.motion == Motion::kArcCW ? "G2" : "G3") +
                                   " as the move after G40: the move that leaves cutter compensation must be a "
-                                  "straight line (G0 or G1)");
+                                  "straight line (G0 or G1)" +
+                                  (opt.dialect == Dialect::kFanuc ? " (Fanuc alarm PS0034: no arc in the cancel block)" : ""));
   set_xy(b.start, c.at);  // a Z move, a dwell, a block that moves nothing
   set_xy(b.target, c.at);
   return true;

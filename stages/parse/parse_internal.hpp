@@ -95,7 +95,7 @@ struct ModalState {
   bool shift_suspended = false;  // G92.2: the shift is kept but not applied
   Axes origin{};       // origin program values are measured from: the program's G5x origin + shift
   Axes position{};     // machine coordinates
-  // Cutter radius compensation (G41/G42, LinuxCNC's geometry, cutter.cpp): +1 the tool left of
+  // Cutter radius compensation (G41/G42, cutter.cpp: LinuxCNC's geometry, or Fanuc's): +1 the tool left of
   // the path (G41), -1 right (G42), 0 off (G40); the radius is latched when it is turned on.
   int comp_side = 0;
   double comp_radius = 0;  // [mm]
@@ -383,6 +383,8 @@ struct Parser::Impl {
   bool offset_path(const ModalState& ns, const ResolvedBlock& b, parse_detail::OffsetMove& m);
   bool join(const ModalState& ns, parse_detail::OffsetMove& n, const ResolvedBlock& b);
   bool concave_corner(const ModalState& ns, parse_detail::OffsetMove& n);
+  bool fanuc_corner(const ModalState& ns, ResolvedBlock& b, parse_detail::OffsetMove& n);
+  void corner_moves(const ResolvedBlock& b, const std::vector<parse_detail::P2>& pts);
   void finish_pending(parse_detail::P2 end);
   bool leave_offset(ResolvedBlock& b, const ModalState& ns, bool& plain_emit);
   bool flush_compensation();

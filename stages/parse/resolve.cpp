@@ -48,9 +48,10 @@ int g_group(int code, Dialect d) {
     case 930: case 940: return kGFeedMode;
     case 200: case 210: return kGUnits;
     case 400: return kGCutterComp;
-    // Compensation follows LinuxCNC's geometry (cutter.cpp); Fanuc's start-up and corner rules
-    // differ, so there G41/G42 stay unsupported.
-    case 410: case 420: case 411: case 421: return d == Dialect::kLinuxCnc ? kGCutterComp : kGUnsupported;
+    // Compensation (cutter.cpp) has LinuxCNC's geometry in that dialect and Fanuc's cutter
+    // compensation C (Type A start-up and cancel) in the Fanuc one; G41.1/G42.1 are LinuxCNC's.
+    case 410: case 420: return kGCutterComp;
+    case 411: case 421: return d == Dialect::kLinuxCnc ? kGCutterComp : kGUnsupported;
     case 430: case 434: case 435: case 490: return kGToolLength;
     case 540: case 550: case 560: case 570: case 580: case 590: return kGCoordSystem;
     case 610: case 611: case 640: return kGPathMode;
@@ -75,10 +76,6 @@ int g_group(int code, Dialect d) {
 std::string unsupported_g(int code, Dialect d) {
   const std::string g = code_text('G', code);
   switch (code) {
-    case 410: case 420:
-      return g + " (cutter radius compensation) is not supported in the Fanuc dialect: Fanuc's start-up "
-                 "and corner rules differ from LinuxCNC's, the ones gcpipe implements; post-process the "
-                 "tool-centre path (CAM compensation 'computer'), or parse a LinuxCNC program with dialect linuxcnc";
     case 411: case 421:
       return g + " (LinuxCNC dynamic cutter compensation) is not Fanuc G-code: parse with dialect linuxcnc";
     case 950: return "G95 (feed per revolution) is not supported: use G94 (mm/min) or G93 (inverse time)";
