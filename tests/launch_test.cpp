@@ -1,7 +1,8 @@
 // gcpipe launch and gcpipe stream (stages/dds/launcher.hpp): the supervised pipeline writes batch
 // mode's bytes, stops loudly and within a bound when a stage dies, starts a stage again when the
 // pipeline file says so, stops everything on SIGINT, and leaves no shared memory behind. Each test
-// runs on a DDS domain of its own, so that tests running side by side never mix.
+// runs on a DDS domain of its own (225-229: above the 20-219 that dds_pipeline_test's tests claim),
+// so that tests running side by side never mix.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -84,19 +85,19 @@ TEST(Stream, WritesBatchModesBytesOnTheSamples) {
     // A stale file in the output folder must not survive the run.
     fs::create_directories(dir / "stream");
     std::ofstream(dir / "stream" / "compensated.nc") << "stale\n";
-    const Outcome s = gcpipe({"stream", in.string(), "-o", (dir / "stream").string(), "--domain", "61"});
+    const Outcome s = gcpipe({"stream", in.string(), "-o", (dir / "stream").string(), "--domain", "225"});
     ASSERT_EQ(s.status, 0) << s.err;
     EXPECT_NE(s.err.find("all 8 processes ready"), std::string::npos) << s.err;
     EXPECT_TRUE(slurp(dir / "stream" / "output.nc") == slurp(dir / "batch" / "output.nc"));
     EXPECT_TRUE(slurp(dir / "stream" / "compensated.nc") == slurp(dir / "batch" / "compensated.nc"));
   }
-  EXPECT_TRUE(shm_of_domain(61).empty());
+  EXPECT_TRUE(shm_of_domain(225).empty());
 }
 
 TEST(Stream, APipelineWithoutTheForceNodeReadsTheToolpathDirectly) {
   const fs::path dir = tmpdir("stream_noforce");
   const fs::path in = kSource / "samples" / "five_axis_demo.nc";
-  const fs::path file = pipeline_file(dir, 62, "", "[parse, trochoid, write, compensate]");
+  const fs::path file = pipeline_file(dir, 226, "", "[parse, trochoid, write, compensate]");
   const Outcome batch = gcpipe({"batch", in.string(), "-o", (dir / "batch").string(), "--quiet"});
   ASSERT_EQ(batch.status, 0);
   const Outcome s = gcpipe({"stream", in.string(), "-o", (dir / "stream").string(), "--pipeline", file.string()});
@@ -110,7 +111,7 @@ TEST(Launch, ADeadStageStopsThePipelineNamingItAndLeavesNoSharedMemory) {
   for (const char* stage : {"trochoid", "compensate"}) {
     SCOPED_TRACE(stage);
     const fs::path log = dir / (std::string(stage) + ".log");
-    const pid_t launch = spawn_gcpipe({"launch", pipeline_file(dir, 63).string()}, dir / "out", log);
+    const pid_t launch = spawn_gcpipe({"launch", pipeline_file(dir, 227).string()}, dir / "out", log);
     ASSERT_TRUE(wait_for(log, "all 5 processes ready", 60)) << slurp(log);
     const pid_t victim = node_pid(log, stage);
     ASSERT_GT(victim, 0);
@@ -119,14 +120,14 @@ TEST(Launch, ADeadStageStopsThePipelineNamingItAndLeavesNoSharedMemory) {
     EXPECT_EQ(wait_exit(launch, 30, &took), 1) << slurp(log);
     EXPECT_LT(took, 10) << "the pipeline took too long to stop";
     EXPECT_NE(slurp(log).find(std::string("stage ") + stage + " stopped (killed by signal 9)"), std::string::npos) << slurp(log);
-    EXPECT_TRUE(shm_of_domain(63).empty()) << "shared memory left after the pipeline stopped";
+    EXPECT_TRUE(shm_of_domain(227).empty()) << "shared memory left after the pipeline stopped";
   }
 }
 
 TEST(Launch, RestartsACrashedStageWhenTheFileSaysSoAndStopsOnSigint) {
   const fs::path dir = tmpdir("launch_restart");
   const fs::path log = dir / "launch.log";
-  const pid_t launch = spawn_gcpipe({"launch", pipeline_file(dir, 64, "  on_crash: restart\n").string()}, dir / "out", log);
+  const pid_t launch = spawn_gcpipe({"launch", pipeline_file(dir, 228, "  on_crash: restart\n").string()}, dir / "out", log);
   ASSERT_TRUE(wait_for(log, "all 5 processes ready", 60)) << slurp(log);
   const pid_t first = node_pid(log, "write");
   ASSERT_GT(first, 0);
@@ -136,13 +137,13 @@ TEST(Launch, RestartsACrashedStageWhenTheFileSaysSoAndStopsOnSigint) {
   EXPECT_NE(node_pid(log, "write"), first);
   kill(launch, SIGINT);
   EXPECT_EQ(wait_exit(launch, 30), 130) << slurp(log);
-  EXPECT_TRUE(shm_of_domain(64).empty());
+  EXPECT_TRUE(shm_of_domain(228).empty());
 }
 
 TEST(Launch, PipelineFileErrorsNameTheKey) {
   const fs::path dir = tmpdir("launch_errors");
   auto run_with = [&](const std::string& nodes, const std::string& extra = "") {
-    return gcpipe({"launch", pipeline_file(dir, 65, extra, nodes).string()});
+    return gcpipe({"launch", pipeline_file(dir, 229, extra, nodes).string()});
   };
   Outcome unknown = run_with("[parse, simulate]");
   EXPECT_EQ(unknown.status, 1);
