@@ -1,7 +1,7 @@
 // gcpipe launch and gcpipe stream (stages/dds/launcher.hpp): the supervised pipeline writes batch
 // mode's bytes, stops loudly and within a bound when a stage dies, starts a stage again when the
 // pipeline file says so, stops everything on SIGINT, and leaves no shared memory behind. Each test
-// runs on a DDS domain of its own (225-229: above the 20-219 that dds_pipeline_test's tests claim),
+// runs on a DDS domain of its own (224-229: above the 20-219 that dds_pipeline_test's tests claim),
 // so that tests running side by side never mix.
 #include <gtest/gtest.h>
 
@@ -153,4 +153,19 @@ TEST(Launch, PipelineFileErrorsNameTheKey) {
   Outcome crash = run_with("[parse]", "  on_crash: retry\n");
   EXPECT_NE(crash.err.find("on_crash"), std::string::npos) << crash.err;
   EXPECT_EQ(gcpipe({"launch", (dir / "missing.yaml").string()}).status, 2);  // CLI: no such file
+}
+
+// Every shipped pipeline file loads and runs a sample through (domain 224, a test of its own).
+TEST(Launch, EveryShippedPipelineFileRunsASample) {
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(kSource / "pipeline_configs" / "pipelines")) {
+    if (e.path().extension() != ".yaml") continue;
+    SCOPED_TRACE(e.path().string());
+    const fs::path dir = tmpdir("launch_shipped");
+    const Outcome s = gcpipe({"stream", (kSource / "samples" / "five_axis_demo.nc").string(), "-o", dir.string(),
+                              "--pipeline", e.path().string(), "--domain", "224"});
+    EXPECT_EQ(s.status, 0) << s.err;
+    ++n;
+  }
+  EXPECT_GE(n, 1);
 }

@@ -225,7 +225,7 @@ void add_launch_options(CLI::App& s, LaunchArgs& a) {
 
 void add_launch(CLI::App& app, LaunchArgs& a) {
   auto* s = app.add_subcommand("launch", "start and supervise a whole pipeline of DDS nodes from a pipeline file");
-  s->add_option("pipeline", a.pipeline, "the pipeline file (e.g. pipeline_configs/streaming.yaml)")->required()->check(CLI::ExistingFile);
+  s->add_option("pipeline", a.pipeline, "the pipeline file (e.g. pipeline_configs/pipelines/streaming.yaml)")->required()->check(CLI::ExistingFile);
   add_launch_options(*s, a);
   s->footer("One process per stage, any start order; one status line per process; Ctrl-C stops them all. A crashed stage "
             "stops the pipeline (exit 1, naming it) or is started again, as the file's on_crash says. Programs are "
@@ -237,7 +237,7 @@ void add_stream(CLI::App& app, StreamArgs& a) {
   s->add_option("input", a.input, "the program")->required()->check(CLI::ExistingFile);
   s->add_option("-o,--output", a.output, "output folder: output.nc and, with the compensate node, compensated.nc")
       ->required()->check(kNonEmpty);
-  s->add_option("--pipeline", a.pipeline, "the pipeline file (default pipeline_configs/streaming.yaml)")->check(CLI::ExistingFile);
+  s->add_option("--pipeline", a.pipeline, "the pipeline file (default pipeline_configs/pipelines/streaming.yaml)")->check(CLI::ExistingFile);
   add_launch_options(*s, a);
   s->footer("Launches the file's nodes, a feed and one sink per written program, and stops when the program is "
             "through. output.nc and compensated.nc are byte-identical to gcpipe batch's with the same config. "

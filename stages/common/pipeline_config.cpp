@@ -18,7 +18,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& path) {
 }
 
 std::filesystem::path default_streaming_file() {
-  return std::filesystem::path(GCPIPE_SOURCE_DIR) / "pipeline_configs" / "streaming.yaml";
+  return std::filesystem::path(GCPIPE_SOURCE_DIR) / "pipeline_configs" / "pipelines" / "streaming.yaml";
 }
 
 std::filesystem::path default_pipeline_config() {

@@ -18,7 +18,7 @@
 
 namespace gcpipe::dds {
 
-/// A pipeline file (pipeline_configs/streaming.yaml; format in stages/dds/README.md).
+/// A pipeline file (pipeline_configs/pipelines/streaming.yaml; format in stages/dds/README.md).
 struct LaunchPlan {
   std::string name;                 //!< for status lines
   int domain = 0;                   //!< DDS domain id: two pipelines on one host take two ids

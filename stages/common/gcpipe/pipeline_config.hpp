@@ -20,7 +20,7 @@ PipelineConfig load_pipeline_config(const std::filesystem::path& path);
 
 /// The config used when none is given: pipeline_configs/default.yaml found next to the
 /// executable's source tree or installed share directory.
-/// pipeline_configs/streaming.yaml of the source tree: `gcpipe stream`'s default pipeline file.
+/// pipeline_configs/pipelines/streaming.yaml of the source tree: `gcpipe stream`'s default pipeline file.
 std::filesystem::path default_streaming_file();
 std::filesystem::path default_pipeline_config();
 
