@@ -68,7 +68,9 @@ int run_node(const NodeArgs& a) {
     return 2;
   }
   dds::install_stop_handlers();
-  dds::Participant participant(dds_options(a));
+  dds::DdsOptions options = dds_options(a);
+  options.fail_on_lost_reader = !a.forever;
+  dds::Participant participant(options);
   std::string in, out;
   node_topics(a, in, out);
   dds::StageNode node(participant, pc, dds::StageNodeOptions{a.stage, a.batch_bytes, a.forever, a.strict, in, out});

@@ -257,6 +257,16 @@ bool RawWriter::wait_for_readers() {
 bool RawWriter::publish(const void* sample) {
   const auto& o = impl_->owner->options;
   const auto t0 = Clock::now();
+  // A reader that matched and is gone now (its process died, or stopped announcing itself for
+  // the discovery lease) will never take the rest: say so at once instead of filling the history
+  // and waiting out write_timeout.
+  auto check_readers = [&] {
+    if (const int left = o.fail_on_lost_reader ? matched_readers() : o.subscribers; left < o.subscribers)
+      throw std::runtime_error(std::string("writing to ") + topic_ + ": a reader went away (" + std::to_string(left) +
+                               " of " + std::to_string(o.subscribers) +
+                               " left): its stage stopped or died, the rest of the program is not sent");
+  };
+  check_readers();
   // write() blocks up to the profile's max_blocking_time, then returns false with the sample
   // not stored; a retry is therefore safe and cannot duplicate it.
   while (!impl_->writer->write(const_cast<void*>(sample))) {
@@ -265,6 +275,7 @@ bool RawWriter::publish(const void* sample) {
                 << ": history full, a reader lags behind; retrying the write until it catches up"
                 << " (at most " << o.write_timeout << " s per write)" << std::endl;
     if (stop_requested()) return false;
+    check_readers();  // blocked by a reader that died: its acknowledgements never come
     if (seconds_since(t0) > o.write_timeout)
       throw std::runtime_error(std::string("writing to ") + topic_ +
                                " stayed blocked for " + seconds_text(o.write_timeout) +

@@ -59,6 +59,10 @@ struct DdsOptions {
   /// Also take programs that were published before this process started and are replayed from
   /// a writer's transient-local history (by default they are old news and skipped).
   bool replay = false;
+  /// A writer whose matched readers fall below `subscribers` fails its next write at once (one
+  /// program per process: a reader can only leave mid-program by dying). Off for --forever nodes,
+  /// whose readers (sinks) come and go between programs.
+  bool fail_on_lost_reader = true;
 };
 
 /// pipeline_configs/dds_profiles.xml beside the default pipeline config; GCPIPE_DDS_PROFILES
