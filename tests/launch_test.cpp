@@ -1,7 +1,8 @@
 // gcpipe launch and gcpipe stream (stages/dds/launcher.hpp): the supervised pipeline writes batch
 // mode's bytes, stops loudly and within a bound when a stage dies, starts a stage again when the
 // pipeline file says so, stops everything on SIGINT, and leaves no shared memory behind. Each test
-// runs on a DDS domain of its own (224-229: above the 20-219 that dds_pipeline_test's tests claim),
+// runs on a DDS domain of its own (224-229: above the 20-99 that dds_pipeline_test's tests claim, and
+// with ports above Linux's ephemeral range),
 // so that tests running side by side never mix.
 #include <gtest/gtest.h>
 

@@ -37,6 +37,8 @@ namespace {
 constexpr const char* kParticipantProfile = "gcpipe_participant";
 constexpr const char* kWriterProfile = "gcpipe_writer";
 constexpr const char* kReaderProfile = "gcpipe_reader";
+constexpr const char* kMonitorWriterProfile = "gcpipe_monitor_writer";
+constexpr const char* kMonitorReaderProfile = "gcpipe_monitor_reader";
 // How often blocking waits look at the stop flag [s]: short enough that Ctrl-C feels immediate.
 constexpr double kPollPeriod = 0.1;
 
@@ -215,15 +217,16 @@ struct RawWriter::Impl {
   fdds::DataWriter* writer = nullptr;
 };
 
-RawWriter::RawWriter(Participant& participant, MessageType type, const std::string& topic)
-    : impl_(std::make_unique<Impl>()), topic_(topic) {
+RawWriter::RawWriter(Participant& participant, MessageType type, const std::string& topic, bool monitor)
+    : impl_(std::make_unique<Impl>()), topic_(topic), monitor_(monitor) {
   impl_->owner = &participant.impl();
+  const char* profile = monitor ? kMonitorWriterProfile : kWriterProfile;
   impl_->writer = impl_->owner->publisher->create_datawriter_with_profile(
-      impl_->owner->topic(type, topic), kWriterProfile);
+      impl_->owner->topic(type, topic), profile);
   // Inconsistent resource limits in the XML make this return null without an exception.
   if (impl_->writer == nullptr)
     throw std::runtime_error("cannot create a writer of " + topic +
-                             " from profile '" + kWriterProfile + "' of '" +
+                             " from profile '" + profile + "' of '" +
                              impl_->owner->options.profiles.string() +
                              "' (check max_samples >= max_instances * max_samples_per_instance)");
 }
@@ -255,6 +258,8 @@ bool RawWriter::wait_for_readers() {
 }
 
 bool RawWriter::publish(const void* sample) {
+  // A monitor's copy: keep-last never blocks on a reader; a lost copy only thins the view.
+  if (monitor_) return impl_->writer->write(const_cast<void*>(sample)), true;
   const auto& o = impl_->owner->options;
   const auto t0 = Clock::now();
   // A reader that matched and is gone now (its process died, or stopped announcing itself for
@@ -300,14 +305,15 @@ struct RawReader::Impl {
   fdds::DataReader* reader = nullptr;
 };
 
-RawReader::RawReader(Participant& participant, MessageType type, const std::string& topic)
+RawReader::RawReader(Participant& participant, MessageType type, const std::string& topic, bool monitor)
     : impl_(std::make_unique<Impl>()), topic_(topic) {
   impl_->owner = &participant.impl();
+  const char* profile = monitor ? kMonitorReaderProfile : kReaderProfile;
   impl_->reader = impl_->owner->subscriber->create_datareader_with_profile(
-      impl_->owner->topic(type, topic), kReaderProfile);
+      impl_->owner->topic(type, topic), profile);
   if (impl_->reader == nullptr)
     throw std::runtime_error("cannot create a reader of " + topic +
-                             " from profile '" + kReaderProfile + "' of '" +
+                             " from profile '" + profile + "' of '" +
                              impl_->owner->options.profiles.string() +
                              "' (check max_samples >= max_instances * max_samples_per_instance)");
 }

@@ -101,7 +101,9 @@ class Participant {
 class RawWriter {
  public:
   /// Throws when the name is unusable or the participant already has `topic` with another type.
-  RawWriter(Participant& participant, MessageType type, const std::string& topic);
+  /// `monitor`: the copy of an edge that monitors read (profile "gcpipe_monitor_writer"):
+  /// publish() never waits and never fails there.
+  RawWriter(Participant& participant, MessageType type, const std::string& topic, bool monitor = false);
   ~RawWriter();
   RawWriter(const RawWriter&) = delete;
   RawWriter& operator=(const RawWriter&) = delete;
@@ -125,12 +127,16 @@ class RawWriter {
   std::unique_ptr<Impl> impl_;
   std::string topic_;
   std::uint64_t blocked_writes_ = 0;
+  bool monitor_ = false;
 };
+
+/// The topic gcpipe monitor reads for the edge `topic`: a keep-last copy of it.
+inline std::string monitor_topic(const std::string& topic) { return topic + "_monitor"; }
 
 /// A reader of one topic from profile "gcpipe_reader".
 class RawReader {
  public:
-  RawReader(Participant& participant, MessageType type, const std::string& topic);
+  RawReader(Participant& participant, MessageType type, const std::string& topic, bool monitor = false);
   ~RawReader();
   RawReader(const RawReader&) = delete;
   RawReader& operator=(const RawReader&) = delete;
@@ -149,14 +155,14 @@ class RawReader {
 template <class T>
 class Writer : public RawWriter {
  public:
-  Writer(Participant& p, const std::string& topic) : RawWriter(p, TypeOf<T>::value, topic) {}
+  Writer(Participant& p, const std::string& topic, bool monitor = false) : RawWriter(p, TypeOf<T>::value, topic, monitor) {}
   bool publish(const T& sample) { return RawWriter::publish(&sample); }
 };
 
 template <class T>
 class Reader : public RawReader {
  public:
-  Reader(Participant& p, const std::string& topic) : RawReader(p, TypeOf<T>::value, topic) {}
+  Reader(Participant& p, const std::string& topic, bool monitor = false) : RawReader(p, TypeOf<T>::value, topic, monitor) {}
   bool take(T& sample, double timeout_s, double* source_time = nullptr) {
     return RawReader::take(&sample, timeout_s, source_time);
   }

@@ -74,6 +74,7 @@ int run_feed(Participant& participant, const FeedOptions& o, std::ostream& log) 
   } closer{fd};
 
   Writer<msg::ProgramChunk> writer(participant, o.topic);
+  Writer<msg::ProgramChunk> monitor_copy(participant, monitor_topic(o.topic), /*monitor=*/true);
   if (!writer.wait_for_readers()) return 130;
   const auto t0 = Clock::now();
 
@@ -91,6 +92,7 @@ int run_feed(Participant& participant, const FeedOptions& o, std::ostream& log) 
   auto publish = [&]() {
     chunk.sequence_number(chunks++);
     if (!writer.publish(chunk)) return false;
+    monitor_copy.publish(chunk);
     chunk.first_line(lines + 1);
     chunk.lines().clear();
     size = 0;
@@ -301,7 +303,9 @@ void print_end(std::ostream& out, const msg::GcodeChunk& g) {
 template <class T>
 int monitor(Participant& participant, const std::string& topic, double period, std::ostream& out) {
   constexpr MessageType type = TypeOf<T>::value;
-  Reader<T> reader(participant, topic);
+  // The edge's keep-last copy: the monitor is never one of the stage's readers, and a slow or
+  // frozen monitor holds nobody back.
+  Reader<T> reader(participant, monitor_topic(topic), /*monitor=*/true);
   T sample;
   const auto t0 = Clock::now();
   auto next_print = t0 + std::chrono::duration_cast<Clock::duration>(

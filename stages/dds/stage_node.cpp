@@ -67,7 +67,9 @@ struct Outbox final : pipeline::Emitter {
   std::uint64_t bytes = 0;
   bool failed = false;  // a publish failed (stop requested or timeout)
 
-  Outbox(Port p, std::size_t l, RawWriter& w) : port(p), limit(l), writer(w) {}
+  RawWriter* monitor = nullptr;  // the edge's copy for gcpipe monitor
+
+  Outbox(Port p, std::size_t l, RawWriter& w, RawWriter* m) : port(p), limit(l), writer(w), monitor(m) {}
 
   bool block(const ResolvedBlock& b) override {
     msg::Block& m = batch.blocks().emplace_back();
@@ -104,6 +106,7 @@ struct Outbox final : pipeline::Emitter {
     batch.sequence_number(sequence++);
     batch.strict(strict);
     if (!writer.publish(&batch)) return !(failed = true);
+    if (monitor) monitor->publish(&batch);
     blocks_sent += batch.blocks().size();
     diagnostics_sent += batch.diagnostics().size();
     batch.blocks().clear();
@@ -121,6 +124,7 @@ struct Outbox final : pipeline::Emitter {
     chunk.text(std::move(piece));
     chunk.end_of_program(end);
     if (!writer.publish(&chunk)) return !(failed = true);
+    if (monitor) monitor->publish(&chunk);
     return true;
   }
 };
@@ -141,7 +145,7 @@ struct StageNode::Impl {
   StageNodeOptions options;
   const pipeline::StageInfo& info;
   std::unique_ptr<RawReader> reader;
-  std::unique_ptr<RawWriter> writer;
+  std::unique_ptr<RawWriter> writer, monitor_writer;
   BatchIntake<Program> intake;
   std::map<std::uint64_t, Program> chunk_programs;  // ProgramChunk input
   std::set<std::uint64_t> skipped;
@@ -156,6 +160,7 @@ struct StageNode::Impl {
         config_strict(load_parse_options(c.root.section("parse")).strict) {
     reader = std::make_unique<RawReader>(p, wire_type(info.input), options.input_topic);
     writer = std::make_unique<RawWriter>(p, wire_type(info.output), options.output_topic);
+    monitor_writer = std::make_unique<RawWriter>(p, wire_type(info.output), monitor_topic(options.output_topic), true);
   }
 
   static MessageType wire_type(Port p) {
@@ -177,7 +182,7 @@ struct StageNode::Impl {
     c.strict = strict;
     c.stages = {options.stage};
     prog.stage = info.make(c);
-    prog.out = std::make_unique<Outbox>(info.output, options.batch_bytes, *writer);
+    prog.out = std::make_unique<Outbox>(info.output, options.batch_bytes, *writer, monitor_writer.get());
     prog.out->file = file;
     prog.out->strict = strict;
     return prog;
