@@ -19,6 +19,7 @@
 #include <fstream>
 #include <memory>
 #include <random>
+#include <set>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -608,6 +609,8 @@ TEST_F(DdsPipeline, ForceNodePlansTheFeedsAsBatchModeDoes) {
 // with an end marker that says so; the sink then stops with that reason, non-zero, and leaves no
 // file under the final name. Upstream, the parse node stops with the reason too.
 TEST_F(DdsPipeline, KilledMiddleNodeEndsTheProgramDownstreamWithTheReason) {
+  std::set<std::string> shm_before;  // to remove what the killed node leaves, and only that
+  for (const auto& e : fs::directory_iterator("/dev/shm")) shm_before.insert(e.path().filename().string());
   const fs::path input = generate_program(dir_, 400000);
   const fs::path out = dir_ / "sink.nc";
   Process sink("sink", dds_args({"sink", "-o", out.string()}), dir_);
@@ -635,14 +638,14 @@ TEST_F(DdsPipeline, KilledMiddleNodeEndsTheProgramDownstreamWithTheReason) {
   EXPECT_EQ(parse.wait(30), 1) << slurp(parse.log);
   EXPECT_NE(slurp(parse.log).find("a reader went away (0 of 1 left)"), std::string::npos) << slurp(parse.log);
   feed.wait(60);
-  // The killed node's port queues of this domain, now mapped by nobody. Not `fastdds shm clean`
-  // (TearDown's, after a timeout): it can take a concurrent test's starting participant for dead.
-  const int base = 7400 + 250 * std::stoi(domain_) + 10;
+  // What the killed node left (its segment, port queues, semaphores): every process of this test
+  // has ended and DDS process tests run one at a time (RESOURCE_LOCK), so a Fast DDS file that
+  // appeared since the start is this test's. Not `fastdds shm clean` (TearDown's, after a
+  // timeout): it can take a starting participant's port for a zombie.
   std::error_code ec;
-  for (int k = 0; k < 20; ++k) {
-    const std::string port = "/dev/shm/fastrtps_port" + std::to_string(base + k);
-    fs::remove(port, ec), fs::remove(port + "_el", ec);
-    fs::remove("/dev/shm/sem.fastrtps_port" + std::to_string(base + k) + "_mutex", ec);
+  for (const auto& e : fs::directory_iterator("/dev/shm")) {
+    const std::string name = e.path().filename().string();
+    if (shm_before.count(name) == 0 && name.find("fastrtps_") != std::string::npos) fs::remove(e.path(), ec);
   }
 }
 
