@@ -641,7 +641,7 @@ TEST_F(DdsPipeline, KilledMiddleNodeEndsTheProgramDownstreamWithTheReason) {
   // What the killed node left (its segment, port queues, semaphores): every process of this test
   // has ended and DDS process tests run one at a time (RESOURCE_LOCK), so a Fast DDS file that
   // appeared since the start is this test's. Not `fastdds shm clean` (TearDown's, after a
-  // timeout): it can take a starting participant's port for a zombie.
+  // timeout): it acts on every test's files.
   std::error_code ec;
   for (const auto& e : fs::directory_iterator("/dev/shm")) {
     const std::string name = e.path().filename().string();

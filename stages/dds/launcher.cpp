@@ -354,9 +354,9 @@ void Supervisor::stop_all() {
   }
   for (Child& c : children_)
     if (c.out_fd >= 0) close(c.out_fd), c.out_fd = -1;
-  // Not `fastdds shm clean`: it also takes the port of a participant of another pipeline that
-  // is starting at that moment (created, not yet locked) for a zombie, and that participant is
-  // then never discovered (seen in CI: a concurrent test's pipeline waited 60 s for its readers).
+  // Not `fastdds shm clean`: it acts on every pipeline of the host, and it may take the port of a
+  // participant that is starting at that moment (created, not yet locked) for a zombie; the
+  // files our own processes mapped are all this pipeline may remove.
   any_killed_ = false;
   remove_unmapped(shm_seen_);
   shm_seen_.clear();
