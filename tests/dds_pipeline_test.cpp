@@ -128,9 +128,9 @@ class DdsPipeline : public ::testing::Test {
 
   // Tests run in parallel (ctest -j) must not hear each other: each holds an exclusive lock on
   // one domain id for its lifetime. The lock dies with the process, so a crash frees it.
-  // Domains 20..99 only: from domain 102 on, the ports (7400 + 250 domain + ...) fall into Linux's
-  // ephemeral range (32768-60999), where another process's outgoing socket can hold one and a
-  // participant is then never discovered (seen: a whole pipeline on domain 212 waited 60 s).
+  // Domains 20..99 only, a precaution: from domain 102 on, the ports (7400 + 250 domain + ...)
+  // fall into Linux's ephemeral range (32768-60999), where another process's outgoing socket can
+  // hold one.
   int claim_domain() {
     const int first = 20 + getpid() % 80;
     for (int k = 0; k < 80; ++k) {
