@@ -154,6 +154,71 @@ bool ExpressionReader::parameter(std::string_view s, std::size_t& p, double& out
   return true;
 }
 
+// A function call `name[arg]` at p (atan[y]/[x], exists[#<name>]); `matched` false when p does not
+// start one.
+bool ExpressionReader::function(std::string_view s, std::size_t& p, double& out, int depth, bool& matched) {
+  matched = true;
+  static const std::string_view names[] = {"abs", "acos", "asin", "atan", "cos", "exp", "fix", "fup",
+                                           "round", "ln", "sin", "sqrt", "tan", "exists"};
+  for (auto name : names) {
+    std::size_t e = 0;
+    if (!match_word(s, p, name, e)) continue;
+    std::size_t q = e;
+    skip_blanks(s, q);
+    if (q >= s.size() || s[q] != '[') continue;
+    const std::size_t fpos = p;
+    p = q + 1;
+    if (name == "exists") {
+      // exists[#<name>]: 1 when the named parameter has been set.
+      skip_blanks(s, p);
+      if (p >= s.size() || s[p] != '#') return fail(p, "exists[] takes a parameter such as #<name>");
+      ++p;
+      skip_blanks(s, p);
+      std::size_t close = s.find('>', p);
+      if (p >= s.size() || s[p] != '<' || close == std::string_view::npos)
+        return fail(p, "exists[] takes a named parameter #<name>");
+      double dummy = 0;
+      out = params_.get_named(normalise_parameter_name(s.substr(p + 1, close - p - 1)), dummy) ? 1 : 0;
+      p = close + 1;
+      skip_blanks(s, p);
+      if (p >= s.size() || s[p] != ']') return fail(p, "missing ']' after exists[#<name>");
+      ++p;
+      return true;
+    }
+    double a = 0;
+    if (!expression(s, p, a, depth + 1)) return false;
+    if (name == "atan") {
+      skip_blanks(s, p);
+      if (p >= s.size() || s[p] != '/') return fail(p, "atan needs two arguments: atan[y]/[x]");
+      ++p;
+      skip_blanks(s, p);
+      if (p >= s.size() || s[p] != '[') return fail(p, "atan needs two arguments: atan[y]/[x]");
+      ++p;
+      double b = 0;
+      if (!expression(s, p, b, depth + 1)) return false;
+      out = std::atan2(a, b) / kDeg;
+      return true;
+    }
+    if (name == "abs") out = std::fabs(a);
+    else if (name == "acos") out = std::acos(a) / kDeg;
+    else if (name == "asin") out = std::asin(a) / kDeg;
+    else if (name == "cos") out = std::cos(a * kDeg);
+    else if (name == "sin") out = std::sin(a * kDeg);
+    else if (name == "tan") out = std::tan(a * kDeg);
+    else if (name == "exp") out = std::exp(a);
+    else if (name == "fix") out = std::floor(a);
+    else if (name == "fup") out = std::ceil(a);
+    else if (name == "round") out = std::round(a);
+    else if (name == "ln") out = std::log(a);
+    else if (name == "sqrt") out = std::sqrt(a);
+    if (!std::isfinite(out))
+      return fail(fpos, std::string(name) + "[" + std::to_string(a) + "] is not a finite number");
+    return true;
+  }
+  matched = false;
+  return true;
+}
+
 bool ExpressionReader::unary(std::string_view s, std::size_t& p, double& out, int depth) {
   if (depth > kMaxDepth) return fail(p, "expression nested too deeply");
   skip_blanks(s, p);
@@ -173,65 +238,10 @@ bool ExpressionReader::unary(std::string_view s, std::size_t& p, double& out, in
   if (c == '#') return parameter(s, p, out, depth);
   if ((c >= '0' && c <= '9') || c == '.') return number(s, p, out);
   // Functions: name [arg] (atan takes [y]/[x]).
-  static const std::string_view names[] = {"abs", "acos", "asin", "atan", "cos", "exp", "fix", "fup",
-                                           "round", "ln", "sin", "sqrt", "tan", "exists"};
-  for (auto name : names) {
-    std::size_t e = 0;
-    if (!match_word(s, p, name, e)) continue;
-    std::size_t q = e;
-    skip_blanks(s, q);
-    if (q >= s.size() || s[q] != '[') continue;
-    const std::size_t fpos = p;
-    p = q + 1;
-    vacant_ = false;  // set again below: a function's value is never vacant
-    if (name == "exists") {
-      // exists[#<name>]: 1 when the named parameter has been set.
-      skip_blanks(s, p);
-      if (p >= s.size() || s[p] != '#') return fail(p, "exists[] takes a parameter such as #<name>");
-      ++p;
-      skip_blanks(s, p);
-      std::size_t close = s.find('>', p);
-      if (p >= s.size() || s[p] != '<' || close == std::string_view::npos)
-        return fail(p, "exists[] takes a named parameter #<name>");
-      double dummy = 0;
-      out = params_.get_named(normalise_parameter_name(s.substr(p + 1, close - p - 1)), dummy) ? 1 : 0;
-      p = close + 1;
-      skip_blanks(s, p);
-      if (p >= s.size() || s[p] != ']') return fail(p, "missing ']' after exists[#<name>");
-      ++p;
-      vacant_ = false;
-      return true;
-    }
-    double a = 0;
-    if (!expression(s, p, a, depth + 1)) return false;
-    if (name == "atan") {
-      skip_blanks(s, p);
-      if (p >= s.size() || s[p] != '/') return fail(p, "atan needs two arguments: atan[y]/[x]");
-      ++p;
-      skip_blanks(s, p);
-      if (p >= s.size() || s[p] != '[') return fail(p, "atan needs two arguments: atan[y]/[x]");
-      ++p;
-      double b = 0;
-      if (!expression(s, p, b, depth + 1)) return false;
-      out = std::atan2(a, b) / kDeg;
-      vacant_ = false;
-      return true;
-    }
-    if (name == "abs") out = std::fabs(a);
-    else if (name == "acos") out = std::acos(a) / kDeg;
-    else if (name == "asin") out = std::asin(a) / kDeg;
-    else if (name == "cos") out = std::cos(a * kDeg);
-    else if (name == "sin") out = std::sin(a * kDeg);
-    else if (name == "tan") out = std::tan(a * kDeg);
-    else if (name == "exp") out = std::exp(a);
-    else if (name == "fix") out = std::floor(a);
-    else if (name == "fup") out = std::ceil(a);
-    else if (name == "round") out = std::round(a);
-    else if (name == "ln") out = std::log(a);
-    else if (name == "sqrt") out = std::sqrt(a);
-    if (!std::isfinite(out))
-      return fail(fpos, std::string(name) + "[" + std::to_string(a) + "] is not a finite number");
-    vacant_ = false;
+  bool matched = false;
+  if (!function(s, p, out, depth, matched)) return false;
+  if (matched) {
+    vacant_ = false;  // its arguments' vacancy is not the value's
     return true;
   }
   return fail(p, std::string("unexpected '") + c + "' in expression");

@@ -68,6 +68,7 @@ class ExpressionReader {
   bool expression(std::string_view s, std::size_t& p, double& out, int depth);  // inside [ ]
   bool binary(std::string_view s, std::size_t& p, double& out, int precedence, int depth);
   bool unary(std::string_view s, std::size_t& p, double& out, int depth);
+  bool function(std::string_view s, std::size_t& p, double& out, int depth, bool& matched);
   bool number(std::string_view s, std::size_t& p, double& out);
   bool parameter(std::string_view s, std::size_t& p, double& out, int depth);
   bool fail(std::size_t pos, std::string msg);
