@@ -53,6 +53,17 @@ void expect_round_trip(const Parsed& first, ParseOptions reparse, WriteOptions w
   }
 }
 
+// Written for each dialect and read back with that dialect.
+void expect_round_trip_in_both_dialects(const Parsed& first) {
+  for (Dialect d : {Dialect::kLinuxCnc, Dialect::kFanuc}) {
+    WriteOptions wo;
+    wo.dialect = d;
+    ParseOptions back;
+    back.dialect = d;
+    expect_round_trip(first, back, wo, kTol, d == Dialect::kFanuc ? "fanuc" : "linuxcnc");
+  }
+}
+
 }  // namespace
 
 TEST(WriteRoundTrip, EveryProgramUnderSharedData) {
@@ -89,13 +100,7 @@ TEST(WriteRoundTrip, ExpandedCyclesCallsAndLoopsBecomePlainMoves) {
   Parsed first = parse_text(program, lc);
   ASSERT_EQ(first.first_error(), nullptr) << format(*first.first_error());
   ASSERT_GT(first.summary.blocks_out, first.summary.blocks_emitted + 20);
-  for (Dialect d : {Dialect::kLinuxCnc, Dialect::kFanuc}) {
-    WriteOptions wo;
-    wo.dialect = d;
-    ParseOptions back;
-    back.dialect = d;
-    expect_round_trip(first, back, wo, kTol, d == Dialect::kFanuc ? "fanuc" : "linuxcnc");
-  }
+  expect_round_trip_in_both_dialects(first);
 }
 
 TEST(WriteRoundTrip, ShippedSamples) {
@@ -308,13 +313,7 @@ TEST(WriteRoundTrip, CutterCompensatedPathBecomesPlainMoves) {
   Parsed first = parse_text(program, lc);
   ASSERT_EQ(first.first_error(), nullptr) << format(*first.first_error());
   ASSERT_GT(first.summary.blocks_out, first.summary.blocks_emitted);  // corner arcs
-  for (Dialect d : {Dialect::kLinuxCnc, Dialect::kFanuc}) {
-    WriteOptions wo;
-    wo.dialect = d;
-    ParseOptions back;
-    back.dialect = d;
-    expect_round_trip(first, back, wo, kTol, d == Dialect::kFanuc ? "fanuc" : "linuxcnc");
-  }
+  expect_round_trip_in_both_dialects(first);
 }
 
 // The same for Fanuc cutter compensation C: start-up Type A, outer obtuse and acute corners (the
@@ -327,11 +326,5 @@ TEST(WriteRoundTrip, FanucCutterCompensatedPathBecomesPlainMoves) {
   Parsed first = parse_text(program);
   ASSERT_EQ(first.first_error(), nullptr) << format(*first.first_error());
   ASSERT_EQ(first.summary.blocks_out, first.summary.blocks_emitted + 2);  // arc->line obtuse, acute P1->P2
-  for (Dialect d : {Dialect::kLinuxCnc, Dialect::kFanuc}) {
-    WriteOptions wo;
-    wo.dialect = d;
-    ParseOptions back;
-    back.dialect = d;
-    expect_round_trip(first, back, wo, kTol, d == Dialect::kFanuc ? "fanuc" : "linuxcnc");
-  }
+  expect_round_trip_in_both_dialects(first);
 }
