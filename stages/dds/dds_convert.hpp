@@ -154,6 +154,8 @@ class BatchIntake {
   }
 
   void erase(std::uint64_t id) { programs_.erase(id); }
+  /// No program in flight.
+  bool empty() const { return programs_.empty(); }
   /// Calls f(id, program) for every program in flight, then forgets them all.
   template <class F>
   void drain(F f) {

@@ -269,7 +269,6 @@ struct StageNode::Impl {
     });
     ended = false;
     if (found == nullptr) return true;
-    intake_busy = true;
     Program& prog = *found;
     prog.out->id = id;
     if (prog.error.empty()) process(prog, id, batch);
@@ -280,7 +279,6 @@ struct StageNode::Impl {
     if (info.output == Port::kBlocks) finish_blocks(prog, id, upstream.summary, upstream.stopped, upstream.blocks_rejected);
     else finish_text(prog, id, batch);
     intake.erase(id);
-    intake_busy = false;  // one program at a time reaches a node (the feeder's order)
     return true;
   }
 
@@ -374,7 +372,7 @@ struct StageNode::Impl {
   // is ended now with an end marker that carries the reason, so every stage downstream and the
   // sink stop at once with it, instead of waiting for batches that will never come.
   bool end_orphaned_programs() {
-    if (reader->matched_writers() > 0 || (chunk_programs.empty() && !intake_busy)) return false;
+    if (reader->matched_writers() > 0 || (chunk_programs.empty() && intake.empty())) return false;
     const std::string why = "the writer of " + options.input_topic + " went away mid-program (its stage stopped or died)";
     bool any = false;
     for (auto& [id, prog] : chunk_programs) {
@@ -389,10 +387,8 @@ struct StageNode::Impl {
       else finish_text(prog, id, msg::BlockBatch{});
       any = true;
     });
-    intake_busy = false;
     return any;
   }
-  bool intake_busy = false;  // a BlockBatch program is in flight
 };
 
 StageNode::StageNode(Participant& participant, const PipelineConfig& config, StageNodeOptions options)
