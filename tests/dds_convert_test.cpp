@@ -300,5 +300,27 @@ TEST(DdsConvert, CorruptEnumerationsAreRefusedByName) {
   EXPECT_NE(why.find("severity"), std::string::npos);
 }
 
+// One edge has one writer: batches of one program from a second writer (the stage before runs
+// twice on the domain, e.g. two pipelines on one domain id) make the program's error say so,
+// before the sequence error the mix also causes; the first writer's batches alone are fine.
+TEST(DdsConvert, ASecondWriterOfOneProgramIsNamedAsSuch) {
+  dds::BatchIntake<dds::BatchProgram> intake("write", "gcpipe_toolpath");
+  auto batch = [](std::uint64_t sequence) {
+    msg::BlockBatch b;
+    b.program_id(7);
+    b.file("part.nc");
+    b.sequence_number(sequence);
+    return b;
+  };
+  auto make = [] { return dds::BatchProgram{}; };
+  dds::BatchProgram* p = intake.admit(batch(0), false, 11, make);
+  ASSERT_NE(p, nullptr);
+  ASSERT_EQ(intake.admit(batch(1), false, 11, make), p);
+  EXPECT_EQ(p->error, "");
+  ASSERT_EQ(intake.admit(batch(0), false, 22, make), p);
+  EXPECT_EQ(p->error.rfind("a second writer on gcpipe_toolpath sends this program too", 0), 0u) << p->error;
+  EXPECT_NE(p->error.find("give each pipeline its own domain"), std::string::npos) << p->error;
+}
+
 }  // namespace
 }  // namespace gcpipe

@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -605,7 +606,7 @@ TEST_F(DdsPipeline, ForceNodePlansTheFeedsAsBatchModeDoes) {
 }
 
 // kill -9 of the middle node while a program flows, with no supervisor: the node after it finds
-// its input's writer gone (the participant's lease, Fast DDS's default 20 s) and ends the program
+// its input's writer gone (the participant's discovery lease, 5 s in the profile) and ends the program
 // with an end marker that says so; the sink then stops with that reason, non-zero, and leaves no
 // file under the final name. Upstream, the parse node stops with the reason too.
 TEST_F(DdsPipeline, KilledMiddleNodeEndsTheProgramDownstreamWithTheReason) {
@@ -626,7 +627,9 @@ TEST_F(DdsPipeline, KilledMiddleNodeEndsTheProgramDownstreamWithTheReason) {
   EXPECT_EQ(write.wait(45), 1) << slurp(write.log);
   EXPECT_EQ(sink.wait(45), 1) << slurp(sink.log);
   const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  EXPECT_LT(took, 30) << "downstream took too long to give up";  // the 20 s lease, and start-up
+  // The profile's 5 s discovery lease is the bound; issue 11 asks for 10 s.
+  std::printf("write and sink gave up %.2f s after the kill\n", took);
+  EXPECT_LT(took, 10) << "downstream took too long to give up";
   EXPECT_NE(slurp(write.log).find("the writer of gcpipe_toolpath went away mid-program"), std::string::npos)
       << slurp(write.log);
   EXPECT_NE(slurp(sink.log).find("INCOMPLETE"), std::string::npos) << slurp(sink.log);
@@ -647,6 +650,29 @@ TEST_F(DdsPipeline, KilledMiddleNodeEndsTheProgramDownstreamWithTheReason) {
     const std::string name = e.path().filename().string();
     if (shm_before.count(name) == 0 && name.find("fastrtps_") != std::string::npos) fs::remove(e.path(), ec);
   }
+}
+
+// One edge, two writers: a second trochoid node on the same domain (as when two pipelines share a
+// domain id) sends the same program on gcpipe_toolpath. The write node and the sink name that
+// cause, not a missing batch, and nothing is written under the final name.
+TEST_F(DdsPipeline, ASecondWriterOnAnEdgeIsNamedAsTheCause) {
+  const fs::path input = generate_program(dir_, 20000);
+  const fs::path out = dir_ / "sink.nc";
+  Process sink("sink", dds_args({"sink", "-o", out.string()}), dir_);
+  wait_until_ready(sink);
+  Process write("write", dds_args({"node", "write", "--config", kConfig}), dir_);
+  Process first("trochoid_1", dds_args({"node", "trochoid", "--config", kConfig}), dir_);
+  Process second("trochoid_2", dds_args({"node", "trochoid", "--config", kConfig}), dir_);
+  Process parse("parse", dds_args({"node", "parse", "--config", kConfig, "--subscribers", "2"}), dir_);
+  Process feed("feed", dds_args({"feed", input.string(), "--config", kConfig}), dir_);
+  EXPECT_EQ(write.wait(60), 1) << slurp(write.log);
+  EXPECT_EQ(sink.wait(60), 1) << slurp(sink.log);
+  EXPECT_NE(slurp(write.log).find("a second writer on gcpipe_toolpath sends this program too"), std::string::npos)
+      << slurp(write.log);
+  EXPECT_NE(slurp(sink.log).find("a second writer on gcpipe_toolpath"), std::string::npos) << slurp(sink.log);
+  EXPECT_EQ(slurp(sink.log).find("is missing"), std::string::npos) << slurp(sink.log);
+  EXPECT_FALSE(fs::exists(out));
+  for (Process* p : {&first, &second, &parse, &feed}) p->wait(60);
 }
 
 // gcpipe monitor reads each edge's keep-last copy (TOPIC_monitor), never the edge itself: a monitor

@@ -217,6 +217,13 @@ void set_totals(const BatchTotals& t, msg::BlockBatch& m) {
   m.stopped(t.stopped);
 }
 
+std::string second_writer_error(const std::string& edge) {
+  return "a second writer on " + edge +
+         " sends this program too: the stage before runs twice on this DDS domain (two pipelines "
+         "on one domain, or a node started by hand beside the launcher's); give each pipeline its "
+         "own domain (pipeline.domain, --domain)";
+}
+
 std::string check_counts(const BatchTotals& sent, const BatchArrivals& got) {
   std::string problems;
   auto add = [&problems](const std::string& p) {

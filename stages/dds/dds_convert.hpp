@@ -83,9 +83,15 @@ void set_totals(const BatchTotals& totals, msg::BlockBatch& end_marker);
 ///    those when strict mode stopped the program downstream of the parser.
 std::string check_counts(const BatchTotals& sent, const BatchArrivals& received);
 
+/// Why a program that a second writer also sends on `edge` is refused: one edge has one writer,
+/// so two mean the stage runs twice on this DDS domain (two pipelines sharing it, or a stage
+/// started by hand beside the launcher's). Said before any sequence error the mix causes.
+std::string second_writer_error(const std::string& edge);
+
 /// What every consumer of a BlockBatch stream tracks per program (its own state derives from it).
 struct BatchProgram {
   std::string file;
+  std::uint64_t writer = 0;      //!< the writer that opened the program (RawReader::take)
   std::uint64_t next_batch = 0;  //!< input sequence number expected next
   BatchArrivals arrived;         //!< what came in, checked against upstream's end marker
   std::string error;             //!< first sign of lost or corrupt input; processing stops there
@@ -98,13 +104,15 @@ struct BatchProgram {
 template <class Program>
 class BatchIntake {
  public:
-  explicit BatchIntake(std::string node) : node_(std::move(node)) {}
+  /// `edge`: the input topic, named when a second writer sends the same program.
+  BatchIntake(std::string node, std::string edge) : node_(std::move(node)), edge_(std::move(edge)) {}
 
   /// The program `batch` belongs to, or nullptr when it is skipped: `replayed` says the batch was
-  /// published before this node started (Participant::published_before_start). A new program is
-  /// built by `make()`; sequence problems are recorded as its error.
+  /// published before this node started (Participant::published_before_start); `writer` is who
+  /// sent it (RawReader::take). A new program is built by `make()`; a second writer and sequence
+  /// problems are recorded as its error.
   template <class Make>
-  Program* admit(const msg::BlockBatch& batch, bool replayed, Make make) {
+  Program* admit(const msg::BlockBatch& batch, bool replayed, std::uint64_t writer, Make make) {
     const std::uint64_t id = batch.program_id();
     if (skipped_.count(id) != 0) {
       if (batch.end_of_program()) skipped_.erase(id);
@@ -127,8 +135,10 @@ class BatchIntake {
              "joined the program at batch " + std::to_string(batch.sequence_number()) +
                  ": its beginning is no longer available upstream");
       it->second.next_batch = batch.sequence_number();
+      it->second.writer = writer;
     }
     Program& prog = it->second;
+    if (writer != prog.writer) fail(prog, id, second_writer_error(edge_));
     if (batch.sequence_number() != prog.next_batch)
       fail(prog, id, "batch " + std::to_string(prog.next_batch) + " is missing (got batch " +
                          std::to_string(batch.sequence_number()) + ")");
@@ -164,7 +174,7 @@ class BatchIntake {
   }
 
  private:
-  std::string node_;
+  std::string node_, edge_;
   std::map<std::uint64_t, Program> programs_;
   std::set<std::uint64_t> skipped_;  // programs published before this node started
 };

@@ -322,7 +322,18 @@ RawReader::~RawReader() {
   if (impl_->reader != nullptr) impl_->owner->subscriber->delete_datareader(impl_->reader);
 }
 
-bool RawReader::take(void* sample, double timeout_s, double* source_time) {
+namespace {
+
+// FNV-1a over the writer's 16-byte GUID: an id that tells the writers of one topic apart.
+std::uint64_t writer_id(const fdds::InstanceHandle_t& handle) {
+  std::uint64_t h = 1469598103934665603ull;
+  for (int i = 0; i < 16; ++i) h = (h ^ handle.value[i]) * 1099511628211ull;
+  return h == 0 ? 1 : h;
+}
+
+}  // namespace
+
+bool RawReader::take(void* sample, double timeout_s, double* source_time, std::uint64_t* writer) {
   const auto t0 = Clock::now();
   fdds::SampleInfo info;
   for (;;) {
@@ -331,6 +342,7 @@ bool RawReader::take(void* sample, double timeout_s, double* source_time) {
       if (!info.valid_data) continue;
       if (source_time != nullptr)
         *source_time = static_cast<double>(info.source_timestamp.to_ns()) * 1e-9;
+      if (writer != nullptr) *writer = writer_id(info.publication_handle);
       return true;
     }
     const double left = timeout_s - seconds_since(t0);

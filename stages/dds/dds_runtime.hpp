@@ -141,8 +141,9 @@ class RawReader {
   RawReader(const RawReader&) = delete;
   RawReader& operator=(const RawReader&) = delete;
   /// Takes the next sample with data into `sample` (of the topic's type). False when none came
-  /// within `timeout_s` [s]. `source_time`: when the writer wrote it [s since the Unix epoch].
-  bool take(void* sample, double timeout_s, double* source_time = nullptr);
+  /// within `timeout_s` [s]. `source_time`: when the writer wrote it [s since the Unix epoch];
+  /// `writer`: which writer sent it (a hash of its GUID, never 0), to tell two writers apart.
+  bool take(void* sample, double timeout_s, double* source_time = nullptr, std::uint64_t* writer = nullptr);
   int matched_writers() const;
   const std::string& topic() const { return topic_; }
 
@@ -163,8 +164,8 @@ template <class T>
 class Reader : public RawReader {
  public:
   Reader(Participant& p, const std::string& topic, bool monitor = false) : RawReader(p, TypeOf<T>::value, topic, monitor) {}
-  bool take(T& sample, double timeout_s, double* source_time = nullptr) {
-    return RawReader::take(&sample, timeout_s, source_time);
+  bool take(T& sample, double timeout_s, double* source_time = nullptr, std::uint64_t* writer = nullptr) {
+    return RawReader::take(&sample, timeout_s, source_time, writer);
   }
 };
 

@@ -37,11 +37,11 @@ std::uint64_t random_program_id() {
 // Takes the next sample; false after idle_timeout without one (0 = never) or on a stop request.
 template <class T>
 bool take_or_idle(Reader<T>& reader, T& sample, double idle_timeout, bool& idle,
-                  double* source_time, bool* writer_lost = nullptr) {
+                  double* source_time, bool* writer_lost = nullptr, std::uint64_t* writer = nullptr) {
   const auto t0 = Clock::now();
   idle = false;
   while (!stop_requested()) {
-    if (reader.take(sample, 0.1, source_time)) return true;
+    if (reader.take(sample, 0.1, source_time, writer)) return true;
     // Mid-program and nothing left to take: a writer that went away sends nothing more.
     if (writer_lost != nullptr && reader.matched_writers() == 0) {
       *writer_lost = true;
@@ -133,6 +133,7 @@ namespace {
 struct SinkReceipt {
   msg::GcodeChunk last;  //!< the end marker, when `complete`
   std::uint64_t id = 0, next = 0, bytes = 0;
+  std::uint64_t writer = 0;  //!< who sent the first chunk
   std::string error;
   Clock::time_point t0;
   bool complete = false;
@@ -149,9 +150,10 @@ SinkReceipt receive_program(Participant& participant, Reader<msg::GcodeChunk>& r
   bool idle = false;
   std::set<std::uint64_t> skipped;  // programs published before the sink started
   double source_time = 0;
+  std::uint64_t writer = 0;
   for (;;) {
     bool lost = false;
-    if (!take_or_idle(reader, chunk, idle_timeout, idle, &source_time, r.id != 0 ? &lost : nullptr)) {
+    if (!take_or_idle(reader, chunk, idle_timeout, idle, &source_time, r.id != 0 ? &lost : nullptr, &writer)) {
       if (idle)
         log << "gcpipe sink: nothing arrived on " << o.topic << " for " << idle_timeout << " s; giving up\n";
       if (lost)
@@ -170,6 +172,7 @@ SinkReceipt receive_program(Participant& participant, Reader<msg::GcodeChunk>& r
     }
     if (r.next == 0 && r.id == 0) {
       r.id = chunk.program_id();
+      r.writer = writer;
       r.t0 = Clock::now();
       if (chunk.sequence_number() != 0)
         r.error = "joined program " + std::to_string(r.id) + " at chunk " + std::to_string(chunk.sequence_number()) +
@@ -177,6 +180,7 @@ SinkReceipt receive_program(Participant& participant, Reader<msg::GcodeChunk>& r
       r.next = chunk.sequence_number();
     }
     if (chunk.program_id() != r.id) continue;  // another program: the first one is ours
+    if (writer != r.writer && r.error.empty()) r.error = second_writer_error(o.topic);
     if (chunk.sequence_number() != r.next && r.error.empty())
       r.error = "chunk " + std::to_string(r.next) + " is missing (got chunk " + std::to_string(chunk.sequence_number()) + ")";
     r.next = chunk.sequence_number() + 1;

@@ -156,7 +156,7 @@ struct StageNode::Impl {
 
   Impl(Participant& p, const PipelineConfig& c, StageNodeOptions o)
       : participant(p), config(c), options(std::move(o)), info(pipeline::find_stage(options.stage)),
-        intake(options.stage), max_line(load_parse_options(c.root.section("parse")).max_line_length),
+        intake(options.stage, options.input_topic), max_line(load_parse_options(c.root.section("parse")).max_line_length),
         config_strict(load_parse_options(c.root.section("parse")).strict) {
     reader = std::make_unique<RawReader>(p, wire_type(info.input), options.input_topic);
     writer = std::make_unique<RawWriter>(p, wire_type(info.output), options.output_topic);
@@ -195,7 +195,8 @@ struct StageNode::Impl {
   bool take_chunk(double timeout) {
     msg::ProgramChunk chunk;
     double source_time = 0;
-    if (!reader->take(&chunk, timeout, &source_time)) return false;
+    std::uint64_t writer = 0;
+    if (!reader->take(&chunk, timeout, &source_time, &writer)) return false;
     const std::uint64_t id = chunk.program_id();
     if (skipped.count(id) != 0) {
       if (chunk.end_of_program()) skipped.erase(id);
@@ -218,8 +219,10 @@ struct StageNode::Impl {
         fail(it->second, id, "joined the program at chunk " + std::to_string(chunk.sequence_number()) +
                                  ": its beginning is no longer available from the feeder");
       it->second.next_chunk = chunk.sequence_number();
+      it->second.writer = writer;
     }
     Program& prog = it->second;
+    if (writer != prog.writer) fail(prog, id, second_writer_error(options.input_topic));
     if (chunk.sequence_number() != prog.next_chunk)
       fail(prog, id, "chunk " + std::to_string(prog.next_chunk) + " is missing (got chunk " +
                          std::to_string(chunk.sequence_number()) + ")");
@@ -262,9 +265,10 @@ struct StageNode::Impl {
   bool take_batch(double timeout) {
     msg::BlockBatch batch;
     double source_time = 0;
-    if (!reader->take(&batch, timeout, &source_time)) return false;
+    std::uint64_t writer = 0;
+    if (!reader->take(&batch, timeout, &source_time, &writer)) return false;
     const std::uint64_t id = batch.program_id();
-    Program* found = intake.admit(batch, participant.published_before_start(source_time), [&] {
+    Program* found = intake.admit(batch, participant.published_before_start(source_time), writer, [&] {
       return make_program(batch.file(), options.strict || config_strict || batch.strict());
     });
     ended = false;
