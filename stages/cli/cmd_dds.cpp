@@ -1,11 +1,14 @@
 // The streaming pipeline's commands: feed, node, sink, monitor (built with GCPIPE_WITH_DDS).
 // Options come from main.cpp; the work is in stages/dds (gcpipe_dds): feed, sink, monitor and
 // StageNode, which runs any registered stage.
+#include <filesystem>
 #include <iostream>
 
 #include "commands.hpp"
 #include "dds_runtime.hpp"
 #include "dds_tools.hpp"
+#include "launcher.hpp"
+#include "monitor.hpp"
 #include "parse.hpp"
 #include "stage.hpp"
 #include "stage_node.hpp"
@@ -73,7 +76,17 @@ int run_node(const NodeArgs& a) {
   dds::Participant participant(options);
   std::string in, out;
   node_topics(a, in, out);
-  dds::StageNode node(participant, pc, dds::StageNodeOptions{a.stage, a.batch_bytes, a.forever, a.strict, in, out});
+  dds::StageNodeOptions o;
+  o.stage = a.stage;
+  o.batch_bytes = a.batch_bytes;
+  o.forever = a.forever;
+  o.strict = a.strict;
+  o.input_topic = in;
+  o.output_topic = out;
+  o.pipeline_stages = a.pipeline_stages;
+  o.report_dir = a.report_dir;
+  o.report_readers = a.report_readers;
+  dds::StageNode node(participant, pc, o);
   return node.run();
 }
 
@@ -83,13 +96,49 @@ int run_sink(const SinkArgs& a) {
   return dds::run_sink(participant, dds::SinkOptions{a.output, a.in.empty() ? dds::kGcodeTopicName : a.in}, std::cerr);
 }
 
+int run_report_sink(const ReportSinkArgs& a) {
+  for (const auto& s : a.stages) pipeline::find_stage(s);  // an unknown name is an error, not a wait
+  const PipelineConfig pc = load_config_option(a.config);
+  dds::install_stop_handlers();
+  dds::Participant participant(dds_options(a));
+  dds::ReportSinkOptions o;
+  o.dir = a.output;
+  o.stages = a.stages;
+  o.config_file = pc.root.file();
+  o.machine = pc.machine.name;
+  return dds::run_report_sink(participant, o, std::cerr);
+}
+
+// --pipeline: a pipeline file, or the name of one beside the shipped streaming.yaml.
+int run_pipeline_monitor(const MonitorArgs& a) {
+  namespace fs = std::filesystem;
+  fs::path file = a.pipeline;
+  if (!fs::exists(file)) file = default_streaming_file().parent_path() / (a.pipeline + ".yaml");
+  if (!fs::exists(file)) {
+    std::cerr << "gcpipe monitor: no pipeline file '" << a.pipeline << "' (nor " << file.string() << ")\n";
+    return 2;
+  }
+  const dds::LaunchPlan plan = dds::load_launch_plan(file);
+  dds::DdsOptions options = dds_options(a);
+  if (!a.domain) options.domain = plan.domain;
+  if (!plan.profiles.empty() && a.profiles.empty()) options.profiles = plan.profiles;
+  dds::install_stop_handlers();
+  dds::Participant participant(options);
+  return dds::run_pipeline_monitor(participant, plan.name, dds::watched_stages(plan.nodes), a.period, std::cout);
+}
+
 int run_monitor(const MonitorArgs& a) {
+  if (!a.pipeline.empty()) return run_pipeline_monitor(a);
+  if (a.topic.empty()) {
+    std::cerr << "gcpipe monitor: give a topic or --pipeline NAME (see gcpipe monitor --help)\n";
+    return 2;
+  }
   dds::MessageType type{};
   try {
     dds::check_topic_name(a.topic);
     if (!a.type.empty()) type = dds::message_type_from_name(a.type);
     else if (!dds::default_topic_type(a.topic, type))
-      throw std::invalid_argument("topic '" + a.topic + "' is not one of the pipeline's; give its type with --type program|blocks|gcode");
+      throw std::invalid_argument("topic '" + a.topic + "' is not one of the pipeline's; give its type with --type program|blocks|gcode|ik|samples");
   } catch (const std::exception& e) {
     std::cerr << "gcpipe monitor: " << e.what() << "\n";
     return 2;

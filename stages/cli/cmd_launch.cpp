@@ -10,6 +10,8 @@
 #include "gcpipe/pipeline_config.hpp"
 #include "stage.hpp"
 #include "launcher.hpp"
+#include "output_dir.hpp"
+#include "run_report.hpp"
 
 namespace gcpipe::cli {
 
@@ -44,6 +46,24 @@ dds::LaunchProcess sink_process(const dds::LaunchPlan& plan, const std::string& 
   return p;
 }
 
+std::string comma_list(const std::vector<std::string>& names) {
+  std::string s;
+  for (const auto& n : names) s += (s.empty() ? "" : ",") + n;
+  return s;
+}
+
+// The report sink: report.json, report.txt, summary.json and diagnostics.txt from the nodes' parts.
+dds::LaunchProcess report_sink_process(const dds::LaunchPlan& plan, const fs::path& dir) {
+  dds::LaunchProcess p;
+  p.name = "report-sink";
+  p.args = {"report-sink", "-o", dir.string(), "--stages", comma_list(plan.nodes), "--config", plan.config.string()};
+  const auto dds = dds::plan_dds_args(plan);
+  p.args.insert(p.args.end(), dds.begin(), dds.end());
+  p.ready_text = "gcpipe report-sink: ready";
+  p.one_shot = true;
+  return p;
+}
+
 }  // namespace
 
 int run_launch(const LaunchArgs& a) {
@@ -65,9 +85,8 @@ int run_stream(const StreamArgs& a) {
   if (!runs(plan, "write") && !runs(plan, "compensate"))
     throw std::invalid_argument("the pipeline file runs neither the write nor the compensate node: nothing to write");
   const fs::path out = a.output;
-  fs::create_directories(out);
   // Files of an earlier run must not look like this run's: they are replaced or removed.
-  for (const char* f : {"output.nc", "compensated.nc", "output.nc.part", "compensated.nc.part"}) fs::remove(out / f);
+  pipeline::prepare_output_dir(out, pipeline::run_outputs());
 
   std::map<std::string, int> sinks;
   std::vector<dds::LaunchProcess> extra;
@@ -90,7 +109,13 @@ int run_stream(const StreamArgs& a) {
   dds::install_stop_handlers();
   dds::Supervisor sup(self_exe(), plan, std::cerr, a.verbose);
   for (auto& p : extra) sup.add(std::move(p));
-  for (auto& p : dds::node_processes(plan, /*forever=*/false, sinks)) sup.add(std::move(p));
+  sup.add(report_sink_process(plan, out));
+  for (auto& p : dds::node_processes(plan, /*forever=*/false, sinks)) {
+    // Each node's figures go into OUTDIR, its report part to the report sink.
+    p.args.insert(p.args.end(), {"--pipeline-stages", comma_list(plan.nodes), "--report-dir", out.string(),
+                                 "--report-readers", "1"});
+    sup.add(std::move(p));
+  }
   sup.add(std::move(feed));
   if (!sup.start()) {
     std::cerr << "gcpipe stream: " << sup.message() << "\n";
@@ -106,7 +131,8 @@ int run_stream(const StreamArgs& a) {
   for (const auto& name : {"sink output.nc", "sink compensated.nc"})
     if (sup.exit_status(name) == 3) result = 3;
   std::cerr << "gcpipe stream: wrote " << (runs(plan, "write") ? (out / "output.nc").string() : std::string())
-            << (runs(plan, "compensate") ? " " + (out / "compensated.nc").string() : std::string()) << "\n";
+            << (runs(plan, "compensate") ? " " + (out / "compensated.nc").string() : std::string()) << " and "
+            << (out / "report.json").string() << " (report.txt, summary.json, diagnostics.txt, plots/)\n";
   return result;
 }
 

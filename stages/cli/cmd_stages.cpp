@@ -16,6 +16,12 @@ int run_stages() {
                 node ? pipeline::input_topic(s.name).c_str() : "-", node ? s.topic : "(no node yet)", s.summary);
   }
   std::printf("\nbatch runs them all; trochoid = parse..write, ik = parse..ik, simulate = parse..simulate.\n");
+  std::printf("telemetry for monitors (gcpipe monitor TOPIC):");
+  for (const pipeline::StageInfo& s : pipeline::registry())
+    if (s.telemetry != pipeline::Telemetry::kNone)
+      std::printf(" %s from %s (%s);", s.telemetry_topic, s.name,
+                  s.telemetry == pipeline::Telemetry::kIkPoints ? "IK points and flags" : "simulated ticks, contour error");
+  std::printf("\n");
   return 0;
 }
 

@@ -111,14 +111,22 @@ struct NodeArgs : DdsArgs {
   std::string stage, config, in, out;
   std::size_t batch_bytes = 32 * 1024;
   bool forever = false, strict = false;
+  std::vector<std::string> pipeline_stages;  //!< --pipeline-stages
+  std::string report_dir;                    //!< --report-dir
+  int report_readers = 0;                    //!< --report-readers
 };
 int run_node(const NodeArgs& args);
 struct SinkArgs : DdsArgs {
   std::string output, in;
 };
 int run_sink(const SinkArgs& args);
+struct ReportSinkArgs : DdsArgs {
+  std::string output, config;
+  std::vector<std::string> stages;
+};
+int run_report_sink(const ReportSinkArgs& args);
 struct MonitorArgs : DdsArgs {
-  std::string topic, type;
+  std::string topic, type, pipeline;
   double period = 1.0;
 };
 int run_monitor(const MonitorArgs& args);

@@ -200,6 +200,23 @@ void add_node(CLI::App& app, NodeArgs& a) {
   s->add_option("--out", a.out, "output topic (default: the stage's edge)");
   s->add_flag("--forever", a.forever, "serve programs until SIGINT/SIGTERM");
   s->add_flag("--strict", a.strict, "stop each program at its first rejected line (parse, trochoid)");
+  s->add_option("--pipeline-stages", a.pipeline_stages,
+                "the whole pipeline's stages, comma-separated (gcpipe launch gives them): a stage "
+                "leaves to a later node what that one reports")->delimiter(',');
+  s->add_option("--report-dir", a.report_dir, "draw each program's figures into this folder (gcpipe stream's OUTDIR)");
+  s->add_option("--report-readers", a.report_readers,
+                "report sinks to wait for before publishing each program's report part")->check(CLI::Range(0, 100));
+  add_dds_options(*s, a);
+}
+
+void add_report_sink(CLI::App& app, ReportSinkArgs& a) {
+  auto* s = app.add_subcommand("report-sink",
+                               "write report.json, report.txt, summary.json and diagnostics.txt from the report "
+                               "parts the nodes publish (gcpipe stream starts one)");
+  s->add_option("-o,--output", a.output, "the output folder")->required()->check(kNonEmpty);
+  s->add_option("--stages", a.stages, "the nodes whose parts make the report, comma-separated, in chain order")
+      ->required()->delimiter(',');
+  s->add_option("--config", a.config, "pipeline config (named in report.json)");
   add_dds_options(*s, a);
 }
 
@@ -211,9 +228,16 @@ void add_sink(CLI::App& app, SinkArgs& a) {
 }
 
 void add_monitor(CLI::App& app, MonitorArgs& a) {
-  auto* s = app.add_subcommand("monitor", "print a live summary of a pipeline topic");
-  s->add_option("topic", a.topic, "the topic to watch")->required();
-  s->add_option("--type", a.type, "program, blocks or gcode (default: from the topic name)");
+  auto* s = app.add_subcommand("monitor", "print a live summary of a pipeline topic, or of every stage of a pipeline");
+  auto* topic = s->add_option("topic", a.topic,
+                              "the topic to watch: an edge (gcpipe_program, gcpipe_blocks, gcpipe_toolpath, ...) or "
+                              "the telemetry gcpipe_ik_results (IK points and flags) or gcpipe_samples (simulated "
+                              "ticks: contour error, torque saturation)");
+  auto* pipeline = s->add_option("--pipeline", a.pipeline,
+                                 "every stage of a pipeline: a pipeline file, or the name of one in "
+                                 "pipeline_configs/pipelines (e.g. streaming); its domain unless --domain");
+  topic->excludes(pipeline);
+  s->add_option("--type", a.type, "program, blocks, gcode, ik or samples (default: from the topic name)")->excludes(pipeline);
   s->add_option("--period", a.period, "seconds between summaries")->check(CLI::Range(0.05, 3600.0));
   add_dds_options(*s, a);
 }
@@ -280,10 +304,12 @@ int main(int argc, char** argv) {
   FeedArgs feed;
   NodeArgs node;
   SinkArgs sink;
+  ReportSinkArgs report_sink;
   MonitorArgs monitor;
   add_feed(app, feed);
   add_node(app, node);
   add_sink(app, sink);
+  add_report_sink(app, report_sink);
   add_monitor(app, monitor);
   LaunchArgs launch;
   StreamArgs stream;
@@ -312,6 +338,7 @@ int main(int argc, char** argv) {
     if (name == "feed") return run_feed(feed);
     if (name == "node") return run_node(node);
     if (name == "sink") return run_sink(sink);
+    if (name == "report-sink") return run_report_sink(report_sink);
     if (name == "monitor") return run_monitor(monitor);
     if (name == "launch") return run_launch(launch);
     if (name == "stream") return run_stream(stream);

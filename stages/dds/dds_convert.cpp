@@ -181,6 +181,26 @@ void to_msg(const ParseSummary& s, msg::ParseCounts& o) {
   o.bytes_read(s.bytes_read);
 }
 
+void to_msg(const IkTelemetry& p, msg::IkResult& o) {
+  o.line(p.line);
+  std::copy(p.joints.begin(), p.joints.end(), o.joints().begin());
+  std::copy(p.neural_joints.begin(), p.neural_joints.end(), o.neural_joints().begin());
+  o.has_neural(p.has_neural);
+  o.status(p.status);
+  o.flags(p.flags);
+}
+
+void to_msg(const SampleTelemetry& s, msg::AxisSample& o) {
+  o.tick(s.tick);
+  o.time(s.time);
+  o.line(s.line);
+  std::copy(s.command.begin(), s.command.end(), o.command().begin());
+  std::copy(s.actual.begin(), s.actual.end(), o.actual().begin());
+  std::copy(s.tip.begin(), s.tip.end(), o.tip().begin());
+  o.contour(s.contour);
+  o.saturated(s.saturated);
+}
+
 ParseSummary from_msg(const msg::ParseCounts& i) {
   ParseSummary s;
   s.lines_read = i.lines_read();

@@ -16,6 +16,7 @@
 #include "gcpipe.h"  // generated from idl/gcpipe.idl
 #include "gcpipe/block.hpp"
 #include "gcpipe/diagnostic.hpp"
+#include "gcpipe/telemetry.hpp"
 #include "parse.hpp"
 
 namespace gcpipe::dds {
@@ -35,6 +36,10 @@ bool from_msg(const msg::LineDiagnostic& in, Diagnostic& out, DiagnosticKind& ki
 
 void to_msg(const ParseSummary& summary, msg::ParseCounts& out);
 ParseSummary from_msg(const msg::ParseCounts& in);
+
+/// Telemetry for monitors, field for field.
+void to_msg(const IkTelemetry& point, msg::IkResult& out);
+void to_msg(const SampleTelemetry& sample, msg::AxisSample& out);
 
 /// The order in which a BlockBatch's items reach the writer, identical to batch mode's: merge
 /// blocks and diagnostics by line; on equal lines the diagnostic first (a line has at most one,

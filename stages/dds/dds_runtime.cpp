@@ -68,6 +68,9 @@ const char* type_name(MessageType type) {
     case MessageType::kProgramChunk: return "ProgramChunk";
     case MessageType::kBlockBatch: return "BlockBatch";
     case MessageType::kGcodeChunk: return "GcodeChunk";
+    case MessageType::kIkBatch: return "IkBatch";
+    case MessageType::kSampleBatch: return "SampleBatch";
+    case MessageType::kReportFragment: return "ReportFragment";
   }
   return "?";
 }
@@ -76,8 +79,11 @@ MessageType message_type_from_name(const std::string& name) {
   if (name == "program" || name == "ProgramChunk") return MessageType::kProgramChunk;
   if (name == "blocks" || name == "BlockBatch") return MessageType::kBlockBatch;
   if (name == "gcode" || name == "GcodeChunk") return MessageType::kGcodeChunk;
+  if (name == "ik" || name == "IkBatch") return MessageType::kIkBatch;
+  if (name == "samples" || name == "SampleBatch") return MessageType::kSampleBatch;
   throw std::runtime_error("unknown message type '" + name +
-                           "' (known: program, blocks, gcode, or ProgramChunk, BlockBatch, GcodeChunk)");
+                           "' (known: program, blocks, gcode, ik, samples, or ProgramChunk, BlockBatch, "
+                           "GcodeChunk, IkBatch, SampleBatch)");
 }
 
 bool default_topic_type(const std::string& topic, MessageType& type) {
@@ -86,6 +92,10 @@ bool default_topic_type(const std::string& topic, MessageType& type) {
     return true;
   }
   for (const pipeline::StageInfo& s : pipeline::registry()) {
+    if (s.telemetry != pipeline::Telemetry::kNone && topic == s.telemetry_topic) {
+      type = s.telemetry == pipeline::Telemetry::kIkPoints ? MessageType::kIkBatch : MessageType::kSampleBatch;
+      return true;
+    }
     if (topic != s.topic) continue;
     type = s.output == pipeline::Port::kGcode ? MessageType::kGcodeChunk : MessageType::kBlockBatch;
     return true;
@@ -137,7 +147,7 @@ struct Participant::Impl {
   // Each type is registered once; a topic is created once per name and may then be shared by
   // a reader and a writer of this process (a node reading and writing the same name is refused
   // by the node, not here).
-  std::string type_names[3];
+  std::string type_names[kMessageTypes];
   std::map<std::string, std::pair<MessageType, fdds::Topic*>> topics;
 
   fdds::Topic* topic(MessageType type, const std::string& name) {
@@ -155,6 +165,9 @@ struct Participant::Impl {
         case MessageType::kProgramChunk: support = fdds::TypeSupport(new msg::ProgramChunkPubSubType()); break;
         case MessageType::kBlockBatch: support = fdds::TypeSupport(new msg::BlockBatchPubSubType()); break;
         case MessageType::kGcodeChunk: support = fdds::TypeSupport(new msg::GcodeChunkPubSubType()); break;
+        case MessageType::kIkBatch: support = fdds::TypeSupport(new msg::IkBatchPubSubType()); break;
+        case MessageType::kSampleBatch: support = fdds::TypeSupport(new msg::SampleBatchPubSubType()); break;
+        case MessageType::kReportFragment: support = fdds::TypeSupport(new msg::ReportFragmentPubSubType()); break;
       }
       if (!ok(support.register_type(participant)))
         throw std::runtime_error(std::string("cannot register type ") + type_name(type) +
@@ -217,10 +230,11 @@ struct RawWriter::Impl {
   fdds::DataWriter* writer = nullptr;
 };
 
-RawWriter::RawWriter(Participant& participant, MessageType type, const std::string& topic, bool monitor)
+RawWriter::RawWriter(Participant& participant, MessageType type, const std::string& topic, bool monitor,
+                     const char* profile_name)
     : impl_(std::make_unique<Impl>()), topic_(topic), monitor_(monitor) {
   impl_->owner = &participant.impl();
-  const char* profile = monitor ? kMonitorWriterProfile : kWriterProfile;
+  const char* profile = profile_name ? profile_name : monitor ? kMonitorWriterProfile : kWriterProfile;
   impl_->writer = impl_->owner->publisher->create_datawriter_with_profile(
       impl_->owner->topic(type, topic), profile);
   // Inconsistent resource limits in the XML make this return null without an exception.
@@ -241,16 +255,18 @@ int RawWriter::matched_readers() const {
   return status.current_count;
 }
 
-bool RawWriter::wait_for_readers() {
+bool RawWriter::wait_for_readers() { return wait_for_readers(impl_->owner->options.subscribers); }
+
+bool RawWriter::wait_for_readers(int count) {
   const auto& o = impl_->owner->options;
   const auto t0 = Clock::now();
-  while (matched_readers() < o.subscribers) {
+  while (matched_readers() < count) {
     if (stop_requested()) return false;
     if (seconds_since(t0) > o.match_timeout)
       throw std::runtime_error(std::string("no reader of ") + topic_ + " within " +
                                seconds_text(o.match_timeout) + " on domain " +
                                std::to_string(o.domain) + " (waiting for " +
-                               std::to_string(o.subscribers) + ", matched " +
+                               std::to_string(count) + ", matched " +
                                std::to_string(matched_readers()) + ")");
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }

@@ -18,15 +18,20 @@ namespace gcpipe::msg {
 class ProgramChunk;
 class BlockBatch;
 class GcodeChunk;
+class IkBatch;
+class SampleBatch;
+class ReportFragment;
 }  // namespace gcpipe::msg
 
 namespace gcpipe::dds {
 
-/// The three wire types (idl/gcpipe.idl documents their samples). A topic is a name plus one of
-/// these; the pipeline has one topic per edge, so several topics carry the same type.
-enum class MessageType { kProgramChunk, kBlockBatch, kGcodeChunk };
+/// The wire types (idl/gcpipe.idl documents their samples). A topic is a name plus one of these;
+/// the pipeline has one topic per edge, so several topics carry the same type. IkBatch and
+/// SampleBatch are telemetry, on monitor topics only.
+enum class MessageType { kProgramChunk, kBlockBatch, kGcodeChunk, kIkBatch, kSampleBatch, kReportFragment };
+inline constexpr int kMessageTypes = 6;
 const char* type_name(MessageType type);
-/// Accepts program|blocks|gcode and ProgramChunk|BlockBatch|GcodeChunk; throws otherwise.
+/// Accepts program|blocks|gcode|ik|samples and the type names; throws otherwise.
 MessageType message_type_from_name(const std::string& name);
 
 /// Topic names are declared once, by the stages (StageInfo::topic, stages/pipeline/stage.hpp):
@@ -34,8 +39,10 @@ MessageType message_type_from_name(const std::string& name);
 /// pipeline::kProgramTopic. Every node's --in/--out may rename them.
 inline constexpr const char* kProgramTopicName = "gcpipe_program";
 inline constexpr const char* kGcodeTopicName = "gcpipe_gcode";
-/// The type of a declared topic name (the program topic or a stage's), false for any other
-/// name (then the type must be given).
+/// Every node's part of each program's report (ReportFragment), for `gcpipe report-sink`.
+inline constexpr const char* kReportTopicName = "gcpipe_report";
+/// The type of a declared topic name (the program topic, a stage's, or a stage's telemetry
+/// topic), false for any other name (then the type must be given).
 bool default_topic_type(const std::string& topic, MessageType& type);
 /// Throws std::runtime_error unless `topic` is a usable topic name: 1..200 characters of
 /// [A-Za-z0-9_], not starting with a digit (a conservative subset of what DDS accepts).
@@ -45,6 +52,9 @@ template <class T> struct TypeOf;
 template <> struct TypeOf<msg::ProgramChunk> { static constexpr MessageType value = MessageType::kProgramChunk; };
 template <> struct TypeOf<msg::BlockBatch> { static constexpr MessageType value = MessageType::kBlockBatch; };
 template <> struct TypeOf<msg::GcodeChunk> { static constexpr MessageType value = MessageType::kGcodeChunk; };
+template <> struct TypeOf<msg::IkBatch> { static constexpr MessageType value = MessageType::kIkBatch; };
+template <> struct TypeOf<msg::SampleBatch> { static constexpr MessageType value = MessageType::kSampleBatch; };
+template <> struct TypeOf<msg::ReportFragment> { static constexpr MessageType value = MessageType::kReportFragment; };
 
 /// Where and how long; every field has a command-line option (stages/dds/README.md).
 struct DdsOptions {
@@ -102,15 +112,18 @@ class RawWriter {
  public:
   /// Throws when the name is unusable or the participant already has `topic` with another type.
   /// `monitor`: the copy of an edge that monitors read (profile "gcpipe_monitor_writer"):
-  /// publish() never waits and never fails there.
-  RawWriter(Participant& participant, MessageType type, const std::string& topic, bool monitor = false);
+  /// publish() never waits and never fails there. `profile` overrides the profile's name
+  /// (gcpipe_report_writer).
+  RawWriter(Participant& participant, MessageType type, const std::string& topic, bool monitor = false,
+            const char* profile = nullptr);
   ~RawWriter();
   RawWriter(const RawWriter&) = delete;
   RawWriter& operator=(const RawWriter&) = delete;
 
-  /// Blocks until options().subscribers readers matched. Throws after match_timeout; false
-  /// when a stop was requested.
+  /// Blocks until options().subscribers readers matched (or `count`). Throws after
+  /// match_timeout; false when a stop was requested.
   bool wait_for_readers();
+  bool wait_for_readers(int count);
   int matched_readers() const;
   /// Writes one sample. write() returns false while the keep-all history is full and a reader
   /// lags; that is retried, never ignored (ignoring it lost samples in ../shared/DESIGN.md's

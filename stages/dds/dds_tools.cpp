@@ -3,18 +3,24 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <iomanip>
+#include <map>
 #include <ostream>
 #include <random>
 #include <set>
 #include <stdexcept>
 
+#include <nlohmann/json.hpp>
+
 #include "dds_convert.hpp"
+#include "output_dir.hpp"
+#include "run_report.hpp"
 #include "gcpipe/line_reader.hpp"
 
 namespace gcpipe::dds {
@@ -257,128 +263,62 @@ int run_sink(Participant& participant, const SinkOptions& o, std::ostream& log) 
 
 namespace {
 
-// What the monitor extracts from one sample of each topic.
-struct Seen {
-  std::uint64_t program_id = 0, sequence = 0, items = 0, last_line = 0, errors = 0;
-  bool end = false;
-};
+using Parts = std::map<std::string, msg::ReportFragment>;
 
-Seen inspect(const msg::ProgramChunk& c) {
-  Seen s{c.program_id(), c.sequence_number(), c.lines().size(), 0, 0, c.end_of_program()};
-  if (!c.lines().empty()) s.last_line = c.first_line() + c.lines().size() - 1;
-  return s;
-}
-Seen inspect(const msg::BlockBatch& b) {
-  Seen s{b.program_id(), b.sequence_number(), b.blocks().size(), 0, 0, b.end_of_program()};
-  if (!b.blocks().empty()) s.last_line = b.blocks().back().line();
-  if (!b.diagnostics().empty()) s.last_line = std::max(s.last_line, b.diagnostics().back().line());
-  for (const auto& d : b.diagnostics())
-    if (d.line_status() != static_cast<std::uint8_t>(DiagnosticKind::kLineDeleted)) ++s.errors;
-  return s;
-}
-Seen inspect(const msg::GcodeChunk& g) {
-  return Seen{g.program_id(), g.sequence_number(), g.text().size(), g.last_line(), 0,
-              g.end_of_program()};
-}
-
-const char* item_name(MessageType t) {
-  return t == MessageType::kProgramChunk ? "lines"
-         : t == MessageType::kBlockBatch ? "blocks" : "bytes";
-}
-
-void print_end(std::ostream& out, const msg::ProgramChunk& c) {
-  out << "end of program: " << c.line_count() << " lines, " << c.byte_count() << " bytes";
-}
-void print_end(std::ostream& out, const msg::BlockBatch& b) {
-  const auto& s = b.summary();
-  out << "end of program: " << s.lines_read() << " lines read, " << s.blocks_emitted()
-      << " blocks, " << s.lines_rejected() << " rejected, " << s.lines_deleted() << " deleted"
-      << "; sent " << b.blocks_sent() << " blocks, " << b.diagnostics_sent() << " diagnostics, "
-      << b.blocks_rejected() << " blocks rejected" << (b.stopped() ? ", strict stop" : "")
-      << (b.error().empty() ? "" : ", ERROR: " + b.error());
-}
-void print_end(std::ostream& out, const msg::GcodeChunk& g) {
-  out << "end of program: " << g.byte_count() << " bytes, " << g.blocks_written() << " blocks, "
-      << g.diagnostics_written() << " diagnostics, " << g.blocks_rejected()
-      << " blocks rejected" << (g.stopped() ? ", strict stop" : "")
-      << (g.error().empty() ? "" : ", ERROR: " + g.error());
-}
-
-template <class T>
-int monitor(Participant& participant, const std::string& topic, double period, std::ostream& out) {
-  constexpr MessageType type = TypeOf<T>::value;
-  // The edge's keep-last copy: the monitor is never one of the stage's readers, and a slow or
-  // frozen monitor holds nobody back.
-  Reader<T> reader(participant, monitor_topic(topic), /*monitor=*/true);
-  T sample;
-  const auto t0 = Clock::now();
-  auto next_print = t0 + std::chrono::duration_cast<Clock::duration>(
-                             std::chrono::duration<double>(period));
-  std::uint64_t samples = 0, items = 0, errors = 0, last_line = 0, program = 0;
-  std::uint64_t first_seq = 0, window_items = 0;
-  auto window_start = t0;
+// Takes report parts until every stage's part of one program is in (the first program published
+// after the sink started). Returns 0, 1 (idle) or 130 (stop).
+int collect_parts(Participant& participant, const ReportSinkOptions& o, Parts& parts, std::ostream& log) {
+  Reader<msg::ReportFragment> reader(participant, kReportTopicName, /*monitor=*/true);
+  log << "gcpipe report-sink: ready" << std::endl;
   const double idle_timeout = participant.options().idle_timeout;
-  auto last_sample = t0;
-  auto line = [&](std::ostream& o) {
-    const double dt = std::chrono::duration<double>(Clock::now() - window_start).count();
-    o << std::fixed << std::setprecision(1) << seconds_since(t0) << " s  " << topic
-      << "  program " << program << "  batches " << samples << "  " << item_name(type) << " "
-      << items << " (" << std::setprecision(0) << (dt > 0 ? window_items / dt : 0.0) << "/s)"
-      << "  last line " << last_line << "  errors " << errors;
-  };
-  while (!stop_requested()) {
-    if (reader.take(sample, 0.05)) {
-      const Seen s = inspect(sample);
-      last_sample = Clock::now();
-      if (samples == 0) {
-        program = s.program_id;
-        first_seq = s.sequence;
-      }
-      if (s.program_id == program) {
-        ++samples;
-        items += s.items;
-        window_items += s.items;
-        errors += s.errors;
-        if (s.last_line != 0) last_line = s.last_line;
-        if (s.end) {
-          line(out);
-          out << "\n" << topic << "  program " << program << "  ";
-          print_end(out, sample);
-          if (first_seq != 0) out << "  (joined late, at batch " << first_seq << ")";
-          else if (samples != s.sequence + 1) out << "  (" << (s.sequence + 1 - samples)
-                                                  << " batches MISSING)";
-          out << std::endl;
-          return 0;
-        }
-      }
+  msg::ReportFragment part;
+  std::uint64_t program = 0;
+  double source_time = 0;
+  bool idle = false;
+  while (parts.size() < o.stages.size()) {
+    if (!take_or_idle(reader, part, idle_timeout, idle, &source_time)) {
+      if (idle) log << "gcpipe report-sink: no report part for " << idle_timeout << " s; giving up\n";
+      return idle ? 1 : 130;
     }
-    if (Clock::now() >= next_print) {
-      line(out);
-      out << std::endl;
-      window_items = 0;
-      window_start = Clock::now();
-      next_print += std::chrono::duration_cast<Clock::duration>(
-          std::chrono::duration<double>(period));
-    }
-    if (idle_timeout > 0 && seconds_since(last_sample) > idle_timeout) {
-      out << "no sample on " << topic << " for " << idle_timeout << " s; giving up"
-          << std::endl;
-      return 1;
-    }
+    if (participant.published_before_start(source_time)) continue;
+    if (program == 0) program = part.program_id();
+    if (part.program_id() != program) continue;
+    if (std::find(o.stages.begin(), o.stages.end(), part.stage()) == o.stages.end()) continue;
+    parts[part.stage()] = part;
   }
-  return 130;
+  return 0;
 }
 
 }  // namespace
 
-int run_monitor(Participant& participant, MessageType type, const std::string& topic,
-                double period, std::ostream& out) {
-  switch (type) {
-    case MessageType::kProgramChunk: return monitor<msg::ProgramChunk>(participant, topic, period, out);
-    case MessageType::kBlockBatch: return monitor<msg::BlockBatch>(participant, topic, period, out);
-    case MessageType::kGcodeChunk: return monitor<msg::GcodeChunk>(participant, topic, period, out);
+int run_report_sink(Participant& participant, const ReportSinkOptions& o, std::ostream& log) {
+  const auto t0 = Clock::now();
+  Parts parts;
+  if (const int status = collect_parts(participant, o, parts, log); status != 0) return status;
+  bool complete = true;
+  for (const auto& [stage, part] : parts) complete = complete && part.complete();
+  const std::string input = parts.begin()->second.file();
+  pipeline::RunReport r;
+  r.json = pipeline::report_head(input, o.config_file, o.machine, o.stages, complete);
+  r.text = pipeline::report_text_head(o.command, input, o.dir, o.stages);
+  r.files = pipeline::report_files();
+  std::string diagnostics;
+  for (const std::string& stage : o.stages) {
+    const msg::ReportFragment& part = parts.at(stage);
+    // A later part's key replaces an earlier one's in place, as one report object would.
+    const nlohmann::ordered_json keys = nlohmann::ordered_json::parse(part.json());
+    for (const auto& [key, value] : keys.items()) r.json[key] = value;
+    r.text += part.text();
+    r.files.insert(r.files.end(), part.files().begin(), part.files().end());
+    diagnostics += part.diagnostics();
+    if (r.failure.empty() && !part.failure().empty()) r.failure = stage + ": " + part.failure();
+    if (stage == "compensate") r.compensated = part.text_bytes() > 0;
   }
-  return 2;
+  pipeline::write_file_atomically(o.dir / "diagnostics.txt", diagnostics);
+  pipeline::write_run_report(std::move(r), o.dir, seconds_since(t0));
+  log << "gcpipe report-sink: wrote the report of '" << input << "' (" << parts.size() << " parts) to "
+      << o.dir.string() << "\n";
+  return 0;
 }
 
 }  // namespace gcpipe::dds

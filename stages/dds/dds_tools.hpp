@@ -1,4 +1,5 @@
-// The pipeline's ends and its observer: `gcpipe feed`, `gcpipe sink`, `gcpipe monitor`.
+// The pipeline's ends: `gcpipe feed`, `gcpipe sink`, `gcpipe report-sink` (the observer,
+// `gcpipe monitor`, is monitor.hpp).
 // (The stage nodes are in stages/<stage>/<stage>_node.hpp.) stages/cli only parses arguments.
 #pragma once
 
@@ -7,6 +8,7 @@
 #include <filesystem>
 #include <iosfwd>
 #include <string>
+#include <vector>
 
 #include "dds_runtime.hpp"
 
@@ -37,10 +39,18 @@ struct SinkOptions {
 /// also when data went missing, and then the file is left as OUTPUT.part.
 int run_sink(Participant& participant, const SinkOptions& options, std::ostream& log);
 
-/// Prints one summary line per `period` [s] about `topic`, which carries `type` (batches, items
-/// and items/s, last source line, errors) until an end-of-program marker arrives (returns 0) or a
-/// stop is requested (returns 130). Joining late is fine: it reports what the writer still held.
-int run_monitor(Participant& participant, MessageType type, const std::string& topic,
-                double period, std::ostream& out);
+struct ReportSinkOptions {
+  std::filesystem::path dir;         //!< report.json, report.txt, summary.json, diagnostics.txt
+  std::vector<std::string> stages;   //!< the nodes whose parts make the report, in chain order
+  std::string config_file;           //!< as report.json names it
+  std::string machine;
+  std::string command = "gcpipe stream";  //!< report.txt's first word
+};
+
+/// Collects the report parts (gcpipe_report) of the first program published after it started,
+/// one from every stage of `stages`, and writes the run's report files as `gcpipe batch` does
+/// (pipeline/run_report.hpp; diagnostics.txt: each stage's diagnostics, in chain order).
+/// Returns 0, 1 after the idle timeout, 130 on a stop request.
+int run_report_sink(Participant& participant, const ReportSinkOptions& options, std::ostream& log);
 
 }  // namespace gcpipe::dds

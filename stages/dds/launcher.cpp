@@ -94,7 +94,8 @@ LaunchPlan load_launch_plan(const std::filesystem::path& file) {
   LaunchPlan plan;
   plan.name = p.string("name", file.stem().string());
   plan.domain = static_cast<int>(p.integer("domain", 0, 0, 232));
-  plan.config = p.file_path("config", "the pipeline config the nodes read");
+  // Normalised (no "pipelines/../"), so that report.json names the config as batch does.
+  plan.config = p.file_path("config", "the pipeline config the nodes read").lexically_normal();
   if (p.has("profiles")) plan.profiles = p.file_path("profiles", "the DDS profiles XML");
   plan.restart = p.choice("on_crash", "stop", {"stop", "restart"}) == "restart";
   plan.max_restarts = static_cast<int>(p.integer("max_restarts", 3, 0, 100));

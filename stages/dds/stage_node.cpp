@@ -17,20 +17,30 @@ namespace {
 
 using pipeline::Port;
 
-// Diagnostics travel downstream; the node that writes them (sink, batch) shows them.
-class SilentLog final : public pipeline::DiagnosticLog {
+// The diagnostics one program's stage raised, as diagnostics.txt has them: they go into the
+// program's report part (the diagnostics themselves also travel downstream on the edge).
+class CollectingLog final : public pipeline::DiagnosticLog {
  public:
-  void report(const Diagnostic&) override {}
+  void report(const Diagnostic& d) override {
+    lines += format(d);
+    lines += '\n';
+  }
+  std::string lines;
 };
 
-// A stage's report of one program (no output folder: no figures), for the node's log and counts.
-nlohmann::ordered_json report_of(const pipeline::Stage& stage, std::string& text) {
-  nlohmann::ordered_json j;
-  std::vector<std::string> files;
+// A stage's report of one program: its keys of report.json, its lines of report.txt, and the
+// figures it drew into `dir` (none when empty).
+nlohmann::ordered_json report_of(const pipeline::Stage& stage, std::string& text,
+                                 const std::filesystem::path& dir = {}, const std::string& input = {},
+                                 std::vector<std::string>* files = nullptr) {
+  nlohmann::ordered_json j = nlohmann::ordered_json::object();
+  std::vector<std::string> drawn;
   pipeline::ReportContext r;
   r.json = &j;
   r.text = &text;
-  r.files = &files;
+  r.dir = dir;
+  r.input_base = std::filesystem::path(input).filename().string();
+  r.files = files ? files : &drawn;
   stage.report(r);
   return j;
 }
@@ -68,8 +78,52 @@ struct Outbox final : pipeline::Emitter {
   bool failed = false;  // a publish failed (stop requested or timeout)
 
   RawWriter* monitor = nullptr;  // the edge's copy for gcpipe monitor
+  // The stage's telemetry (IK points or simulated ticks) for monitors: batches on a keep-last
+  // monitor topic, never waited for. Null when the stage has none.
+  RawWriter* telemetry = nullptr;
+  msg::IkBatch ik;
+  msg::SampleBatch samples;
+  std::uint64_t telemetry_sequence = 0, telemetry_items = 0;
+  static constexpr std::size_t kTelemetryBatch = 256;  // about 25-35 KB, as the edges' batches
 
-  Outbox(Port p, std::size_t l, RawWriter& w, RawWriter* m) : port(p), limit(l), writer(w), monitor(m) {}
+  Outbox(Port p, std::size_t l, RawWriter& w, RawWriter* m, RawWriter* t)
+      : port(p), limit(l), writer(w), monitor(m), telemetry(t) {}
+
+  bool wants_telemetry() const override { return telemetry != nullptr; }
+  void ik_point(const IkTelemetry& p) override {
+    to_msg(p, ik.points().emplace_back());
+    if (ik.points().size() >= kTelemetryBatch) publish_ik(false);
+  }
+  void sample(const SampleTelemetry& s) override {
+    to_msg(s, samples.samples().emplace_back());
+    if (samples.samples().size() >= kTelemetryBatch) publish_samples(false);
+  }
+  void publish_ik(bool end) {
+    telemetry_items += ik.points().size();
+    ik.program_id(id);
+    ik.file(file);
+    ik.sequence_number(telemetry_sequence++);
+    ik.end_of_program(end);
+    ik.point_count(end ? telemetry_items : 0);
+    telemetry->publish(&ik);
+    ik.points().clear();
+  }
+  void publish_samples(bool end) {
+    telemetry_items += samples.samples().size();
+    samples.program_id(id);
+    samples.file(file);
+    samples.sequence_number(telemetry_sequence++);
+    samples.end_of_program(end);
+    samples.sample_count(end ? telemetry_items : 0);
+    telemetry->publish(&samples);
+    samples.samples().clear();
+  }
+  /// The telemetry's end batch, with the program's count (a stage emits one kind only).
+  void finish_telemetry(pipeline::Telemetry kind) {
+    if (telemetry == nullptr) return;
+    if (kind == pipeline::Telemetry::kIkPoints) publish_ik(true);
+    else publish_samples(true);
+  }
 
   bool block(const ResolvedBlock& b) override {
     msg::Block& m = batch.blocks().emplace_back();
@@ -131,6 +185,7 @@ struct Outbox final : pipeline::Emitter {
 
 // One program in flight: the stage object, its outbox, and the input bookkeeping.
 struct Program : BatchProgram {
+  std::unique_ptr<CollectingLog> log;  // before `stage`, which holds a pointer to it
   std::unique_ptr<pipeline::Stage> stage;
   std::unique_ptr<Outbox> out;
   bool stopped = false;         // strict mode stopped it: inputs are still counted
@@ -145,11 +200,10 @@ struct StageNode::Impl {
   StageNodeOptions options;
   const pipeline::StageInfo& info;
   std::unique_ptr<RawReader> reader;
-  std::unique_ptr<RawWriter> writer, monitor_writer;
+  std::unique_ptr<RawWriter> writer, monitor_writer, telemetry_writer, report_writer;
   BatchIntake<Program> intake;
   std::map<std::uint64_t, Program> chunk_programs;  // ProgramChunk input
   std::set<std::uint64_t> skipped;
-  SilentLog log;
   std::size_t max_line;
   bool config_strict;  // parse.strict: batch mode's strict mode, as --strict
   int status = 0;
@@ -161,6 +215,13 @@ struct StageNode::Impl {
     reader = std::make_unique<RawReader>(p, wire_type(info.input), options.input_topic);
     writer = std::make_unique<RawWriter>(p, wire_type(info.output), options.output_topic);
     monitor_writer = std::make_unique<RawWriter>(p, wire_type(info.output), monitor_topic(options.output_topic), true);
+    if (info.telemetry != pipeline::Telemetry::kNone) {
+      const MessageType type = info.telemetry == pipeline::Telemetry::kIkPoints ? MessageType::kIkBatch : MessageType::kSampleBatch;
+      telemetry_writer = std::make_unique<RawWriter>(p, type, monitor_topic(info.telemetry_topic), true);
+    }
+    // Keep-last and never waited for, unless the launcher says a report sink listens.
+    report_writer = std::make_unique<RawWriter>(p, MessageType::kReportFragment, kReportTopicName, true,
+                                                "gcpipe_report_writer");
   }
 
   static MessageType wire_type(Port p) {
@@ -175,14 +236,16 @@ struct StageNode::Impl {
 
   Program make_program(const std::string& file, bool strict) {
     Program prog;
+    prog.log = std::make_unique<CollectingLog>();
     pipeline::StageContext c;
     c.config = &config;
     c.file = file;
-    c.log = &log;
+    c.log = prog.log.get();
     c.strict = strict;
     c.stages = {options.stage};
+    c.pipeline_stages = options.pipeline_stages;
     prog.stage = info.make(c);
-    prog.out = std::make_unique<Outbox>(info.output, options.batch_bytes, *writer, monitor_writer.get());
+    prog.out = std::make_unique<Outbox>(info.output, options.batch_bytes, *writer, monitor_writer.get(), telemetry_writer.get());
     prog.out->file = file;
     prog.out->strict = strict;
     return prog;
@@ -319,13 +382,34 @@ struct StageNode::Impl {
   void finish_stage(Program& prog, std::uint64_t id, bool upstream_stopped) {
     const bool complete = prog.error.empty() && !prog.stopped && !upstream_stopped;
     prog.stage->finish(complete, *prog.out);
+    prog.out->finish_telemetry(info.telemetry);
     const std::string failure = prog.stage->failure();
     if (prog.error.empty() && !failure.empty()) fail(prog, id, failure);
     if (prog.out->failed && prog.error.empty()) fail(prog, id, "a publish on " + options.output_topic + " failed");
-    // What the stage says of the program, as batch's report.txt says it.
-    std::string text;
-    report_of(*prog.stage, text);
-    std::cerr << "gcpipe node " << options.stage << ": program " << id << " '" << prog.file << "':\n" << text;
+    // What the stage says of the program, as batch's report.txt says it, and its report part.
+    msg::ReportFragment part;
+    std::vector<std::string> files;
+    part.json(report_of(*prog.stage, part.text(), options.report_dir, prog.file, &files).dump());
+    part.files(files);
+    std::cerr << "gcpipe node " << options.stage << ": program " << id << " '" << prog.file << "':\n" << part.text();
+    part.program_id(id);
+    part.file(prog.file);
+    part.stage(options.stage);
+    part.complete(complete);
+    part.diagnostics(std::move(prog.log->lines));
+    part.failure(failure);
+    part.rejected(prog.stage->rejected());
+    part.text_bytes(prog.out->bytes + prog.out->pending.size());
+    publish_report(part);
+  }
+
+  // The report part goes to a report sink the launcher started (waited for, and acknowledged
+  // before the node moves on), or to whoever listens.
+  void publish_report(msg::ReportFragment& part) {
+    if (options.report_readers > 0 && !report_writer->wait_for_readers(options.report_readers)) return;
+    report_writer->publish(&part);
+    if (options.report_readers > 0 && !report_writer->wait_acknowledged())
+      std::cerr << "gcpipe node " << options.stage << ": the report sink did not acknowledge the report part\n";
   }
 
   void finish_blocks(Program& prog, std::uint64_t id, const ParseSummary& summary, bool upstream_stopped,

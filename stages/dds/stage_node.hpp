@@ -9,12 +9,17 @@
 // Around the stage the node does what every edge needs: programs told apart by id, replayed
 // programs skipped, sequence numbers checked, strict stops, and an end-of-program marker whose
 // counts the next node checks (dds_convert.hpp, check_counts). The stage runs exactly as in
-// `gcpipe batch`, one stage object per program, so the bytes are batch mode's.
+// `gcpipe batch`, one stage object per program, so the bytes are batch mode's. Beside its edge a
+// node publishes the stage's telemetry for monitors (ik, simulate: IkBatch, SampleBatch on keep-
+// last monitor topics) and, at each program's end, the stage's part of the report
+// (ReportFragment on gcpipe_report: report.json keys, report.txt lines, figures, diagnostics).
 #pragma once
 
 #include <cstddef>
+#include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "gcpipe/pipeline_config.hpp"
 
@@ -28,6 +33,15 @@ struct StageNodeOptions {
   bool forever = false;                 //!< serve programs until SIGINT/SIGTERM
   bool strict = false;                  //!< stop each program at its first rejected line or cycle
   std::string input_topic, output_topic;
+  /// The whole pipeline's stages (the launcher's file), so that a stage knows what later nodes
+  /// report (StageContext::pipeline_stages); empty: this stage alone.
+  std::vector<std::string> pipeline_stages;
+  /// Figures are drawn into this folder at each program's end (`gcpipe stream`'s OUTDIR, on
+  /// this host); empty: none.
+  std::filesystem::path report_dir;
+  /// Readers of gcpipe_report (a report sink) to wait for before the report part is published,
+  /// and to be acknowledged by; 0: publish for whoever listens, never wait.
+  int report_readers = 0;
 };
 
 class StageNode {

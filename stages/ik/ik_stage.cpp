@@ -45,6 +45,17 @@ nlohmann::ordered_json summary_json(const IkSummary& s, bool neural, const Axes&
           {"neural", neural ? neural_json(s, tolerance) : nlohmann::ordered_json(nullptr)}};
 }
 
+IkTelemetry telemetry_of(const IkPoint& p) {
+  IkTelemetry t;
+  t.line = p.line;
+  t.joints = p.joints;
+  t.neural_joints = p.neural_joints;
+  t.has_neural = p.has_neural;
+  t.status = static_cast<std::uint8_t>(p.status);
+  t.flags = p.flags;
+  return t;
+}
+
 }  // namespace
 
 std::optional<neural::NeuralIk> load_ik_model_for(const IkOptions& options, const std::string& path,
@@ -69,6 +80,7 @@ bool IkPipelineStage::block(const ResolvedBlock& b, pipeline::Emitter& out) {
   if (stage_.step(b, point_)) {
     sampler_.add(point_, kin_, b.tool_length_active ? b.tool_length : kin_.tool_length);
     if (tap_) tap_(point_);
+    if (out.wants_telemetry()) out.ik_point(telemetry_of(point_));
   }
   return out.block(b);
 }
@@ -125,7 +137,8 @@ pipeline::StageInfo ik_stage() {
           pipeline::Port::kBlocks, pipeline::Port::kBlocks,
           [](const pipeline::StageContext& c) -> std::unique_ptr<pipeline::Stage> {
             return std::make_unique<IkPipelineStage>(c);
-          }};
+          },
+          "gcpipe_ik", pipeline::Telemetry::kIkPoints, "gcpipe_ik_results"};
 }
 
 }  // namespace gcpipe

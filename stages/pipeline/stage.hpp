@@ -21,6 +21,7 @@
 #include "gcpipe/block.hpp"
 #include "gcpipe/diagnostic.hpp"
 #include "gcpipe/pipeline_config.hpp"
+#include "gcpipe/telemetry.hpp"
 
 namespace gcpipe::pipeline {
 
@@ -30,6 +31,9 @@ namespace gcpipe::pipeline {
 /// stage's result is its product and its report (calibrate), so no stage can hang off it.
 enum class Port : std::uint8_t { kProgram, kBlocks, kGcode, kNone };
 const char* to_string(Port port);
+
+/// What a stage emits for monitors beside its output: Emitter::ik_point or Emitter::sample.
+enum class Telemetry : std::uint8_t { kNone, kIkPoints, kSamples };
 
 /// A result too large or too rich for an edge's items that a stage hands to the next one in the
 /// same process (the simulation of a whole program, handed from `simulate` to `compensate`).
@@ -48,6 +52,11 @@ class Emitter {
   /// Written G-code; the consumer takes the text and leaves `gcode` empty.
   virtual bool text(std::string& gcode) = 0;
   virtual void product(const std::shared_ptr<const Product>& product) = 0;
+  /// Telemetry for monitors (gcpipe/telemetry.hpp): not part of the program, never waited for.
+  /// A stage produces it only when the emitter listens, so a run without monitors pays nothing.
+  virtual bool wants_telemetry() const { return false; }
+  virtual void ik_point(const IkTelemetry&) {}
+  virtual void sample(const SampleTelemetry&) {}
 };
 
 /// Every diagnostic a stage raises (not the ones it forwards) is also reported here, once: the
@@ -71,7 +80,13 @@ struct StageContext {
   bool strict = false;            //!< --strict (or parse.strict): stop a program at its first error
   std::string ik_model;           //!< --model: neural IK model instead of the config's ik.model
   bool ik_tool_vector = false;    //!< --tool-vector: TCP blocks give only their tool vector
-  std::vector<std::string> stages;  //!< names of the stages in this pipeline (set by Pipeline)
+  std::vector<std::string> stages;  //!< names of the stages in this process (set by Pipeline)
+  /// The stages of the whole pipeline when this process runs a part of it (a DDS node), else
+  /// empty (= `stages`). A stage whose work a later stage reports again (simulate, when
+  /// compensate follows anywhere) leaves the report to that one.
+  std::vector<std::string> pipeline_stages;
+  /// The pipeline's stages, wherever they run.
+  const std::vector<std::string>& whole_pipeline() const { return pipeline_stages.empty() ? stages : pipeline_stages; }
 };
 
 /// What a stage contributes at the end of a program: its keys of report.json (by convention one
@@ -126,6 +141,10 @@ struct StageInfo {
   /// The DDS topic its output goes on when it runs as a node ("" = not on DDS yet); a node reads
   /// the topic of its nearest upstream that has one (the program topic for the source).
   const char* topic = "";
+  /// What telemetry it emits, and the topic that goes on as a node (IkBatch for IK points,
+  /// SampleBatch for samples, idl/gcpipe.idl; published on the keep-last monitor copy only).
+  Telemetry telemetry = Telemetry::kNone;
+  const char* telemetry_topic = "";
 };
 
 /// Every stage, in pipeline order (generated from stages/CMakeLists.txt's GCPIPE_STAGES list).

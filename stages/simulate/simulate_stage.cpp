@@ -12,7 +12,7 @@ SimulateStage::SimulateStage(const pipeline::StageContext& c)
       progress_(c.progress),
       file_(c.file),
       log_(*c.log),
-      reports_(std::find(c.stages.begin(), c.stages.end(), "compensate") == c.stages.end()) {}
+      reports_(std::find(c.whole_pipeline().begin(), c.whole_pipeline().end(), "compensate") == c.whole_pipeline().end()) {}
 
 bool SimulateStage::block(const ResolvedBlock& b, pipeline::Emitter& out) {
   // The whole program is kept (the learning replays it), up to a bound on memory.
@@ -36,7 +36,8 @@ bool SimulateStage::finish(bool complete, pipeline::Emitter& out) {
   result_ = std::make_shared<SimulatedProgram>();
   simulate::RunBounds bounds = compensate::run_bounds(bounds_);
   bounds.record_nominal = record_nominal_;
-  result_->run = simulate::simulate_program(model_, std::move(program_), bounds, tap_, progress_);
+  const auto tap = out.wants_telemetry() ? tap_with_telemetry(out) : tap_;
+  result_->run = simulate::simulate_program(model_, std::move(program_), bounds, tap, progress_);
   if (!result_->run.before) failure_ = "not simulated: " + result_->run.note;
   if (result_->run.travel_line != 0) {
     // A travel violation is an error of the program at its line, like a parse error.
@@ -50,6 +51,26 @@ bool SimulateStage::finish(bool complete, pipeline::Emitter& out) {
   }
   out.product(result_);
   return true;
+}
+
+std::function<void(const simulate::Tick&)> SimulateStage::tap_with_telemetry(pipeline::Emitter& out) const {
+  // A tick names its block by index into the program, which the simulation takes over: the
+  // source lines are kept aside (8 bytes a block) for the telemetry.
+  std::vector<std::uint64_t> lines(program_.size());
+  for (std::size_t i = 0; i < program_.size(); ++i) lines[i] = program_[i].line;
+  return [&out, lines = std::move(lines), tap = tap_, period = model_.interp.period](const simulate::Tick& t) {
+    if (tap) tap(t);
+    SampleTelemetry s;
+    s.tick = t.n;
+    s.time = static_cast<double>(t.n) * period;
+    s.line = t.block < lines.size() ? lines[t.block] : 0;
+    s.command = t.command;
+    s.actual = t.actual;
+    s.tip = t.tip;
+    s.contour = t.contour;
+    s.saturated = t.saturated;
+    out.sample(s);
+  };
 }
 
 void SimulateStage::report(pipeline::ReportContext& r) const {
@@ -67,7 +88,8 @@ pipeline::StageInfo simulate_stage() {
           pipeline::Port::kBlocks, pipeline::Port::kBlocks,
           [](const pipeline::StageContext& c) -> std::unique_ptr<pipeline::Stage> {
             return std::make_unique<SimulateStage>(c);
-          }};
+          },
+          "gcpipe_simulated", pipeline::Telemetry::kSamples, "gcpipe_samples"};
 }
 
 }  // namespace gcpipe

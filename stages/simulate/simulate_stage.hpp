@@ -36,6 +36,9 @@ class SimulateStage final : public pipeline::Stage {
   const simulate::SimulationRun* run() const { return result_ ? &result_->run : nullptr; }
 
  private:
+  /// tap_, then every tick as telemetry to `out` (a monitor listens).
+  std::function<void(const simulate::Tick&)> tap_with_telemetry(pipeline::Emitter& out) const;
+
   compensate::Model model_;
   compensate::CompensateOptions bounds_;
   pipeline::Progress progress_;
