@@ -148,7 +148,7 @@ inline void print(const AxisIdentification& id) {
     std::cout << "  " << d.name << " config " << d.config << " fitted " << d.fitted << " +- " << d.sigma << (d.held ? " held: " + d.why : "") << "\n";
   for (const auto& c : id.candidates) {
     std::cout << "  round " << c.round << " " << c.effect << " BIC " << c.criterion_before << " -> " << c.criterion_after
-              << " heldout rms " << std::sqrt(c.heldout_before) << " -> " << std::sqrt(c.heldout_after) << " " << c.reason << " (" << c.seconds << " s):";
+              << " (evidence " << c.evidence << ") heldout rms " << std::sqrt(c.heldout_before) << " -> " << std::sqrt(c.heldout_after) << " " << c.reason << " (" << c.seconds << " s):";
     for (const auto& p : c.params) std::cout << " " << p.name << "=" << p.value << "+-" << p.sigma;
     std::cout << "\n";
   }
