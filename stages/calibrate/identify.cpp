@@ -274,8 +274,10 @@ void refit_declared(const Ctx& c, AxisIdentification& id) {
   if (!id.refit_kept) {
     id.refit = id.config;
     id.pred_refit = id.pred_declared;
-    for (auto& d : id.declared)
+    for (auto& d : id.declared) {
       if (!d.held) { d.held = true; d.fitted = d.config; d.why = "refit did not pay (" + id.refit_note + ")"; }
+      d.excitation_held = false;  // the configured model stands: nothing for an effect to free
+    }
   }
 }
 
