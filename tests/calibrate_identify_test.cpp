@@ -35,14 +35,21 @@ void check_single(Scenario sc, int axis, const servo::EffectSettings& e, double 
   const auto& cfg = sc.config.drives.axes[static_cast<std::size_t>(axis)];
   const auto& tru = sc.machine.drives.axes[static_cast<std::size_t>(axis)];
   const double j_ratio = (cfg.J + cfg.J1) / (tru.J + tru.J1);
-  if (torque_limit > 0) EXPECT_NEAR(test::param(id, name, "torque_limit"), torque_limit * j_ratio, 0.1 * torque_limit * j_ratio);
+  if (torque_limit > 0) {
+    EXPECT_NEAR(test::param(id, name, "torque_limit"), torque_limit * j_ratio, 0.1 * torque_limit * j_ratio);
+    std::cout << "torque_limit: true " << torque_limit << " N*m x J_config/J_true = " << torque_limit * j_ratio << "\n";
+  }
   for (auto [k, v] : e.values) {
     if (k == "phase" || k == "velocity_band") continue;  // phase: wraps; band: fixed by design
     if (k == "torque") v *= j_ratio;
     EXPECT_NEAR(test::param(id, name, k), v, 0.1 * std::abs(v)) << name << "." << k;
   }
   for (const auto& i : ids)
-    if (i.moving) EXPECT_LE(test::calibrated_rms(sc, 7, i), 2 * kNoise) << "axis " << kAxisLetters[i.axis];
+    if (i.moving) {
+      const double rms = test::calibrated_rms(sc, 7, i);
+      EXPECT_LE(rms, 2 * kNoise) << "axis " << kAxisLetters[i.axis];
+      if (i.axis == axis) std::cout << "calibrated rms " << kAxisLetters[i.axis] << " " << rms * 1000 << " um = " << rms / kNoise << " x noise\n";
+    }
   test::print(id);
 }
 
@@ -73,6 +80,8 @@ TEST(CalibrateIdentify, TorqueLimitOnCFiveAxis) {
 
 // Every catalogued effect on each of the three programs (the single tests above cover one
 // program each): the effect on X (C for rotary backlash, which only the five-axis move turns).
+// A scale error also on the circle at two feeds: on the one-feed circle about the scale's zero
+// it is the same signature as a drive gain (README 7), which is why a shop runs two feeds.
 // A torque limit is set at 80 % of the peak torque the axis needs on that program.
 struct MatrixCase {
   const char* program;
@@ -84,6 +93,7 @@ void PrintTo(const MatrixCase& m, std::ostream* os) { *os << m.program << " " <<
 Scenario scenario_named(const std::string& program) {
   if (program == "circle") return test::circle_scenario();
   if (program == "trochoid") return test::trochoid_scenario();
+  if (program == "circle_two_feeds") return test::circle_two_feeds_scenario();
   return test::five_axis_scenario();
 }
 
@@ -116,22 +126,23 @@ std::string matrix_name(const ::testing::TestParamInfo<MatrixCase>& i) {
   return std::string(i.param.program) + "_" + i.param.effect;
 }
 
-// The combinations not already tested above (those stay where they are) that pass. Five more
-// fail today and are listed in stages/calibrate/README.md §7 with what the calibration does
-// instead; run them with GCPIPE_CALIBRATE_MATRIX_ALL=1.
+// The combinations not already tested above (those stay where they are) that pass. Two more
+// fail today and are listed in stages/calibrate/README.md §7 with why (a measured profile);
+// run them with GCPIPE_CALIBRATE_MATRIX_ALL=1.
 INSTANTIATE_TEST_SUITE_P(
     EveryEffectOnEveryProgram, CalibrateMatrix,
     ::testing::Values(MatrixCase{"trochoid", "backlash"}, MatrixCase{"five_axis", "backlash"},
                       MatrixCase{"trochoid", "coulomb_friction"}, MatrixCase{"five_axis", "coulomb_friction"},
                       MatrixCase{"trochoid", "lead_error"}, MatrixCase{"five_axis", "lead_error"},
                       MatrixCase{"circle", "measurement_delay"}, MatrixCase{"five_axis", "measurement_delay"},
-                      MatrixCase{"circle", "torque_limit"}, MatrixCase{"five_axis", "torque_limit"}),
+                      MatrixCase{"circle", "torque_limit"}, MatrixCase{"five_axis", "torque_limit"},
+                      MatrixCase{"trochoid", "torque_limit"}, MatrixCase{"circle", "feedback_delay"},
+                      MatrixCase{"trochoid", "scale_error"}, MatrixCase{"circle_two_feeds", "scale_error"}),
     matrix_name);
 
 std::vector<MatrixCase> failing_today() {
   if (std::getenv("GCPIPE_CALIBRATE_MATRIX_ALL") == nullptr) return {};
-  return {{"circle", "feedback_delay"}, {"five_axis", "feedback_delay"}, {"circle", "scale_error"},
-          {"trochoid", "scale_error"}, {"trochoid", "torque_limit"}};
+  return {{"five_axis", "feedback_delay"}, {"circle", "scale_error"}};
 }
 GTEST_ALLOW_UNINSTANTIATED_PARAMETERIZED_TEST(CalibrateMatrix);
 INSTANTIATE_TEST_SUITE_P(KnownLimits, CalibrateMatrix, ::testing::ValuesIn(failing_today()), matrix_name);

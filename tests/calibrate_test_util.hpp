@@ -48,6 +48,15 @@ inline std::string circle_program() {
          "G4 X0.3\nM30\n";
 }
 
+/// The circle test as a shop runs it to tell dynamic errors from geometric ones: the same circle
+/// at two feeds (F1500, then F3000), one turn each way, at rest between the two. A drive's gain
+/// and lag change with the speed, a scale or other geometric error does not (README 7).
+inline std::string circle_two_feeds_program() {
+  return "G21 G17 G90 G94\nG0 X-20. Y0 Z0 A0 C0\nG1 X-20. Y0 F1500.\n"
+         "G2 X-20. Y0 I20. J0 F1500.\nG3 X-20. Y0 I20. J0\nG4 X0.5\n"
+         "G2 X-20. Y0 I20. J0 F3000.\nG3 X-20. Y0 I20. J0\nG4 X0.3\nM30\n";
+}
+
 /// Trochoidal slot along X: loops of radius 4 mm advancing 1.5 mm per loop, F2400.
 inline std::string trochoid_program() {
   std::ostringstream p;
@@ -101,6 +110,7 @@ inline Scenario make_scenario(const std::string& text) {
 }
 inline Scenario circle_scenario() { return make_scenario(circle_program()); }
 inline Scenario trochoid_scenario() { return make_scenario(trochoid_program()); }
+inline Scenario circle_two_feeds_scenario() { return make_scenario(circle_two_feeds_program()); }
 inline Scenario five_axis_scenario() { return make_scenario(five_axis_program()); }
 
 inline servo::EffectSettings effect(std::string type, std::vector<std::pair<std::string, double>> v) {
@@ -148,7 +158,7 @@ inline void print(const AxisIdentification& id) {
     std::cout << "  " << d.name << " config " << d.config << " fitted " << d.fitted << " +- " << d.sigma << (d.held ? " held: " + d.why : "") << "\n";
   for (const auto& c : id.candidates) {
     std::cout << "  round " << c.round << " " << c.effect << " BIC " << c.criterion_before << " -> " << c.criterion_after
-              << " heldout rms " << std::sqrt(c.heldout_before) << " -> " << std::sqrt(c.heldout_after) << " " << c.reason << " (" << c.seconds << " s):";
+              << " (evidence " << c.evidence << ") heldout rms " << std::sqrt(c.heldout_before) << " -> " << std::sqrt(c.heldout_after) << " " << c.reason << " (" << c.seconds << " s):";
     for (const auto& p : c.params) std::cout << " " << p.name << "=" << p.value << "+-" << p.sigma;
     std::cout << "\n";
   }

@@ -76,7 +76,7 @@ json score_json(int a, const CandidateScore& s) {
   json p = json::object();
   for (const auto& q : s.params) p[q.name] = {{"value", q.value}, {"unit", q.unit}, {"sigma", q.sigma}};
   return {{"axis", axis(a)}, {"name", s.effect}, {"parameters", p}, {"criterion_before", s.criterion_before},
-          {"criterion_after", s.criterion_after}, {"heldout_rms_before", std::sqrt(s.heldout_before)},
+          {"criterion_after", s.criterion_after}, {"evidence", s.evidence}, {"heldout_rms_before", std::sqrt(s.heldout_before)},
           {"heldout_rms_after", std::sqrt(s.heldout_after)}, {"round", s.round}, {"named", s.named},
           {"reason", s.reason}, {"seconds", s.seconds}};
 }
@@ -247,6 +247,7 @@ void report_axis(std::ostringstream& r, const Calibration& c, int a) {
       << (d.held ? "  (held: " + d.why + ")" : "") << "\n";
   for (const auto& s : id.candidates) {
     r << "  round " << s.round << " " << s.effect << ": BIC " << fixed(s.criterion_before, 1) << " -> " << fixed(s.criterion_after, 1)
+      << " (drop on the candidate's residual " << fixed(s.evidence, 1) << ")"
       << ", held-out rms " << fixed(std::sqrt(s.heldout_before) * 1000) << " -> " << fixed(std::sqrt(s.heldout_after) * 1000) << " um/mdeg; "
       << s.reason << ";";
     for (const auto& p : s.params) r << " " << p.name << " = " << num(p.value) << " +- " << num(p.sigma) << " " << p.unit;

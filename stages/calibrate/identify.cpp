@@ -239,6 +239,7 @@ void refit_declared(const Ctx& c, AxisIdentification& id) {
     // Hold only the worst one per pass: once it is fixed the others may separate well.
     DeclaredParam& d = id.declared[static_cast<std::size_t>(free[static_cast<std::size_t>(worst)])];
     d.held = true;
+    d.excitation_held = true;
     d.why = "not separable in this trace (noise-limited relative sigma " + std::to_string(worst_rel) + "): kept at the configured value";
     for (std::size_t i = 0; i < free.size(); ++i)
       if (static_cast<int>(i) != worst) keep.push_back(free[i]);
@@ -273,8 +274,10 @@ void refit_declared(const Ctx& c, AxisIdentification& id) {
   if (!id.refit_kept) {
     id.refit = id.config;
     id.pred_refit = id.pred_declared;
-    for (auto& d : id.declared)
+    for (auto& d : id.declared) {
       if (!d.held) { d.held = true; d.fitted = d.config; d.why = "refit did not pay (" + id.refit_note + ")"; }
+      d.excitation_held = false;  // the configured model stands: nothing for an effect to free
+    }
   }
 }
 
@@ -293,6 +296,8 @@ struct Trial {
   std::vector<FittedParam> params;
   bool significant = false;  //!< its size exceeds options.significance sigma
   std::vector<std::pair<double, double>> declared;  //!< free declared values, sigmas (joint fit)
+  std::vector<int> free;  //!< the declared slots `declared` refers to (empty: the round's free ones)
+  int refreed = 0;        //!< declared parameters the refit held that this fit frees (BIC's k)
   double seconds = 0;
 };
 
@@ -673,24 +678,69 @@ Trial fit_feedback_delay(const Ctx& c, const servo::DriveParams& base, double ta
   return t;
 }
 
+void take_joint_fit(const Ctx& c, Trial& t, const std::vector<int>& free, const std::vector<Ref>& refs, const LsqResult& fit);
+
+/// Torque limit jointly with the gains, then, when the limit is significant, also with the
+/// declared parameters the refit held as not separable (`refree`): the refit was done without
+/// the limit, and on saturated stretches the loop's gains do not act, so it bent some of them
+/// (Ta and C to nothing on the trochoid) and then held them; with the limit in the model they
+/// may be well determined. Each stays free only when this fit pins it down by the refit's own
+/// rule (noise-limited relative sigma <= 25 %, not bent below 5 % of its start), the worst
+/// dropped one at a time. (Only for a significant limit: on an axis without one the extra
+/// re-simulated fits would cost the time of a whole round on long traces.)
+void torque_limit_polish(const Ctx& c, Trial& t, const std::vector<int>& free, std::vector<int> refree,
+                         const std::vector<Ref>& refs, double tau) {
+  const auto& slots = declared_slots();
+  if (auto f = joint_fit(c, t.model, free, refs, true, tau)) take_joint_fit(c, t, free, refs, *f);
+  if (refree.empty() || !t.significant) return;
+  const servo::DriveParams start = t.model;
+  const std::size_t e = c.dynamic_end();
+  const double noise = std::max(c.s.noise, 1e-9), sse0 = c.sse(c.predict(start, e), c.s.begin, e);
+  while (!refree.empty()) {
+    std::vector<int> all = free;
+    all.insert(all.end(), refree.begin(), refree.end());
+    servo::DriveParams m = start;
+    const auto f = joint_fit(c, m, all, refs, true, tau);
+    if (!f || !(c.sse(c.predict(m, e), c.s.begin, e) < sse0)) return;  // nothing better with them free
+    int worst = -1;
+    double worst_rel = 0.25;
+    for (std::size_t i = free.size(); i < all.size(); ++i) {
+      const auto ii = static_cast<Eigen::Index>(i);
+      const double x = f->x[ii], x0 = start.*(slots[static_cast<std::size_t>(all[i])].field);
+      const double rel = noise * std::sqrt(std::max(f->jtj_inv(ii, ii), 0.0)) / std::max(x, 1e-12);
+      if (!(x > 0.05 * x0) || !std::isfinite(rel) || rel > worst_rel) { worst = static_cast<int>(i - free.size()); worst_rel = std::isfinite(rel) ? std::max(rel, worst_rel) : 1e300; }
+    }
+    if (worst >= 0) { refree.erase(refree.begin() + worst); continue; }
+    t.model = m;
+    t.refreed = static_cast<int>(refree.size());
+    return take_joint_fit(c, t, all, refs, *f);
+  }
+}
+
 /// Joint LM over the free declared parameters and the trial effect's continuous numbers, from
 /// the trial's own fit: an effect fitted on a model whose gains were refitted without it is
 /// biased (the gains absorb part of it), so the two are refitted together before scoring.
 /// Output effects need only the drive's exact path per evaluation; friction goes through its
-/// sensitivity; feedback_delay and torque_limit keep the gains of the round's start.
-void joint_polish(const Ctx& c, Trial& t, const std::vector<int>& free, double tau) {
+/// sensitivity; feedback_delay is profiled with the gains; torque_limit may free more (below).
+void joint_polish(const Ctx& c, Trial& t, const std::vector<int>& free, const std::vector<int>& refree, double tau) {
   std::vector<Ref> refs;
   for (const auto& k : continuous_keys(t.effect)) refs.emplace_back(t.effect, k);
   if (t.effect == "feedback_delay") return;  // profiled with the gains in fit_feedback_delay
-  const auto f = t.effect == "coulomb_friction" ? friction_polish(c, t, free, tau)
-                                                : joint_fit(c, t.model, free, refs, t.effect == "torque_limit", tau);
+  if (t.effect == "torque_limit") return torque_limit_polish(c, t, free, refree, refs, tau);
+  const auto f = t.effect == "coulomb_friction" ? friction_polish(c, t, free, tau) : joint_fit(c, t.model, free, refs, false, tau);
   if (!f) return;
+  take_joint_fit(c, t, free, refs, *f);
+}
+
+/// The trial's declared values, effect numbers and significance from a joint fit over `free`.
+void take_joint_fit(const Ctx& c, Trial& t, const std::vector<int>& free, const std::vector<Ref>& refs, const LsqResult& fit) {
+  t.free = free;
   const std::size_t nd = free.size();
   t.declared.clear();
-  for (std::size_t i = 0; i < nd; ++i) t.declared.emplace_back(f->x[static_cast<Eigen::Index>(i)], f->sigma[static_cast<Eigen::Index>(i)]);
+  for (std::size_t i = 0; i < nd; ++i) t.declared.emplace_back(fit.x[static_cast<Eigen::Index>(i)], fit.sigma[static_cast<Eigen::Index>(i)]);
   for (std::size_t i = 0; i < refs.size(); ++i)
     for (auto& p : t.params)
-      if (p.name == refs[i].second) { p.value = f->x[static_cast<Eigen::Index>(nd + i)]; p.sigma = f->sigma[static_cast<Eigen::Index>(nd + i)]; }
+      if (p.name == refs[i].second) { p.value = fit.x[static_cast<Eigen::Index>(nd + i)]; p.sigma = fit.sigma[static_cast<Eigen::Index>(nd + i)]; }
   const auto& size = t.params.front();
   if (t.effect == "torque_limit") {
     // Significant when the limit lies clearly below the torque the model asks for without it.
@@ -709,7 +759,7 @@ void joint_polish(const Ctx& c, Trial& t, const std::vector<int>& free, double t
 int parameter_count(const Trial& t) {
   int k = 0;
   for (const auto& p : t.params) k += p.sigma > 0 || p.name != "velocity_band";
-  return k;
+  return k + t.refreed;
 }
 
 /// Fits every catalogue effect not yet named on the axis, on the current model.
@@ -785,7 +835,7 @@ bool resimulated(const std::string& effect) { return is_dynamic_effect(effect) |
 
 /// Joint polish: every output effect (cheap: the drive's exact path per evaluation) and the
 /// re-simulated effect that explains most on its own (a few RK4 runs per parameter).
-void polish_trials(const Ctx& c, std::vector<Trial>& trials, const std::vector<int>& free, double tau) {
+void polish_trials(const Ctx& c, std::vector<Trial>& trials, const std::vector<int>& free, const std::vector<int>& refree, double tau) {
   std::vector<std::pair<double, std::size_t>> order;
   for (std::size_t i = 0; i < trials.size(); ++i) {
     const std::size_t e = resimulated(trials[i].effect) ? c.dynamic_end() : c.s.split;
@@ -798,7 +848,7 @@ void polish_trials(const Ctx& c, std::vector<Trial>& trials, const std::vector<i
     if (dyn && dynamic_done) continue;
     dynamic_done = dynamic_done || dyn;
     const auto t0 = std::chrono::steady_clock::now();
-    joint_polish(c, trials[i], free, tau);
+    joint_polish(c, trials[i], free, refree, tau);
     trials[i].seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
 }
@@ -808,6 +858,7 @@ struct RoundStart {
   const std::vector<double>& y0;
   double tau, b0, h0, noise2;
   int k, round;
+  bool at_noise = false;  //!< the start's fit mean square is already at the noise
 };
 
 /// Why a fitted effect cannot be the machine's: a parameter outside the range the servo registry
@@ -825,6 +876,34 @@ std::string outside_physical_range(const Trial& t) {
   return "";
 }
 
+/// Rule 1's evidence: the BIC drop from `y0` (k0 parameters) to `y1` (k1) on the fit samples up
+/// to `end`, both scored with N_eff = N / tau of the candidate's own residual. The round's
+/// starting residual is the effect itself when the effect is what the model lacks (a scale
+/// error's ramp has a correlation time of thousands of samples), so its tau would count a
+/// whole trace as a handful of samples; the residual the better model leaves is the honest
+/// measure of how many independent samples the comparison rests on.
+double bic_drop(const Ctx& c, const std::vector<double>& y0, const std::vector<double>& y1, std::size_t end, int k0, int k1) {
+  const std::size_t b = c.s.begin, n = end - b;
+  const Eigen::VectorXd r1 = c.residual(y1, b, end);
+  const double tau = correlation_time(std::span<const double>(r1.data(), static_cast<std::size_t>(r1.size())));
+  return bic(c.sse(y0, b, end), n, tau, k0) - bic(r1.squaredNorm(), n, tau, k1);
+}
+
+/// Rule 2 when the round starts at the noise (a refit that reached it): a 2 % relative gain is
+/// then out of reach by construction. With d = y1 - y0 on the held-out samples, the held-out
+/// gain SSE0 - SSE1 = 2 r1.d + |d|^2 has mean |d|^2 and sd 2 sigma |d| when y1 is right: the
+/// held-out part must agree with the candidate, a gain not below |d|^2 - 3 sd. Where the two
+/// models differ little on the held-out part it cannot veto (the fit part's BIC decides); where
+/// they differ much, the candidate must deliver most of what it predicts.
+bool heldout_agrees(const Ctx& c, const std::vector<double>& y0, const std::vector<double>& y1) {
+  const std::size_t b = c.s.split, e = c.n();
+  if (e <= b) return true;
+  double d2 = 0;
+  for (std::size_t k = b; k < e; ++k) d2 += (y1[k] - y0[k]) * (y1[k] - y0[k]);
+  const double gain = c.sse(y0, b, e) - c.sse(y1, b, e);
+  return gain >= d2 - 3 * 2 * c.s.noise * std::sqrt(d2);
+}
+
 /// Scores one trial against the round's start; fills `y` with its full prediction when it was
 /// computed (re-simulated effects on long traces are screened on their fit window first).
 CandidateScore score_trial(const Ctx& c, const Trial& t, const RoundStart& r, std::vector<double>& y) {
@@ -833,11 +912,13 @@ CandidateScore score_trial(const Ctx& c, const Trial& t, const RoundStart& r, st
   s.effect = t.effect;
   s.params = t.params;
   s.seconds = t.seconds;
+  const int k1 = r.k + parameter_count(t);
   const std::size_t we = c.dynamic_end();
   if (resimulated(t.effect) && we < c.s.split) {
+    const std::vector<double> yw = c.predict(t.model, we);
     const double bw0 = bic(c.sse(r.y0, c.s.begin, we), we - c.s.begin, r.tau, r.k);
-    const double bw1 = bic(c.sse(c.predict(t.model, we), c.s.begin, we), we - c.s.begin, r.tau, r.k + parameter_count(t));
-    if (!(bw1 < bw0 - c.o.bic_margin)) {
+    const double bw1 = bic(c.sse(yw, c.s.begin, we), we - c.s.begin, r.tau, k1);
+    if (!(bic_drop(c, r.y0, yw, we, r.k, k1) > c.o.bic_margin)) {
       s.criterion_before = bw0;
       s.criterion_after = bw1;
       s.heldout_before = s.heldout_after = r.h0;
@@ -847,13 +928,17 @@ CandidateScore score_trial(const Ctx& c, const Trial& t, const RoundStart& r, st
   }
   y = c.predict(t.model, c.n());
   s.criterion_before = r.b0;
-  s.criterion_after = bic(c.fit_sse(y), c.nfit(), r.tau, r.k + parameter_count(t));
+  s.criterion_after = bic(c.fit_sse(y), c.nfit(), r.tau, k1);
+  s.evidence = bic_drop(c, r.y0, y, c.s.split, r.k, k1);
   s.heldout_before = r.h0;
   s.heldout_after = c.heldout_mse(y);
-  const bool crit = s.criterion_after < r.b0 - c.o.bic_margin;
-  const bool held = c.s.split >= c.n() || s.heldout_after < r.h0 * (1 - c.o.heldout_gain);
+  const bool crit = s.evidence > c.o.bic_margin;
+  const bool held = c.s.split >= c.n() || s.heldout_after < r.h0 * (1 - c.o.heldout_gain) ||
+                    (r.at_noise && heldout_agrees(c, r.y0, y));
   const double excess = r.h0 - r.noise2;
-  const bool bulk = c.s.split >= c.n() || !(excess > 0) || (r.h0 - s.heldout_after) >= c.o.excess_explained * excess;
+  // At the noise the "excess above the noise" is below what the noise estimate resolves (its
+  // MAD-based sigma is good to about 1 %), so rule 4 has nothing to measure there.
+  const bool bulk = c.s.split >= c.n() || !(excess > 0) || r.at_noise || (r.h0 - s.heldout_after) >= c.o.excess_explained * excess;
   const std::string unphysical = outside_physical_range(t);
   s.reason = !crit ? "BIC does not drop by the margin"
              : !held ? "does not hold on the held-out part"
@@ -876,13 +961,19 @@ void accept(const Ctx& c, AxisIdentification& id, std::size_t start, std::size_t
     }
   id.named.push_back(id.candidates[at]);
   id.calibrated = t.model;
-  for (std::size_t i = 0; i < t.declared.size() && i < free.size(); ++i) {
-    id.declared[static_cast<std::size_t>(free[i])].fitted = t.declared[i].first;
-    id.declared[static_cast<std::size_t>(free[i])].sigma = t.declared[i].second;
+  const std::vector<int>& slots = t.free.empty() ? free : t.free;
+  for (std::size_t i = 0; i < t.declared.size() && i < slots.size(); ++i) {
+    DeclaredParam& d = id.declared[static_cast<std::size_t>(slots[i])];
+    if (d.held) { d.held = d.excitation_held = false; d.why.clear(); }  // separable with the effect
+    d.fitted = t.declared[i].first;
+    d.sigma = t.declared[i].second;
   }
   id.pred_calibrated = std::move(y);
   k += parameter_count(t);
-  repolish(c, id, free);
+  std::vector<int> now_free;  // the round's free slots and any the effect made separable
+  for (std::size_t i = 0; i < id.declared.size(); ++i)
+    if (!id.declared[i].held) now_free.push_back(static_cast<int>(i));
+  repolish(c, id, now_free);
 }
 
 /// One greedy round: scores every candidate and names the best that passes; false when none.
@@ -890,18 +981,31 @@ void accept(const Ctx& c, AxisIdentification& id, std::size_t start, std::size_t
 bool greedy_round(const Ctx& c, AxisIdentification& id, int round, int& k) {
   const std::vector<double> y0 = id.pred_calibrated;
   // Nothing left to explain: when the residual is already at the measurement noise, no effect
-  // can lower the held-out mean square by heldout_gain, so the round is not run.
+  // can lower the held-out mean square by heldout_gain, so the round is not run...
   const double noise2 = c.s.noise * c.s.noise;
-  if (noise2 > 0 && c.fit_sse(y0) / static_cast<double>(c.nfit()) <= noise2 / (1 - c.o.heldout_gain)) return false;
+  const bool at_noise = noise2 > 0 && c.fit_sse(y0) / static_cast<double>(c.nfit()) <= noise2 / (1 - c.o.heldout_gain);
+  // ...except right after a refit of the gains: fitted without the catalogue, the gains may have
+  // bent to mimic an effect down to the noise (a loop delay is extra feed-forward Kpp*d at low
+  // frequency). Each effect, fitted jointly with the gains, is then tested against that refit,
+  // rules 2 and 4 read at the noise (heldout_agrees; no excess to explain). Only when the refit
+  // saw every fit sample: on a long trace it is fitted on its window, and a candidate refitted
+  // with the gains on the whole fit part would win by the gains' own gain from the samples the
+  // refit never saw (about k * N_fit / N_window sigma^2: 28 sigma^2 for 4 gains on the 10-minute
+  // benchmark, where it named a 0.08 ms measurement delay on a clean Z).
+  const bool refit_saw_all = c.dynamic_end() >= c.s.split;
+  if (at_noise && !(round == 1 && id.refit_kept && refit_saw_all)) return false;
   const double tau = c.tau(y0);
-  const RoundStart r{y0, tau, bic(c.fit_sse(y0), c.nfit(), tau, k), c.heldout_mse(y0), noise2, k, round};
+  const RoundStart r{y0, tau, bic(c.fit_sse(y0), c.nfit(), tau, k), c.heldout_mse(y0), noise2, k, round, at_noise};
   std::vector<std::string> named;
   for (const auto& n : id.named) named.push_back(n.effect);
   std::vector<int> free;
   for (std::size_t i = 0; i < id.declared.size(); ++i)
     if (!id.declared[i].held) free.push_back(static_cast<int>(i));
+  std::vector<int> refree;  // held by the refit for want of excitation: a torque limit may free them
+  for (std::size_t i = 0; i < id.declared.size(); ++i)
+    if (id.declared[i].held && id.declared[i].excitation_held) refree.push_back(static_cast<int>(i));
   std::vector<Trial> trials = fit_catalogue(c, id.calibrated, y0, tau, named, id.config, free);
-  polish_trials(c, trials, free, tau);
+  polish_trials(c, trials, free, refree, tau);
   int best = -1;
   std::vector<double> best_pred, y;
   const std::size_t start = id.candidates.size();

@@ -61,6 +61,9 @@ struct DeclaredParam {
   double config = 0, fitted = 0, sigma = 0;
   bool held = false;   //!< kept at the configured value
   std::string why;     //!< why held
+  /// Held only because the refit, done without any effect, could not pin it down: a candidate
+  /// that changes the motion (a torque limit) may make it separable again.
+  bool excitation_held = false;
 };
 
 /// One catalogue candidate as scored in one greedy round.
@@ -68,7 +71,9 @@ struct CandidateScore {
   int round = 0;
   std::string effect;
   std::vector<FittedParam> params;
-  double criterion_before = 0, criterion_after = 0;    //!< BIC on the fit samples
+  double criterion_before = 0, criterion_after = 0;    //!< BIC on the fit samples (round's tau)
+  /// BIC drop with N_eff from the candidate's own residual: the gate of rule 1 (README 3.3).
+  double evidence = 0;
   double heldout_before = 0, heldout_after = 0;        //!< mean square on held-out samples
   bool named = false;
   std::string reason;  //!< why named or not
