@@ -133,6 +133,31 @@ TEST(Stream, WritesBatchModesBytesOnTheSamples) {
   EXPECT_TRUE(shm_of_domain(225).empty());
 }
 
+// Two pipelines at once, each on the domain its file names: neither sees the other's programs
+// and both write batch's bytes.
+TEST(Stream, TwoPipelinesOnOneHostStayApart) {
+  const fs::path dir = tmpdir("stream_two");
+  const std::vector<std::pair<std::string, int>> runs = {{"five_axis_demo.nc", 224}, {"tool_vector_demo.nc", 226}};
+  std::vector<pid_t> pids;
+  for (const auto& [sample, domain] : runs) {
+    const fs::path in = kSource / "samples" / sample;
+    const Outcome batch = gcpipe({"batch", in.string(), "-o", (dir / ("batch_" + sample)).string(), "--quiet"});
+    ASSERT_EQ(batch.status, 0) << batch.err;
+  }
+  for (const auto& [sample, domain] : runs)
+    pids.push_back(spawn_gcpipe({"stream", (kSource / "samples" / sample).string(), "-o", (dir / ("stream_" + sample)).string(),
+                                 "--domain", std::to_string(domain)},
+                                dir / (sample + ".out"), dir / (sample + ".err")));
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    const std::string& sample = runs[i].first;
+    SCOPED_TRACE(sample);
+    EXPECT_EQ(wait_exit(pids[i], 120), 0) << slurp(dir / (sample + ".err"));
+    for (const char* f : {"output.nc", "compensated.nc"})
+      EXPECT_TRUE(slurp(dir / ("stream_" + sample) / f) == slurp(dir / ("batch_" + sample) / f)) << f;
+    EXPECT_EQ(slurp(dir / (sample + ".err")).find("second writer"), std::string::npos);
+  }
+}
+
 TEST(Stream, APipelineWithoutTheForceNodeReadsTheToolpathDirectly) {
   const fs::path dir = tmpdir("stream_noforce");
   const fs::path in = kSource / "samples" / "five_axis_demo.nc";
