@@ -65,6 +65,10 @@ TEST(CalibrateIdentify, LeadErrorOnXCircle) {
 TEST(CalibrateIdentify, FeedbackDelayOnYTrochoid) {
   check_single(test::trochoid_scenario(), kY, test::effect("feedback_delay", {{"delay", 0.003}}));
 }
+// The five-axis move's X does not separate a loop delay from its gains (README 7); its Y does.
+TEST(CalibrateIdentify, FeedbackDelayOnYFiveAxis) {
+  check_single(test::five_axis_scenario(), kY, test::effect("feedback_delay", {{"delay", 0.003}}));
+}
 TEST(CalibrateIdentify, MeasurementDelayOnXTrochoid) {
   check_single(test::trochoid_scenario(), kX, test::effect("measurement_delay", {{"delay", 0.002}}));
 }
