@@ -40,6 +40,64 @@ TEST(ContourSearch, TrailingOnThePathIsNotAnErrorButLeavingItIs) {
   EXPECT_GT(worst_time_matched, 3.0);
 }
 
+// The minimum over segments [lo, hi) by measuring every one of them.
+double brute_force(const std::vector<Vec3>& pts, std::size_t lo, std::size_t hi, const Vec3& p) {
+  double best = 1e300;
+  for (std::size_t i = lo; i < hi; ++i) best = std::min(best, servo::segment_distance(pts[i], pts[i + 1], p));
+  return best;
+}
+
+// Streams `pts` into a search tick by tick and checks each tick's distance of `actual(k)` against
+// the brute-force minimum over the window, and that the closest point returned is that far away.
+template <class Actual>
+void expect_streaming_equals_brute_force(const std::vector<Vec3>& pts, Actual actual) {
+  simulate::ContourSearch search;
+  Vec3 c;
+  for (std::size_t k = 0; k < pts.size(); ++k) {
+    search.push(pts[k]);
+    if (k == 0) continue;
+    const Vec3 p = actual(k);
+    const double fast = search.distance(p, c);
+    const std::size_t lo = k > simulate::ContourSearch::kLookBack ? k - simulate::ContourSearch::kLookBack : 0;
+    ASSERT_EQ(fast, brute_force(pts, lo, k, p)) << "at tick " << k;
+    ASSERT_NEAR(simulate::dist3(c, p), fast, 1e-9) << "at tick " << k;
+  }
+}
+
+// Turns of a circle on top of each other within the window (the simulate benchmark's case: the
+// capsules of the other turns must not drop their nearest segments), the actual lagging and off
+// the path by up to 1.5 mm, inside and outside, and near the centre (every turn equally near).
+TEST(ContourSearch, EqualsBruteForceOnAMultiTurnCircle) {
+  const double R = 10, w = 5.0;  // 50 mm/s on R 10: 2.4 turns in the 3000-point window
+  std::vector<Vec3> pts;
+  for (int k = 0; k < 12000; ++k) pts.push_back({R * std::cos(w * k * kT), R * std::sin(w * k * kT), 0});
+  expect_streaming_equals_brute_force(pts, [&](std::size_t k) {
+    const double t = static_cast<double>(k) * kT - 0.03, r = R + 1.5 * std::sin(0.7 * static_cast<double>(k) * kT);
+    return Vec3{r * std::cos(w * t), r * std::sin(w * t), 0.0};
+  });
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> near_centre(-0.3, 0.3);
+  expect_streaming_equals_brute_force(pts, [&](std::size_t) { return Vec3{near_centre(rng), near_centre(rng), 0.0}; });
+}
+
+// A trochoid (loops that cross each other and the earlier loops) streamed tick by tick, the
+// actual trailing with noise, and points far from the path.
+TEST(ContourSearch, EqualsBruteForceOnATrochoidStreamed) {
+  std::vector<Vec3> pts;
+  for (int k = 0; k < 9000; ++k) {
+    const double t = k * 0.002;
+    pts.push_back({3 * std::cos(8 * t) + 0.8 * t, 3 * std::sin(8 * t), 0.01 * std::sin(t)});
+  }
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> noise(0.0, 0.3);
+  expect_streaming_equals_brute_force(pts, [&](std::size_t k) {
+    const Vec3& q = pts[k > 20 ? k - 20 : 0];
+    return Vec3{q[0] + noise(rng), q[1] + noise(rng), q[2] + 0.1 * noise(rng)};
+  });
+  std::uniform_real_distribution<double> anywhere(-20, 40);
+  expect_streaming_equals_brute_force(pts, [&](std::size_t) { return Vec3{anywhere(rng), anywhere(rng), anywhere(rng)}; });
+}
+
 // The box search returns the minimum over the window [limit - 3000, limit] exactly, on a
 // looping path (a trochoid-like curve) with random actual points near it.
 TEST(ContourSearch, EqualsBruteForceOverTheWindowOnALoopingPath) {

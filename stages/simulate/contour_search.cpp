@@ -43,19 +43,66 @@ void ContourSearch::Boxes::near(std::size_t a, std::size_t b, const Vec3& p, dou
                                            (lz[i] <= z0) & (hz[i] >= z1));
 }
 
+namespace {
+
+// A lower bound puts a group or a segment beyond the best match only when it exceeds it by this
+// much: far above the rounding of coordinates up to 10^5 mm, far below any distance that matters.
+// The tests stay conservative, so that the search still returns exactly the minimum.
+constexpr double kSlack = 1e-6;  // [mm]
+
+// |p - q|^2 > (reach + best + kSlack)^2: p is farther than best from every point within reach of q.
+bool beyond(const double (&pq)[3], double reach, double best) {
+  const double bound = reach + best + kSlack;
+  return pq[0] * pq[0] + pq[1] * pq[1] + pq[2] * pq[2] > bound * bound;
+}
+
+}  // namespace
+
+bool ContourSearch::Capsule::may_hold_closer(const Vec3& p, double best) const {
+  const double w[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
+  const double t = std::clamp((w[0] * d[0] + w[1] * d[1] + w[2] * d[2]) * inv_dd, 0.0, 1.0);
+  const double e[3] = {w[0] - t * d[0], w[1] - t * d[1], w[2] - t * d[2]};
+  return !beyond(e, radius, best);
+}
+
+bool ContourSearch::Ball::may_hold_closer(const Vec3& p, double best) const {
+  const double e[3] = {p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]};
+  return !beyond(e, half, best);
+}
+
+// The distance to the chord is convex along each segment, so the polyline's farthest point from
+// the chord is one of its vertices.
+void ContourSearch::close_group(std::size_t g) {
+  Capsule& c = capsules_[g - first_ / kGroup];
+  const Vec3& a = point(g * kGroup);
+  const Vec3& b = point((g + 1) * kGroup);
+  c.a = a;
+  c.d = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+  const double dd = c.d[0] * c.d[0] + c.d[1] * c.d[1] + c.d[2] * c.d[2];
+  c.inv_dd = dd > 0 ? 1 / dd : 0;
+  double radius_sq = 0, s = 0;
+  for (std::size_t i = g * kGroup + 1; i < (g + 1) * kGroup; ++i)
+    radius_sq = std::max(radius_sq, servo::segment_distance_sq(a, b, point(i), s));
+  c.radius = std::sqrt(radius_sq);
+}
+
 // Group g holds segments [g kGroup, (g + 1) kGroup), so its box holds points g kGroup ..
 // (g + 1) kGroup; a point that ends one group's last segment also starts the next group.
 void ContourSearch::push(const Vec3& p) {
   const std::size_t i = size();
   win_.push_back(p);
   if (i == 0) return;
+  const Vec3& u = point(i - 1);
+  balls_.push_back({{(u[0] + p[0]) / 2, (u[1] + p[1]) / 2, (u[2] + p[2]) / 2}, dist3(u, p) / 2});
   const std::size_t g = (i - 1) / kGroup;
   if (g - first_ / kGroup == boxes_.size()) {  // the first segment of a new group
     if (g % kGroupsPerSuper == 0) supers_.open(point(i - 1));
     boxes_.open(point(i - 1));
+    capsules_.emplace_back();
   }
   boxes_.grow(p);
   supers_.grow(p);
+  if (i % kGroup == 0) close_group(g);
   drop_old_points();
 }
 
@@ -68,30 +115,21 @@ void ContourSearch::drop_old_points() {
   const std::size_t new_first = (newest - kLookBack - kSuperSpan) / kSuperSpan * kSuperSpan;
   const std::size_t drop = new_first - first_;
   win_.erase(win_.begin(), win_.begin() + static_cast<std::ptrdiff_t>(drop));
+  balls_.erase(balls_.begin(), balls_.begin() + static_cast<std::ptrdiff_t>(drop));
   boxes_.drop_front(drop / kGroup);
+  capsules_.erase(capsules_.begin(), capsules_.begin() + static_cast<std::ptrdiff_t>(drop / kGroup));
   supers_.drop_front(drop / kSuperSpan);
   first_ = new_first;
 }
-
-namespace {
-
-// The segment's bounding box grown by `best` leaves p out along one axis: farther than `best`.
-bool outside_bounds(const Vec3& u, const Vec3& v, const Vec3& p, double best) {
-  for (int k = 0; k < 3; ++k)
-    if (p[k] < std::min(u[k], v[k]) - best || p[k] > std::max(u[k], v[k]) + best) return true;
-  return false;
-}
-
-}  // namespace
 
 // Squared distances (servo::segment_distance_sq, what segment_distance takes the root of): the
 // minimum is the same number, and the square root is taken once per better match.
 void ContourSearch::scan(std::size_t a, std::size_t b, const Vec3& p, Match& m) const {
   for (std::size_t i = a; i < b; ++i) {  // segments [a, b)
     if (i >= warm_a_ && i < warm_b_) continue;  // scanned by the warm start: no closer there
+    if (!balls_[i - first_].may_hold_closer(p, m.dist)) continue;  // no division for most segments
     const Vec3& u = point(i);
     const Vec3& v = point(i + 1);
-    if (outside_bounds(u, v, p, m.dist)) continue;  // no division for most segments of a group
     double s = 0;
     const double sq = servo::segment_distance_sq(u, v, p, s);
     if (sq < m.sq) m.sq = sq, m.s = s, m.segment = i, m.dist = std::sqrt(sq);
@@ -146,7 +184,7 @@ void ContourSearch::scan_super(std::size_t sg, std::size_t lo, std::size_t hi, c
   if (ga >= gb) return;
   boxes_.near(ga - g0, gb - g0, p, m.dist, hit);
   for (std::size_t g = ga; g < gb; ++g)
-    if (hit[g - ga] && boxes_.distance_sq(g - g0, p) < m.sq)
+    if (hit[g - ga] && boxes_.distance_sq(g - g0, p) < m.sq && capsules_[g - g0].may_hold_closer(p, m.dist))
       scan(std::max(lo, g * kGroup), std::min(hi, (g + 1) * kGroup), p, m);
 }
 
