@@ -140,6 +140,11 @@ struct StreamArgs : LaunchArgs {
   std::string input, output;
 };
 int run_stream(const StreamArgs& args);
+
+/// Runs the DDS command `name` (feed, node, sink, monitor, launch, stream; `args` its *Args) from
+/// the plugin gcpipe_dds_commands.so beside the executable, which defines the run_* above: the
+/// other commands do not load Fast DDS. Throws std::runtime_error when the plugin cannot be loaded.
+int run_dds_command(const char* name, const void* args);
 #endif
 
 }  // namespace gcpipe::cli

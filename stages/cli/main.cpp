@@ -335,13 +335,13 @@ int main(int argc, char** argv) {
     if (name == "train-ik") return run_train_ik(train_ik);
     if (name == "synth") return run_synth(synth);
 #ifdef GCPIPE_WITH_DDS
-    if (name == "feed") return run_feed(feed);
-    if (name == "node") return run_node(node);
-    if (name == "sink") return run_sink(sink);
-    if (name == "report-sink") return run_report_sink(report_sink);
-    if (name == "monitor") return run_monitor(monitor);
-    if (name == "launch") return run_launch(launch);
-    if (name == "stream") return run_stream(stream);
+    if (name == "feed") return run_dds_command("feed", &feed);
+    if (name == "node") return run_dds_command("node", &node);
+    if (name == "sink") return run_dds_command("sink", &sink);
+    if (name == "report-sink") return run_dds_command("report-sink", &report_sink);
+    if (name == "monitor") return run_dds_command("monitor", &monitor);
+    if (name == "launch") return run_dds_command("launch", &launch);
+    if (name == "stream") return run_dds_command("stream", &stream);
 #endif
   } catch (const std::exception& e) {
     // A long step polls for SIGINT/SIGTERM through its progress callback, which throws.
