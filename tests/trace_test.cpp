@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 #include <sstream>
 
 #include "trace.hpp"
@@ -56,6 +57,29 @@ TEST(Trace, WritesTheExactHeaderAndRoundTripsEveryDouble) {
     EXPECT_EQ(row.actual, expected.actual);
   }
   EXPECT_EQ(r.next(row, d), TraceStatus::kEnd);
+}
+
+// The formatter that reuses a repeated column's text writes the bytes of append_trace_row, row
+// by row: columns that change, stay, return to an earlier value, 0 and -0, denormals, extremes.
+TEST(Trace, RowFormatterWritesTheBytesOfAppendTraceRow) {
+  std::mt19937_64 rng(3);
+  std::uniform_int_distribution<int> pick(0, 7);
+  const double specials[] = {0.0, -0.0, 1.6e-322, -1e300, 5e-324, 1.0 / 3.0, 123.456, 2.5};
+  TraceRowFormatter format;
+  std::string fast, plain;
+  TraceRow r;
+  for (int k = 0; k < 5000; ++k) {
+    r.t = k * 0.001;
+    for (std::size_t i = 0; i < 5; ++i) {
+      if (pick(rng) < 3) r.command[i] = specials[static_cast<std::size_t>(pick(rng))];  // else it stays
+      if (pick(rng) < 2) r.actual[i] = std::sin(k * 0.01 + static_cast<double>(i)) * 50;
+    }
+    format.append(fast, r);
+    fast += '\n';
+    append_trace_row(plain, r);
+    plain += '\n';
+  }
+  EXPECT_EQ(fast, plain);
 }
 
 TEST(Trace, RejectsDamagedRowsWithLineColumnAndReason) {

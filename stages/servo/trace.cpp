@@ -1,5 +1,7 @@
 #include "trace.hpp"
 
+#include <algorithm>
+#include <bit>
 #include <charconv>
 #include <cmath>
 
@@ -42,6 +44,24 @@ void append_trace_row(std::string& s, const TraceRow& r) {
     s += ',';
     append_number(s, v);
   }
+}
+
+void TraceRowFormatter::append(std::string& s, const TraceRow& r) {
+  append_time(s, r.t);
+  char row[2 * kNumAxes * (1 + sizeof Column::text)];
+  char* p = row;
+  for (std::size_t i = 0; i < 2 * kNumAxes; ++i) {
+    const double v = i < kNumAxes ? r.command[i] : r.actual[i - kNumAxes];
+    Column& c = columns_[i];
+    const auto bits = std::bit_cast<std::uint64_t>(v);
+    if (c.size == 0 || c.bits != bits) {
+      c.bits = bits;
+      c.size = static_cast<std::uint8_t>(std::to_chars(c.text, c.text + sizeof c.text, v).ptr - c.text);
+    }
+    *p++ = ',';
+    p = std::copy_n(c.text, c.size, p);
+  }
+  s.append(row, static_cast<std::size_t>(p - row));
 }
 
 TraceWriter::TraceWriter(std::ostream& out) : out_(out) { out_ << kTraceHeader << '\n'; }

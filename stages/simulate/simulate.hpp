@@ -303,7 +303,8 @@ struct RunBounds {
   double max_machine_time = 3600;    //!< [s]
   /// Keep the nominal run (raw samples, segments, re-timed reference, tracking error) for the
   /// report and the compensation. Without it the run is evaluated as it streams, in memory
-  /// bounded by the contour window: what `gcpipe simulate` needs for its trace.
+  /// bounded by the contour window: what `gcpipe simulate` needs for its trace. Nor are the
+  /// figures' series gathered then (Evaluation::series stays empty).
   bool record_nominal = true;
 };
 
