@@ -65,11 +65,6 @@ bool ContourSearch::Capsule::may_hold_closer(const Vec3& p, double best) const {
   return !beyond(e, radius, best);
 }
 
-bool ContourSearch::Ball::may_hold_closer(const Vec3& p, double best) const {
-  const double e[3] = {p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]};
-  return !beyond(e, half, best);
-}
-
 // The distance to the chord is convex along each segment, so the polyline's farthest point from
 // the chord is one of its vertices.
 void ContourSearch::close_group(std::size_t g) {
@@ -91,9 +86,8 @@ void ContourSearch::close_group(std::size_t g) {
 void ContourSearch::push(const Vec3& p) {
   const std::size_t i = size();
   win_.push_back(p);
+  for (int k = 0; k < 3; ++k) coord_[k].push_back(p[k]);
   if (i == 0) return;
-  const Vec3& u = point(i - 1);
-  balls_.push_back({{(u[0] + p[0]) / 2, (u[1] + p[1]) / 2, (u[2] + p[2]) / 2}, dist3(u, p) / 2});
   const std::size_t g = (i - 1) / kGroup;
   if (g - first_ / kGroup == boxes_.size()) {  // the first segment of a new group
     if (g % kGroupsPerSuper == 0) supers_.open(point(i - 1));
@@ -115,24 +109,42 @@ void ContourSearch::drop_old_points() {
   const std::size_t new_first = (newest - kLookBack - kSuperSpan) / kSuperSpan * kSuperSpan;
   const std::size_t drop = new_first - first_;
   win_.erase(win_.begin(), win_.begin() + static_cast<std::ptrdiff_t>(drop));
-  balls_.erase(balls_.begin(), balls_.begin() + static_cast<std::ptrdiff_t>(drop));
+  for (auto& c : coord_) c.erase(c.begin(), c.begin() + static_cast<std::ptrdiff_t>(drop));
   boxes_.drop_front(drop / kGroup);
   capsules_.erase(capsules_.begin(), capsules_.begin() + static_cast<std::ptrdiff_t>(drop / kGroup));
   supers_.drop_front(drop / kSuperSpan);
   first_ = new_first;
 }
 
-// Squared distances (servo::segment_distance_sq, what segment_distance takes the root of): the
-// minimum is the same number, and the square root is taken once per better match.
+// Squared distances (what servo::segment_distance takes the root of): the minimum is the same
+// number, and the square root is taken once per better match. The segments are measured side by
+// side, then taken in order: the first strictly nearer one wins, as in a scan one by one. A
+// segment measured twice (the warm start's) gives the same number again and changes nothing.
 void ContourSearch::scan(std::size_t a, std::size_t b, const Vec3& p, Match& m) const {
-  for (std::size_t i = a; i < b; ++i) {  // segments [a, b)
-    if (i >= warm_a_ && i < warm_b_) continue;  // scanned by the warm start: no closer there
-    if (!balls_[i - first_].may_hold_closer(p, m.dist)) continue;  // no division for most segments
-    const Vec3& u = point(i);
-    const Vec3& v = point(i + 1);
-    double s = 0;
-    const double sq = servo::segment_distance_sq(u, v, p, s);
-    if (sq < m.sq) m.sq = sq, m.s = s, m.segment = i, m.dist = std::sqrt(sq);
+  constexpr std::size_t kBatch = 16;
+  double sq[kBatch], s[kBatch];
+  for (std::size_t from = a; from < b; from += kBatch) {
+    const std::size_t n = std::min(kBatch, b - from);
+    measure(from, n, p, sq, s);
+    for (std::size_t k = 0; k < n; ++k)
+      if (sq[k] < m.sq) m.sq = sq[k], m.s = s[k], m.segment = from + k, m.dist = std::sqrt(sq[k]);
+  }
+}
+
+// Segments a .. a+n-1 (global index), servo::segment_distance_sq's arithmetic in its order on
+// each: the same doubles, computed two or four at a time from the arrays per axis.
+void ContourSearch::measure(std::size_t a, std::size_t n, const Vec3& p, double* sq, double* s) const {
+  const double* x = coord_[0].data() + (a - first_);
+  const double* y = coord_[1].data() + (a - first_);
+  const double* z = coord_[2].data() + (a - first_);
+  for (std::size_t k = 0; k < n; ++k) {
+    const double d0 = x[k + 1] - x[k], d1 = y[k + 1] - y[k], d2 = z[k + 1] - z[k];
+    const double w0 = p[0] - x[k], w1 = p[1] - y[k], w2 = p[2] - z[k];
+    const double dd = d0 * d0 + d1 * d1 + d2 * d2;
+    const double t = std::clamp(dd > 0 ? (w0 * d0 + w1 * d1 + w2 * d2) / dd : 0.0, 0.0, 1.0);
+    const double e0 = w0 - t * d0, e1 = w1 - t * d1, e2 = w2 - t * d2;
+    sq[k] = e0 * e0 + e1 * e1 + e2 * e2;
+    s[k] = t;
   }
 }
 
@@ -148,11 +160,7 @@ double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& clos
   Match m;
   // Start near the previous match: a tight bound makes the box test skip most groups. The match
   // moves about one segment per tick, as the nominal does.
-  warm_a_ = warm_b_ = 0;
-  if (j_ >= lo && j_ < hi) {
-    scan(j_ > lo + 2 ? j_ - 2 : lo, std::min(hi, j_ + 8), actual, m);
-    warm_a_ = j_ > lo + 2 ? j_ - 2 : lo, warm_b_ = std::min(hi, j_ + 8);
-  }
+  if (j_ >= lo && j_ < hi) scan(j_ > lo + 2 ? j_ - 2 : lo, std::min(hi, j_ + 8), actual, m);
   // Two levels of boxes: a group of 8 segments, a super-group of 64; a box farther than the best
   // match so far cannot hold a closer segment. All super-groups of the window are tested at once
   // against the bound of the warm start; those near enough, and their groups, again against the

@@ -81,13 +81,13 @@ RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, 
 /// the actual trails the nominal by the acc/dec and servo lag (tens of ms), far less than the
 /// window. Segments are grouped in two levels of bounding boxes, so that most of the window is
 /// skipped once a good match is known. A group that passes its box is tested once more against
-/// its capsule (the chord from its first to its last point, thickened to hold every point), and
-/// each of its segments against its ball (centre and half length) before it is measured: on a
-/// curve both are far tighter than boxes, so where the turns of a loop lie on top of each other
-/// (the simulate benchmark's circles) only the segments beside the nearest point of each turn
-/// are measured. Every test is a lower bound with a margin: the result is exactly the minimum
-/// over the window, the same double as measuring every segment. The distance is to the path, not to the time-matched
-/// point: an axis that trails in time on the path has no contour error.
+/// its capsule (the chord from its first to its last point, thickened to hold every point): on a
+/// curve far tighter than a box, so where the turns of a loop lie on top of each other (the
+/// simulate benchmark's circles) only the groups beside the nearest point of each turn are
+/// measured, their segments side by side (vectorised). Every test is a lower bound with a margin:
+/// the result is exactly the minimum over the window, the same double as measuring every segment.
+/// The distance is to the path, not to the time-matched point: an axis that trails in time on the
+/// path has no contour error.
 ///
 /// The search holds only a sliding window of the polyline (about 2 kLookBack points), so a
 /// streaming simulation needs memory for the window, not for the program: points are pushed as
@@ -134,12 +134,6 @@ class ContourSearch {
     double radius = std::numeric_limits<double>::infinity();  //!< [mm]
     bool may_hold_closer(const Vec3& p, double best) const;
   };
-  /// The points of a segment lie within `half` (its half length) of its midpoint.
-  struct Ball {
-    Vec3 centre{};
-    double half = 0;  //!< [mm]
-    bool may_hold_closer(const Vec3& p, double best) const;
-  };
   struct Match {
     double sq = 1e300, dist = 1e300;  //!< squared distance and distance [mm^2, mm]
     double s = 0;                     //!< along the segment, 0..1
@@ -150,18 +144,18 @@ class ContourSearch {
   void drop_old_points();
   void close_group(std::size_t g);  //!< group g (global index) got its last point: its capsule
   void scan(std::size_t a, std::size_t b, const Vec3& p, Match& m) const;
+  void measure(std::size_t a, std::size_t n, const Vec3& p, double* sq, double* s) const;
   double finish(const Match& m, Vec3& closest);  //!< remembers the match, returns its distance
   void scan_super(std::size_t sg, std::size_t lo, std::size_t hi, const Vec3& p, Match& m) const;
 
   const std::vector<Vec3>* source_ = nullptr;
   std::vector<Vec3> win_;          //!< points first_ .. size()-1
   std::size_t first_ = 0;          //!< global index of win_[0]; a multiple of kSuperSpan
-  std::vector<Ball> balls_;        //!< per segment, from segment first_
+  std::array<std::vector<double>, 3> coord_;  //!< the points again, one array per axis (scan)
   Boxes boxes_, supers_;           //!< from group first_ / kGroup, super-group first_ / kSuperSpan
   std::vector<Capsule> capsules_;  //!< per group, as boxes_
   std::vector<std::uint8_t> hit_;  //!< scratch of Boxes::near
   std::size_t j_ = 0;              //!< segment of the previous match (global index)
-  std::size_t warm_a_ = 0, warm_b_ = 0;  //!< segments the warm start scanned this call
 };
 
 /// Joints at which the machine starts, at rest, for the program's first moving block: where the
