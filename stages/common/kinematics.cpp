@@ -1,7 +1,9 @@
 #include "gcpipe/kinematics.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <numbers>
 
@@ -101,12 +103,31 @@ ToolPose forward_kinematics(const MachineKinematics& m, const Axes& j) {
 // the A pivot a = c + (0, dy, dz) that is p; the cradle turned the table by Rx(theta_A) about a,
 // so in the cradle the tip is a + Rx(-theta_A) p; the C table turned by Rz(theta_C) about c, so
 // in the workpiece w = c + Rz(-theta_C) ((0, dy, dz) + Rx(-theta_A) p).
+namespace {
+
+// sin and cos of one rotary axis's angle, kept from the previous call on this thread: the rotary
+// axes stand still for long stretches (a three-axis program never turns them), and glibc's sin
+// and cos cost more than the rest of the kinematics (they switch the rounding mode on each call);
+// the simulation calls this twice per tick. The same angle, bit for bit, gives the same values.
+struct SinCos {
+  double angle = 0, s = 0, c = 1;  // sin 0 and cos 0
+  const SinCos& of(double a) {
+    if (std::bit_cast<std::uint64_t>(a) != std::bit_cast<std::uint64_t>(angle)) *this = {a, std::sin(a), std::cos(a)};
+    return *this;
+  }
+};
+
+}  // namespace
+
 ToolPose forward_kinematics(const MachineKinematics& m, const Axes& j, double tool_length) {
   const double s = rotation_sign(m);
   const double ta = s * j[kA] * kDegToRad;
   const double tc = s * j[kC] * kDegToRad;
-  const double ca = std::cos(ta), sa = std::sin(ta);
-  const double cc = std::cos(tc), sc = std::sin(tc);
+  thread_local SinCos a_memo, c_memo;
+  const SinCos& a = a_memo.of(ta);
+  const SinCos& c = c_memo.of(tc);
+  const double ca = a.c, sa = a.s;
+  const double cc = c.c, sc = c.s;
   const double px = j[kX] - m.c_centre[0];
   const double py = j[kY] - m.c_centre[1] - m.a_offset_y;
   const double pz = j[kZ] - tool_length - m.c_centre[2] - m.a_offset_z;
