@@ -50,6 +50,12 @@ namespace {
 // The tests stay conservative, so that the search still returns exactly the minimum.
 constexpr double kSlack = 1e-6;  // [mm]
 
+constexpr double kUnknown = -std::numeric_limits<double>::infinity();  // a bound not measured yet
+
+// The motion is summed from 0 again after this much [mm], every bound forgotten: the sum's
+// rounding stays far below kSlack.
+constexpr double kRebase = 1000;
+
 // |p - q|^2 > (reach + best + kSlack)^2: p is farther than best from every point within reach of q.
 bool beyond(const double (&pq)[3], double reach, double best) {
   const double bound = reach + best + kSlack;
@@ -90,12 +96,13 @@ void ContourSearch::push(const Vec3& p) {
   if (i == 0) return;
   const std::size_t g = (i - 1) / kGroup;
   if (g - first_ / kGroup == boxes_.size()) {  // the first segment of a new group
-    if (g % kGroupsPerSuper == 0) supers_.open(point(i - 1));
+    if (g % kGroupsPerSuper == 0) supers_.open(point(i - 1)), super_far_.push_back(kUnknown);
     boxes_.open(point(i - 1));
     capsules_.emplace_back();
   }
   boxes_.grow(p);
   supers_.grow(p);
+  super_far_.back() = kUnknown;
   if (i % kGroup == 0) close_group(g);
   drop_old_points();
 }
@@ -113,6 +120,7 @@ void ContourSearch::drop_old_points() {
   boxes_.drop_front(drop / kGroup);
   capsules_.erase(capsules_.begin(), capsules_.begin() + static_cast<std::ptrdiff_t>(drop / kGroup));
   supers_.drop_front(drop / kSuperSpan);
+  super_far_.erase(super_far_.begin(), super_far_.begin() + static_cast<std::ptrdiff_t>(drop / kSuperSpan));
   first_ = new_first;
 }
 
@@ -148,6 +156,16 @@ void ContourSearch::measure(std::size_t a, std::size_t n, const Vec3& p, double*
   }
 }
 
+// Each step is rounded up (relative and absolute) so that the sum never falls short of the path
+// the actual took: an earlier bound less the motion since stays a bound.
+void ContourSearch::add_motion(const Vec3& actual) {
+  if (last_actual_) motion_ += dist3(*last_actual_, actual) * (1 + 1e-12) + 1e-12;
+  last_actual_ = actual;
+  if (motion_ <= kRebase) return;
+  motion_ = 0;
+  std::fill(super_far_.begin(), super_far_.end(), kUnknown);
+}
+
 double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& closest) {
   if (source_ != nullptr) {  // take the whole polyline's points up to the last segment's end
     const std::size_t want = std::min(std::max<std::size_t>(limit, 1) + 1, source_->size());
@@ -157,21 +175,22 @@ double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& clos
   if (size() < 2) return win_.empty() ? 0.0 : dist3(win_.front(), actual);
   const std::size_t hi = std::min(std::max<std::size_t>(limit, 1), size() - 1);  // last segment end
   const std::size_t lo = std::max(first_, hi > kLookBack ? hi - kLookBack : 0);
+  add_motion(actual);
   Match m;
   // Start near the previous match: a tight bound makes the box test skip most groups. The match
   // moves about one segment per tick, as the nominal does.
   if (j_ >= lo && j_ < hi) scan(j_ > lo + 2 ? j_ - 2 : lo, std::min(hi, j_ + 8), actual, m);
   // Two levels of boxes: a group of 8 segments, a super-group of 64; a box farther than the best
-  // match so far cannot hold a closer segment. All super-groups of the window are tested at once
-  // against the bound of the warm start; those near enough, and their groups, again against the
-  // best match so far.
+  // match so far cannot hold a closer segment. A super-group whose earlier distance, less the
+  // motion since, still exceeds the best match is passed over; the others are measured again.
   const std::size_t s0 = first_ / kSuperSpan;
   const std::size_t sa = lo / kSuperSpan - s0, sb = std::min(supers_.size(), (hi + kSuperSpan - 1) / kSuperSpan - s0);
-  if (sa >= sb) return finish(m, closest);
-  hit_.resize(sb - sa);
-  supers_.near(sa, sb, actual, m.dist, hit_.data());
-  for (std::size_t k = sa; k < sb; ++k)
-    if (hit_[k - sa] && supers_.distance_sq(k, actual) < m.sq) scan_super(k + s0, lo, hi, actual, m);
+  for (std::size_t k = sa; k < sb; ++k) {
+    if (super_far_[k] - motion_ > m.dist + kSlack) continue;
+    const double sq = supers_.distance_sq(k, actual);
+    super_far_[k] = std::sqrt(sq) + motion_;
+    if (sq < m.sq) scan_super(k + s0, lo, hi, actual, m);
+  }
   return finish(m, closest);
 }
 

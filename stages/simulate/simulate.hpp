@@ -84,7 +84,9 @@ RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, 
 /// its capsule (the chord from its first to its last point, thickened to hold every point): on a
 /// curve far tighter than a box, so where the turns of a loop lie on top of each other (the
 /// simulate benchmark's circles) only the groups beside the nearest point of each turn are
-/// measured, their segments side by side (vectorised). Every test is a lower bound with a margin:
+/// measured, their segments side by side (vectorised). A super-group's distance, once measured,
+/// bounds it while the actual moves (less the distance moved), so that each tick measures only the
+/// super-groups the actual may have come near. Every test is a lower bound with a margin:
 /// the result is exactly the minimum over the window, the same double as measuring every segment.
 /// The distance is to the path, not to the time-matched point: an axis that trails in time on the
 /// path has no contour error.
@@ -142,6 +144,7 @@ class ContourSearch {
   static constexpr std::size_t kSuperSpan = kGroup * kGroupsPerSuper;
   const Vec3& point(std::size_t i) const { return win_[i - first_]; }
   void drop_old_points();
+  void add_motion(const Vec3& actual);
   void close_group(std::size_t g);  //!< group g (global index) got its last point: its capsule
   void scan(std::size_t a, std::size_t b, const Vec3& p, Match& m) const;
   void measure(std::size_t a, std::size_t n, const Vec3& p, double* sq, double* s) const;
@@ -154,7 +157,13 @@ class ContourSearch {
   std::array<std::vector<double>, 3> coord_;  //!< the points again, one array per axis (scan)
   Boxes boxes_, supers_;           //!< from group first_ / kGroup, super-group first_ / kSuperSpan
   std::vector<Capsule> capsules_;  //!< per group, as boxes_
-  std::vector<std::uint8_t> hit_;  //!< scratch of Boxes::near
+  /// Per super-group, as supers_: its box's distance from the actual when last measured plus
+  /// motion_ then (-inf: not measured since the box grew). Less the motion since, still a lower
+  /// bound (the triangle inequality): a far super-group is passed over with one comparison until
+  /// the actual has moved far enough to come near it.
+  std::vector<double> super_far_;
+  double motion_ = 0;  //!< [mm] path of the actual since the last rebase, rounded up
+  std::optional<Vec3> last_actual_;
   std::size_t j_ = 0;              //!< segment of the previous match (global index)
 };
 
