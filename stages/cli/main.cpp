@@ -269,6 +269,40 @@ void add_stream(CLI::App& app, StreamArgs& a) {
 }
 #endif
 
+#ifdef GCPIPE_WITH_DDS
+// The streaming commands' options; they run in the plugin (dds_loader.cpp).
+struct DdsCommands {
+  FeedArgs feed;
+  NodeArgs node;
+  SinkArgs sink;
+  ReportSinkArgs report_sink;
+  MonitorArgs monitor;
+  LaunchArgs launch;
+  StreamArgs stream;
+  /// The options of the DDS command `name`, or null for any other command.
+  const void* args_of(const std::string& name) const {
+    if (name == "feed") return &feed;
+    if (name == "node") return &node;
+    if (name == "sink") return &sink;
+    if (name == "report-sink") return &report_sink;
+    if (name == "monitor") return &monitor;
+    if (name == "launch") return &launch;
+    if (name == "stream") return &stream;
+    return nullptr;
+  }
+};
+
+void add_dds_commands(CLI::App& app, DdsCommands& d) {
+  add_feed(app, d.feed);
+  add_node(app, d.node);
+  add_sink(app, d.sink);
+  add_report_sink(app, d.report_sink);
+  add_monitor(app, d.monitor);
+  add_launch(app, d.launch);
+  add_stream(app, d.stream);
+}
+#endif
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -301,20 +335,8 @@ int main(int argc, char** argv) {
   add_train_ik(app, train_ik);
   add_synth(app, synth);
 #ifdef GCPIPE_WITH_DDS
-  FeedArgs feed;
-  NodeArgs node;
-  SinkArgs sink;
-  ReportSinkArgs report_sink;
-  MonitorArgs monitor;
-  add_feed(app, feed);
-  add_node(app, node);
-  add_sink(app, sink);
-  add_report_sink(app, report_sink);
-  add_monitor(app, monitor);
-  LaunchArgs launch;
-  StreamArgs stream;
-  add_launch(app, launch);
-  add_stream(app, stream);
+  DdsCommands dds;
+  add_dds_commands(app, dds);
 #endif
   try {
     app.parse(argc, argv);
@@ -335,13 +357,7 @@ int main(int argc, char** argv) {
     if (name == "train-ik") return run_train_ik(train_ik);
     if (name == "synth") return run_synth(synth);
 #ifdef GCPIPE_WITH_DDS
-    if (name == "feed") return run_dds_command("feed", &feed);
-    if (name == "node") return run_dds_command("node", &node);
-    if (name == "sink") return run_dds_command("sink", &sink);
-    if (name == "report-sink") return run_dds_command("report-sink", &report_sink);
-    if (name == "monitor") return run_dds_command("monitor", &monitor);
-    if (name == "launch") return run_dds_command("launch", &launch);
-    if (name == "stream") return run_dds_command("stream", &stream);
+    if (const void* args = dds.args_of(name)) return run_dds_command(name.c_str(), args);
 #endif
   } catch (const std::exception& e) {
     // A long step polls for SIGINT/SIGTERM through its progress callback, which throws.
