@@ -2,17 +2,13 @@
 // prints are the simulate stage's, the same harness and contour metric as batch's report.json.
 #include <charconv>
 #include <cmath>
-#include <condition_variable>
 #include <cstdio>
-#include <deque>
-#include <exception>
 #include <iostream>
-#include <mutex>
-#include <thread>
 #include <numbers>
 #include <sstream>
 
 #include "circle.hpp"
+#include "gcpipe/chunked_worker.hpp"
 #include "commands.hpp"
 #include "program_run.hpp"
 #include "simulate_stage.hpp"
@@ -68,94 +64,37 @@ class TickReport {
 
 // The trace formatted and written on a second thread: shortest round-trip doubles and the kernel's
 // page cache cost about half as much as the simulation itself, and on two cores the two run side
-// by side. Rows go over in chunks through a short queue (bounded memory: the simulation waits when
-// the writer is four chunks behind); the bytes are those of append_trace_row, row by row
-// (TraceRowFormatter). The writer hands each chunk back once written and the simulation fills it
-// again: a fresh chunk per hand-over cost the simulation thread a page fault per 4 KiB of rows
-// (about 1 100 on the benchmark, some 10 us each on the VM measured).
+// by side (gcpipe/chunked_worker.hpp: the simulation waits when the writer is four chunks of 1024
+// rows behind). The bytes are those of append_trace_row, row by row (TraceRowFormatter).
 class BackgroundTrace {
  public:
-  explicit BackgroundTrace(const std::string& path) : file_(path), worker_([this] { run(); }) {
-    chunk_.reserve(kChunk);
+  explicit BackgroundTrace(const std::string& path)
+      : file_(path), buf_(std::string(kTraceHeader) + "\n"),
+        rows_(1024, 4, [this](const std::vector<TraceRow>& rows) { write(rows); }) {
+    buf_.reserve((1u << 20) + 64 * 1024);  // AtomicFile writes at 1 MiB: the buffer never grows
   }
-  ~BackgroundTrace() { stop(); }
-  BackgroundTrace(const BackgroundTrace&) = delete;
-  BackgroundTrace& operator=(const BackgroundTrace&) = delete;
 
-  void add(double t, const Axes& command, const Axes& actual) {
-    chunk_.push_back(TraceRow{t, command, actual});
-    if (chunk_.size() == kChunk) hand_over();
-  }
+  void add(double t, const Axes& command, const Axes& actual) { rows_.push(TraceRow{t, command, actual}); }
   /// Writes what is left and renames the file to its final name; rethrows a write error.
   void commit() {
-    hand_over();
-    stop();
-    if (error_) std::rethrow_exception(error_);
+    rows_.finish();  // the writer thread has ended: buf_ and file_ are this thread's again
+    file_.write(buf_, true);
     file_.commit();
   }
 
  private:
-  static constexpr std::size_t kChunk = 1024, kQueued = 4;
-
-  void hand_over() {
-    std::unique_lock lock(mutex_);
-    room_.wait(lock, [&] { return queue_.size() < kQueued || done_; });
-    queue_.push_back(std::move(chunk_));
-    chunk_.clear();
-    if (!spare_.empty()) {
-      chunk_ = std::move(spare_.back());
-      spare_.pop_back();
+  void write(const std::vector<TraceRow>& rows) {
+    for (const TraceRow& r : rows) {
+      format_.append(buf_, r);
+      buf_ += '\n';
     }
-    chunk_.reserve(kChunk);
-    ready_.notify_one();
-  }
-  void stop() {
-    {
-      std::lock_guard lock(mutex_);
-      done_ = true;
-    }
-    ready_.notify_one();
-    room_.notify_one();
-    if (worker_.joinable()) worker_.join();
-  }
-  void run() {
-    std::string buf = std::string(kTraceHeader) + "\n";
-    buf.reserve((1u << 20) + 64 * 1024);  // AtomicFile writes at 1 MiB: the buffer never grows
-    TraceRowFormatter format;
-    try {
-      std::vector<TraceRow> rows;
-      while (true) {
-        {
-          std::unique_lock lock(mutex_);
-          if (rows.capacity() != 0) spare_.push_back(std::move(rows));
-          ready_.wait(lock, [&] { return !queue_.empty() || done_; });
-          if (queue_.empty()) break;
-          rows = std::move(queue_.front());
-          queue_.pop_front();
-        }
-        room_.notify_one();
-        for (const TraceRow& r : rows) {
-          format.append(buf, r);
-          buf += '\n';
-        }
-        rows.clear();
-        file_.write(buf);
-      }
-      file_.write(buf, true);
-    } catch (...) {
-      error_ = std::current_exception();
-    }
+    file_.write(buf_);
   }
 
   pipeline::AtomicFile file_;
-  std::vector<TraceRow> chunk_;
-  std::deque<std::vector<TraceRow>> queue_;
-  std::vector<std::vector<TraceRow>> spare_;  //!< written chunks, to be filled again
-  std::mutex mutex_;
-  std::condition_variable ready_, room_;
-  bool done_ = false;
-  std::exception_ptr error_;
-  std::thread worker_;  // last: it starts once everything above exists
+  std::string buf_;
+  TraceRowFormatter format_;
+  ChunkedWorker<TraceRow> rows_;  // last: its thread writes into the members above
 };
 
 std::optional<servo::CircleTest> parse_circle(const std::string& text) {

@@ -3,16 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <condition_variable>
 #include <cstdlib>
 #include <deque>
-#include <exception>
-#include <mutex>
-#include <thread>
 #include <limits>
 
 #include "contour.hpp"
 #include "nominal_path.hpp"
+#include "gcpipe/chunked_worker.hpp"
 #include "gcpipe/config.hpp"
 
 namespace gcpipe::simulate {
@@ -411,95 +408,6 @@ class RunAccumulator {
   double bucket_max_ = 0;
 };
 
-/// Ticks handed to `consume` on a second thread, in order: the interpolator and the drives make
-/// the next ticks while the contour search, the figures and the tap measure the earlier ones (on
-/// `gcpipe simulate`'s benchmark the two take about 0.3 and 1.2 G instructions; its trace is
-/// written on a third). Ticks go over in chunks through a short queue (bounded memory: the
-/// producer waits when the consumer is kQueued chunks behind), and the chunks are handed back to
-/// be filled again (no page faults after the first few). An exception of `consume` stops it and
-/// is thrown again from the producer's next push() or from finish().
-class TickPipeline {
- public:
-  explicit TickPipeline(std::function<void(const Tick&)> consume)
-      : consume_(std::move(consume)), worker_([this] { run(); }) {
-    chunk_.reserve(kChunk);
-  }
-  ~TickPipeline() { stop(/*abandon=*/true); }
-  TickPipeline(const TickPipeline&) = delete;
-  TickPipeline& operator=(const TickPipeline&) = delete;
-
-  void push(const Tick& t) {
-    chunk_.push_back(t);
-    if (chunk_.size() == kChunk) hand_over();
-  }
-  /// Waits until every tick pushed has been consumed; rethrows the consumer's exception.
-  void finish() {
-    hand_over();
-    stop(/*abandon=*/false);
-    if (error_) std::rethrow_exception(error_);
-  }
-
- private:
-  static constexpr std::size_t kChunk = 256, kQueued = 8;
-
-  void hand_over() {
-    std::unique_lock lock(mutex_);
-    room_.wait(lock, [&] { return queue_.size() < kQueued || failed_; });
-    if (failed_) std::rethrow_exception(error_);
-    queue_.push_back(std::move(chunk_));
-    chunk_.clear();
-    if (!spare_.empty()) {
-      chunk_ = std::move(spare_.back());
-      spare_.pop_back();
-    }
-    chunk_.reserve(kChunk);
-    ready_.notify_one();
-  }
-  void stop(bool abandon) {
-    {
-      std::lock_guard lock(mutex_);
-      done_ = true;
-      abandon_ = abandon;
-    }
-    ready_.notify_one();
-    if (worker_.joinable()) worker_.join();
-  }
-  void run() {
-    std::vector<Tick> ticks;
-    while (true) {
-      {
-        std::unique_lock lock(mutex_);
-        if (ticks.capacity() != 0) spare_.push_back(std::move(ticks)), ticks = {};
-        ready_.wait(lock, [&] { return !queue_.empty() || done_; });
-        if (queue_.empty() || abandon_) return;
-        ticks = std::move(queue_.front());
-        queue_.pop_front();
-      }
-      room_.notify_one();
-      try {
-        for (const Tick& t : ticks) consume_(t);
-      } catch (...) {
-        std::lock_guard lock(mutex_);
-        error_ = std::current_exception();
-        failed_ = true;
-        room_.notify_one();
-        return;
-      }
-      ticks.clear();
-    }
-  }
-
-  std::function<void(const Tick&)> consume_;
-  std::vector<Tick> chunk_;
-  std::deque<std::vector<Tick>> queue_;
-  std::vector<std::vector<Tick>> spare_;  //!< consumed chunks, to be filled again
-  std::mutex mutex_;
-  std::condition_variable ready_, room_;
-  bool done_ = false, abandon_ = false, failed_ = false;
-  std::exception_ptr error_;
-  std::thread worker_;  // last: it starts once everything above exists
-};
-
 /// The program's own run, evaluated as it goes: each tick's raw sample is the nominal (pushed to
 /// the contour search), its actual is measured against the nominal path so far. With
 /// `nom.keep` the run is also recorded for the report and the compensation: raw samples,
@@ -515,9 +423,10 @@ OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> progra
   RunAccumulator acc(model, nom.segments.size(), record);
   ContourSearch contour;
   Vec3 last_nominal{};
-  // Everything but the interpolator and the drives, on the pipeline's thread: it alone touches
-  // acc, contour, own and nom's samples until finish().
-  TickPipeline evaluation([&](const Tick& t) {
+  // Everything but the interpolator and the drives, on a second thread (on `gcpipe simulate`'s
+  // benchmark the two take about 0.3 and 1.2 G instructions): it alone touches acc, contour, own
+  // and nom's samples until finish().
+  auto evaluate_tick = [&](const Tick& t) {
     const ResolvedBlock& b = program[t.block];
     const double tool = tool_length_of(model, b);
     const Vec3 nominal = forward_kinematics(model.kin, t.raw, tool).tip;
@@ -532,6 +441,9 @@ OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> progra
       own.actual.push_back(t.actual);
     }
     hand_on(on_tick, t, cutting, e, tip);
+  };
+  ChunkedWorker<Tick> evaluation(256, 8, [&](const std::vector<Tick>& ticks) {
+    for (const Tick& t : ticks) evaluate_tick(t);
   });
   nom.stats = run_program(model, program, start, [&](const Tick& t) { evaluation.push(t); }, max_ticks);
   evaluation.finish();
