@@ -86,6 +86,10 @@ MessageType message_type_from_name(const std::string& name) {
                            "GcodeChunk, IkBatch, SampleBatch)");
 }
 
+MessageType telemetry_type(pipeline::Telemetry telemetry) {
+  return telemetry == pipeline::Telemetry::kIkPoints ? MessageType::kIkBatch : MessageType::kSampleBatch;
+}
+
 bool default_topic_type(const std::string& topic, MessageType& type) {
   if (topic == pipeline::kProgramTopic) {
     type = MessageType::kProgramChunk;
@@ -93,7 +97,7 @@ bool default_topic_type(const std::string& topic, MessageType& type) {
   }
   for (const pipeline::StageInfo& s : pipeline::registry()) {
     if (s.telemetry != pipeline::Telemetry::kNone && topic == s.telemetry_topic) {
-      type = s.telemetry == pipeline::Telemetry::kIkPoints ? MessageType::kIkBatch : MessageType::kSampleBatch;
+      type = telemetry_type(s.telemetry);
       return true;
     }
     if (topic != s.topic) continue;

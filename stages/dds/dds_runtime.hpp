@@ -23,6 +23,10 @@ class SampleBatch;
 class ReportFragment;
 }  // namespace gcpipe::msg
 
+namespace gcpipe::pipeline {
+enum class Telemetry : std::uint8_t;
+}  // namespace gcpipe::pipeline
+
 namespace gcpipe::dds {
 
 /// The wire types (idl/gcpipe.idl documents their samples). A topic is a name plus one of these;
@@ -31,6 +35,8 @@ namespace gcpipe::dds {
 enum class MessageType { kProgramChunk, kBlockBatch, kGcodeChunk, kIkBatch, kSampleBatch, kReportFragment };
 inline constexpr int kMessageTypes = 6;
 const char* type_name(MessageType type);
+/// The wire type of a stage's telemetry (IK points: IkBatch, else SampleBatch).
+MessageType telemetry_type(pipeline::Telemetry telemetry);
 /// Accepts program|blocks|gcode|ik|samples and the type names; throws otherwise.
 MessageType message_type_from_name(const std::string& name);
 

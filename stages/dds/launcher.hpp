@@ -87,6 +87,8 @@ class Supervisor {
     double started_at = 0;
   };
   bool spawn(Child& c);
+  void await_up(Child& c);
+  void say_if_all_ready();
   void read_output(Child& c, bool drain);
   void on_line(Child& c, const std::string& line);
   bool reap(Child& c, bool& fatal);

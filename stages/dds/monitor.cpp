@@ -129,10 +129,10 @@ void print_end(std::ostream& out, const msg::BlockBatch& b) {
       << (b.error().empty() ? "" : ", ERROR: " + b.error());
 }
 void print_end(std::ostream& out, const msg::IkBatch& b) {
-  out << "end of program: " << b.point_count() << " IK points";
+  out << "end of program: " << b.item_count() << " IK points";
 }
 void print_end(std::ostream& out, const msg::SampleBatch& b) {
-  out << "end of program: " << b.sample_count() << " ticks";
+  out << "end of program: " << b.item_count() << " ticks";
 }
 void print_end(std::ostream& out, const msg::GcodeChunk& g) {
   out << "end of program: " << g.byte_count() << " bytes, " << g.blocks_written() << " blocks, "
@@ -319,7 +319,7 @@ std::vector<WatchedStage> watched_stages(const std::vector<std::string>& nodes) 
     if (!default_topic_type(w.topic, w.type)) continue;  // a stage without a node
     if (info.telemetry != pipeline::Telemetry::kNone) {
       w.telemetry_topic = info.telemetry_topic;
-      default_topic_type(w.telemetry_topic, w.telemetry_type);
+      w.telemetry_type = telemetry_type(info.telemetry);
     }
     out.push_back(w);
   }

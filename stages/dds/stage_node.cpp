@@ -90,39 +90,30 @@ struct Outbox final : pipeline::Emitter {
       : port(p), limit(l), writer(w), monitor(m), telemetry(t) {}
 
   bool wants_telemetry() const override { return telemetry != nullptr; }
-  void ik_point(const IkTelemetry& p) override {
-    to_msg(p, ik.points().emplace_back());
-    if (ik.points().size() >= kTelemetryBatch) publish_ik(false);
+  void ik_point(const IkTelemetry& p) override { add_telemetry(ik, ik.points(), p); }
+  void sample(const SampleTelemetry& s) override { add_telemetry(samples, samples.samples(), s); }
+  template <class Batch, class Items, class Item>
+  void add_telemetry(Batch& batch, Items& items, const Item& item) {
+    to_msg(item, items.emplace_back());
+    if (items.size() >= kTelemetryBatch) publish_telemetry(batch, items, false);
   }
-  void sample(const SampleTelemetry& s) override {
-    to_msg(s, samples.samples().emplace_back());
-    if (samples.samples().size() >= kTelemetryBatch) publish_samples(false);
+  /// One IkBatch or SampleBatch; the end one carries the program's count.
+  template <class Batch, class Items>
+  void publish_telemetry(Batch& batch, Items& items, bool end) {
+    telemetry_items += items.size();
+    batch.program_id(id);
+    batch.file(file);
+    batch.sequence_number(telemetry_sequence++);
+    batch.end_of_program(end);
+    batch.item_count(end ? telemetry_items : 0);
+    telemetry->publish(&batch);
+    items.clear();
   }
-  void publish_ik(bool end) {
-    telemetry_items += ik.points().size();
-    ik.program_id(id);
-    ik.file(file);
-    ik.sequence_number(telemetry_sequence++);
-    ik.end_of_program(end);
-    ik.point_count(end ? telemetry_items : 0);
-    telemetry->publish(&ik);
-    ik.points().clear();
-  }
-  void publish_samples(bool end) {
-    telemetry_items += samples.samples().size();
-    samples.program_id(id);
-    samples.file(file);
-    samples.sequence_number(telemetry_sequence++);
-    samples.end_of_program(end);
-    samples.sample_count(end ? telemetry_items : 0);
-    telemetry->publish(&samples);
-    samples.samples().clear();
-  }
-  /// The telemetry's end batch, with the program's count (a stage emits one kind only).
+  /// The telemetry's end batch (a stage emits one kind only).
   void finish_telemetry(pipeline::Telemetry kind) {
     if (telemetry == nullptr) return;
-    if (kind == pipeline::Telemetry::kIkPoints) publish_ik(true);
-    else publish_samples(true);
+    if (kind == pipeline::Telemetry::kIkPoints) publish_telemetry(ik, ik.points(), true);
+    else publish_telemetry(samples, samples.samples(), true);
   }
 
   bool block(const ResolvedBlock& b) override {
@@ -216,8 +207,7 @@ struct StageNode::Impl {
     writer = std::make_unique<RawWriter>(p, wire_type(info.output), options.output_topic);
     monitor_writer = std::make_unique<RawWriter>(p, wire_type(info.output), monitor_topic(options.output_topic), true);
     if (info.telemetry != pipeline::Telemetry::kNone) {
-      const MessageType type = info.telemetry == pipeline::Telemetry::kIkPoints ? MessageType::kIkBatch : MessageType::kSampleBatch;
-      telemetry_writer = std::make_unique<RawWriter>(p, type, monitor_topic(info.telemetry_topic), true);
+      telemetry_writer = std::make_unique<RawWriter>(p, telemetry_type(info.telemetry), monitor_topic(info.telemetry_topic), true);
     }
     // Keep-last and never waited for, unless the launcher says a report sink listens.
     report_writer = std::make_unique<RawWriter>(p, MessageType::kReportFragment, kReportTopicName, true,
