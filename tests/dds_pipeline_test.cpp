@@ -4,6 +4,8 @@
 // exactly the bytes `gcpipe batch` writes, and exit with batch mode's status.
 #include <gtest/gtest.h>
 
+#include "dds_test_util.hpp"
+
 #include <nlohmann/json.hpp>
 
 #include <fcntl.h>
@@ -31,82 +33,13 @@ extern char** environ;
 namespace {
 
 namespace fs = std::filesystem;
+using gcpipe_test::Process;
+using gcpipe_test::slurp;
+using gcpipe_test::wait_for_log;
 
-const std::string kExe = GCPIPE_EXE;
 const std::string kConfig = std::string(GCPIPE_SOURCE_DIR) + "/pipeline_configs/default.yaml";
 // Every process gets this: no step can wait longer than this by itself [s].
 constexpr const char* kIdle = "60";
-constexpr double kProcessLimit = 180;  // [s] then the test kills the process and fails
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
-
-// One child process with stdout+stderr in a log file.
-struct Process {
-  std::string name;
-  pid_t pid = -1;
-  fs::path log;
-  bool killed = false;
-
-  Process(std::string n, const std::vector<std::string>& args, const fs::path& dir)
-      : name(std::move(n)), log(dir / (name + ".log")) {
-    std::vector<char*> argv;
-    argv.push_back(const_cast<char*>(kExe.c_str()));
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_adddup2(&fa, 1, 2);
-    const int rc = posix_spawn(&pid, kExe.c_str(), &fa, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&fa);
-    if (rc != 0) pid = -1;
-  }
-
-  // Exit status, or -1 after killing a process that overran `limit` [s].
-  int wait(double limit = kProcessLimit) {
-    if (pid <= 0) return -2;
-    const auto t0 = std::chrono::steady_clock::now();
-    int status = 0;
-    for (;;) {
-      const pid_t r = waitpid(pid, &status, WNOHANG);
-      if (r == pid) break;
-      if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > limit) {
-        kill(pid, SIGKILL);
-        waitpid(pid, &status, 0);
-        killed = true;
-        pid = -1;
-        return -1;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    pid = -1;
-    if (WIFEXITED(status)) return WEXITSTATUS(status);
-    return 128 + WTERMSIG(status);
-  }
-
-  ~Process() {
-    // Left running by a failed assertion: kill it, and clean the shared memory it leaves.
-    if (pid > 0 && wait(0) == -1) {
-      [[maybe_unused]] const int rc = std::system("fastdds shm clean > /dev/null 2>&1");
-    }
-  }
-};
-
-// Polls a process's log until it contains `text`; false after `limit` [s].
-bool wait_for_log(const Process& p, const std::string& text, double limit = 60) {
-  const auto t0 = std::chrono::steady_clock::now();
-  while (slurp(p.log).find(text) == std::string::npos) {
-    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > limit)
-      return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  return true;
-}
 
 // Extra arguments per process of run_pipeline; a node given a `keep` pointer is left running
 // (--forever) and handed to the caller, who ends it.

@@ -27,6 +27,8 @@ dds::DdsOptions dds_options(const DdsArgs& a) {
   o.idle_timeout = a.idle_timeout;
   o.replay = a.replay;
   if (!a.profiles.empty()) o.profiles = a.profiles;
+  o.network = a.network;
+  o.identity = a.identity;
   return o;
 }
 
@@ -122,6 +124,8 @@ int run_pipeline_monitor(const MonitorArgs& a) {
   dds::DdsOptions options = dds_options(a);
   if (!a.domain) options.domain = plan.domain;
   if (!plan.profiles.empty() && a.profiles.empty()) options.profiles = plan.profiles;
+  // The pipeline's network, but the monitor's own identity (the plan's is the nodes').
+  if (!plan.network.empty() && a.network.empty()) options.network = plan.network;
   dds::install_stop_handlers();
   dds::Participant participant(options);
   return dds::run_pipeline_monitor(participant, plan.name, dds::watched_stages(plan.nodes), a.period, std::cout);

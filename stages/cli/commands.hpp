@@ -96,6 +96,8 @@ int run_stages();
 struct DdsArgs {
   std::optional<int> domain;
   std::string profiles;
+  std::string network;   //!< participant profile file for a shop network (dds_network_shop.xml)
+  std::string identity;  //!< DDS Security identity folder (make_security.sh)
   int subscribers = 1;
   double timeout = 30;
   double idle_timeout = 0;

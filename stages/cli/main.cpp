@@ -167,6 +167,12 @@ void add_dds_options(CLI::App& s, DdsArgs& a) {
   s.add_option("--domain", a.domain, "DDS domain id (default $GCPIPE_DDS_DOMAIN, else 0)")->check(CLI::Range(0, 232));
   s.add_option("--profiles", a.profiles, "QoS/transport profiles (default pipeline_configs/dds_profiles.xml)")
       ->check(CLI::ExistingFile);
+  s.add_option("--network", a.network,
+               "how this host reaches the others: a participant profile file such as "
+               "pipeline_configs/dds_network_shop.xml (default: shared memory and loopback only)")
+      ->check(CLI::ExistingFile);
+  s.add_option("--identity", a.identity, "DDS Security identity folder made by stages/dds/make_security.sh")
+      ->check(CLI::ExistingDirectory);
   s.add_option("--subscribers", a.subscribers, "readers a publisher waits for before its first sample")
       ->check(CLI::Range(1, 100));
   s.add_option("--timeout", a.timeout, "longest wait for readers, a blocked write, acknowledgements [s]")

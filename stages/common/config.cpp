@@ -273,6 +273,16 @@ std::filesystem::path Config::file_path(std::string_view key, std::string_view w
   return p;
 }
 
+std::filesystem::path Config::dir_path(std::string_view key, std::string_view what) const {
+  const std::string rel = string(key, "");
+  if (rel.empty()) throw error(key, "is empty: name " + std::string(what));
+  const std::filesystem::path p = resolve(rel);
+  if (!std::filesystem::is_directory(p))
+    throw error(key, "'" + rel + "': no such folder (" + p.string() + ", relative to " +
+                         std::filesystem::path(impl_->file).parent_path().string() + "): name " + std::string(what));
+  return p;
+}
+
 std::filesystem::path Config::resolve(const std::string& relative) const {
   std::filesystem::path p(relative);
   if (p.is_absolute()) return p;

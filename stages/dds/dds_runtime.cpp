@@ -5,6 +5,7 @@
 
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/dds/log/Log.hpp>
 #include <fastdds/dds/publisher/DataWriter.hpp>
 #include <fastdds/dds/publisher/Publisher.hpp>
 #include <fastdds/dds/subscriber/DataReader.hpp>
@@ -185,29 +186,74 @@ struct Participant::Impl {
   }
 };
 
+namespace {
+
+constexpr const char* kNetworkParticipantProfile = "gcpipe_network_participant";
+
+void load_profiles_file(const std::filesystem::path& path, const char* what) {
+  const std::string file = path.string();
+  if (!std::filesystem::is_regular_file(path))
+    throw std::runtime_error(std::string(what) + " file '" + file + "' does not exist");
+  if (!ok(fdds::DomainParticipantFactory::get_instance()->load_XML_profiles_file(file)))
+    throw std::runtime_error(std::string(what) + " file '" + file +
+                             "' could not be loaded (Fast DDS printed the reason above)");
+}
+
+// DDS Security (builtin PKI-DH authentication, access control by signed governance and
+// permissions, AES-GCM-GMAC): the identity folder's six files, made by make_security.sh.
+void add_security(fdds::DomainParticipantQos& qos, const std::filesystem::path& identity) {
+  struct File { const char* property; const char* name; };
+  static constexpr File kFiles[] = {
+      {"dds.sec.auth.builtin.PKI-DH.identity_ca", "identity_ca.pem"},
+      {"dds.sec.auth.builtin.PKI-DH.identity_certificate", "cert.pem"},
+      {"dds.sec.auth.builtin.PKI-DH.private_key", "key.pem"},
+      {"dds.sec.access.builtin.Access-Permissions.permissions_ca", "permissions_ca.pem"},
+      {"dds.sec.access.builtin.Access-Permissions.governance", "governance.p7s"},
+      {"dds.sec.access.builtin.Access-Permissions.permissions", "permissions.p7s"}};
+  auto& properties = qos.properties().properties();
+  properties.emplace_back("dds.sec.auth.plugin", "builtin.PKI-DH");
+  properties.emplace_back("dds.sec.access.plugin", "builtin.Access-Permissions");
+  properties.emplace_back("dds.sec.crypto.plugin", "builtin.AES-GCM-GMAC");
+  for (const File& f : kFiles) {
+    const auto path = std::filesystem::absolute(identity / f.name);
+    if (!std::filesystem::is_regular_file(path))
+      throw std::runtime_error("DDS identity '" + identity.string() + "' has no " + f.name +
+                               ": make one with stages/dds/make_security.sh");
+    properties.emplace_back(f.property, "file://" + path.string());
+  }
+}
+
+}  // namespace
+
 Participant::Participant(const DdsOptions& options) : impl_(std::make_unique<Impl>()) {
   impl_->options = options;
   impl_->start_time = std::chrono::duration<double>(
                           std::chrono::system_clock::now().time_since_epoch()).count();
   if (impl_->options.profiles.empty()) impl_->options.profiles = default_profiles_path();
-  const std::string file = impl_->options.profiles.string();
   if (options.domain < 0 || options.domain > 232)
     throw std::runtime_error("DDS domain id " + std::to_string(options.domain) +
                              " is outside [0, 232]");
+  // Fast DDS prints errors only; its warnings say why a participant could not be created under
+  // DDS Security (a certificate, a permission's subject) and are worth reading then.
+  if (const char* v = std::getenv("GCPIPE_DDS_WARNINGS"); v != nullptr && *v == '1')
+    fdds::Log::SetVerbosity(fdds::Log::Kind::Warning);
   auto* factory = fdds::DomainParticipantFactory::get_instance();
   // load_profiles() must run before any default QoS is read, or the XML is silently ignored.
   factory->load_profiles();
-  if (!std::filesystem::is_regular_file(impl_->options.profiles))
-    throw std::runtime_error("DDS profiles file '" + file + "' does not exist");
-  if (!ok(factory->load_XML_profiles_file(file)))
-    throw std::runtime_error("DDS profiles file '" + file +
-                             "' could not be loaded (Fast DDS printed the reason above)");
-  impl_->participant = factory->create_participant_with_profile(
-      static_cast<fdds::DomainId_t>(options.domain), kParticipantProfile);
+  load_profiles_file(impl_->options.profiles, "DDS profiles");
+  const bool network = !options.network.empty();
+  if (network) load_profiles_file(options.network, "DDS network");
+  const char* profile = network ? kNetworkParticipantProfile : kParticipantProfile;
+  const std::string file = (network ? options.network : impl_->options.profiles).string();
+  fdds::DomainParticipantQos qos;
+  if (!ok(factory->get_participant_qos_from_profile(profile, qos)))
+    throw std::runtime_error("'" + file + "' has no participant profile '" + profile + "'");
+  if (!options.identity.empty()) add_security(qos, options.identity);
+  impl_->participant = factory->create_participant(static_cast<fdds::DomainId_t>(options.domain), qos);
   if (impl_->participant == nullptr)
-    throw std::runtime_error("cannot create the DDS participant from profile '" +
-                             std::string(kParticipantProfile) + "' of '" + file + "' on domain " +
-                             std::to_string(options.domain));
+    throw std::runtime_error("cannot create the DDS participant from profile '" + std::string(profile) + "' of '" +
+                             file + "' on domain " + std::to_string(options.domain) +
+                             (options.identity.empty() ? "" : " with identity '" + options.identity.string() + "'"));
   impl_->publisher = impl_->participant->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
   impl_->subscriber = impl_->participant->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);
   if (impl_->publisher == nullptr || impl_->subscriber == nullptr)
@@ -229,6 +275,16 @@ bool Participant::published_before_start(double source_time) const {
 
 // ---------------------------------------------------------------------------------------------
 
+// Why creating an entity can fail: inconsistent resource limits in the XML make Fast DDS return
+// null without an exception; under DDS Security so does a topic the permissions do not grant.
+std::string creation_hint(const Participant::Impl& owner, const char* verb) {
+  std::string hint = "(check max_samples >= max_instances * max_samples_per_instance";
+  if (!owner.options.identity.empty())
+    hint += "; or the permissions of identity '" + owner.options.identity.string() + "' do not allow it to " +
+            verb + " this topic";
+  return hint + ")";
+}
+
 struct RawWriter::Impl {
   Participant::Impl* owner = nullptr;
   fdds::DataWriter* writer = nullptr;
@@ -243,10 +299,8 @@ RawWriter::RawWriter(Participant& participant, MessageType type, const std::stri
       impl_->owner->topic(type, topic), profile);
   // Inconsistent resource limits in the XML make this return null without an exception.
   if (impl_->writer == nullptr)
-    throw std::runtime_error("cannot create a writer of " + topic +
-                             " from profile '" + profile + "' of '" +
-                             impl_->owner->options.profiles.string() +
-                             "' (check max_samples >= max_instances * max_samples_per_instance)");
+    throw std::runtime_error("cannot create a writer of " + topic + " from profile '" + profile + "' of '" +
+                             impl_->owner->options.profiles.string() + "' " + creation_hint(*impl_->owner, "publish"));
 }
 
 RawWriter::~RawWriter() {
@@ -332,10 +386,8 @@ RawReader::RawReader(Participant& participant, MessageType type, const std::stri
   impl_->reader = impl_->owner->subscriber->create_datareader_with_profile(
       impl_->owner->topic(type, topic), profile);
   if (impl_->reader == nullptr)
-    throw std::runtime_error("cannot create a reader of " + topic +
-                             " from profile '" + profile + "' of '" +
-                             impl_->owner->options.profiles.string() +
-                             "' (check max_samples >= max_instances * max_samples_per_instance)");
+    throw std::runtime_error("cannot create a reader of " + topic + " from profile '" + profile + "' of '" +
+                             impl_->owner->options.profiles.string() + "' " + creation_hint(*impl_->owner, "subscribe"));
 }
 
 RawReader::~RawReader() {

@@ -66,6 +66,14 @@ template <> struct TypeOf<msg::ReportFragment> { static constexpr MessageType va
 struct DdsOptions {
   int domain = 0;                  //!< DDS domain id [0, 232]; parallel pipelines need distinct ids
   std::filesystem::path profiles;  //!< XML profiles; empty = default_profiles_path()
+  /// How this host reaches the others: an XML file holding the participant profile
+  /// "gcpipe_network_participant" (transports, interfaces, peers; e.g.
+  /// pipeline_configs/dds_network_shop.xml). Empty: the profiles' own participant (shared memory
+  /// and loopback only). The edges' QoS stays in `profiles` either way.
+  std::filesystem::path network;
+  /// DDS Security identity: a folder made by stages/dds/make_security.sh (identity_ca.pem,
+  /// cert.pem, key.pem, permissions_ca.pem, governance.p7s, permissions.p7s). Empty: no security.
+  std::filesystem::path identity;
   int subscribers = 1;             //!< readers a writer waits for before its first sample [1, 100]
   double match_timeout = 30;       //!< [s] longest wait for those readers
   double write_timeout = 60;       //!< [s] longest a write may stay blocked on a full history

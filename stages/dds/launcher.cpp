@@ -89,7 +89,7 @@ LaunchPlan load_launch_plan(const std::filesystem::path& file) {
   const Config root = Config::load_file(file);
   root.reject_unknown({"pipeline", "nodes"});
   const Config p = root.section("pipeline");
-  p.reject_unknown({"name", "domain", "config", "profiles", "on_crash", "max_restarts", "ready_timeout", "stop_timeout",
+  p.reject_unknown({"name", "domain", "config", "profiles", "network", "identity", "on_crash", "max_restarts", "ready_timeout", "stop_timeout",
                     "timeout"});
   LaunchPlan plan;
   plan.name = p.string("name", file.stem().string());
@@ -97,6 +97,8 @@ LaunchPlan load_launch_plan(const std::filesystem::path& file) {
   // Normalised (no "pipelines/../"), so that report.json names the config as batch does.
   plan.config = p.file_path("config", "the pipeline config the nodes read").lexically_normal();
   if (p.has("profiles")) plan.profiles = p.file_path("profiles", "the DDS profiles XML");
+  if (p.has("network")) plan.network = p.file_path("network", "the DDS network profile XML");
+  if (p.has("identity")) plan.identity = p.dir_path("identity", "the nodes' DDS Security identity folder");
   plan.restart = p.choice("on_crash", "stop", {"stop", "restart"}) == "restart";
   plan.max_restarts = static_cast<int>(p.integer("max_restarts", 3, 0, 100));
   plan.ready_timeout = p.number("ready_timeout", 30, "s", 0.1, 3600);
@@ -112,6 +114,8 @@ LaunchPlan load_launch_plan(const std::filesystem::path& file) {
 std::vector<std::string> plan_dds_args(const LaunchPlan& plan) {
   std::vector<std::string> a{"--domain", std::to_string(plan.domain)};
   if (!plan.profiles.empty()) a.insert(a.end(), {"--profiles", plan.profiles.string()});
+  if (!plan.network.empty()) a.insert(a.end(), {"--network", plan.network.string()});
+  if (!plan.identity.empty()) a.insert(a.end(), {"--identity", plan.identity.string()});
   return a;
 }
 

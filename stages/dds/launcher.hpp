@@ -24,6 +24,8 @@ struct LaunchPlan {
   int domain = 0;                   //!< DDS domain id: two pipelines on one host take two ids
   std::filesystem::path config;     //!< the pipeline config every node reads
   std::filesystem::path profiles;   //!< QoS/transport profiles; empty: the nodes' default
+  std::filesystem::path network;    //!< participant profile for a shop network; empty: this host only
+  std::filesystem::path identity;   //!< DDS Security identity of the nodes; empty: no security
   bool restart = false;             //!< on a crash: start the stage again (else stop the pipeline)
   int max_restarts = 3;             //!< per stage, then the pipeline stops
   double ready_timeout = 30;        //!< [s] every process must say it is ready by then

@@ -73,6 +73,8 @@ class Config {
   /// value and the resolved path when it is empty, missing or a directory (`what`: what it should
   /// name, for the message, e.g. "the machine file").
   std::filesystem::path file_path(std::string_view key, std::string_view what) const;
+  /// The same for a folder (`what`: e.g. "the identity folder").
+  std::filesystem::path dir_path(std::string_view key, std::string_view what) const;
   /// Builds the error for `key` of this mapping, with its position in the file.
   ConfigError error(std::string_view key, const std::string& reason) const;
 
