@@ -138,7 +138,9 @@ class DdsPipeline : public ::testing::Test {
     const auto report = nlohmann::json::parse(slurp(dir / "batch" / "report.json"));
     const fs::path comp = dir / "compensated.nc", out = dir / "sink.nc";
     Process ik_monitor("monitor_ik", dds_args({"monitor", "gcpipe_ik_results", "--period", "5"}), dir);
-    Process sample_monitor("monitor_samples", dds_args({"monitor", "gcpipe_samples", "--period", "5"}), dir);
+    const fs::path live = dir / "contour_live.png";
+    Process sample_monitor("monitor_samples",
+                           dds_args({"monitor", "gcpipe_samples", "--period", "5", "--plot", live.string()}), dir);
     Process sink_comp("sink_comp", dds_args({"sink", "--in", "gcpipe_compensated", "-o", comp.string()}), dir);
     Process sink("sink", dds_args({"sink", "-o", out.string()}), dir);
     wait_until_ready(sink_comp);
@@ -179,6 +181,10 @@ class DdsPipeline : public ::testing::Test {
     EXPECT_NEAR(max_um, report["simulation"]["contour_error_before"]["cutting"]["max_mm"].get<double>() * 1e3, 6e-4)
         << samples_seen;
     EXPECT_EQ(samples_seen.find("MISSING"), std::string::npos) << samples_seen;
+    // monitor --plot drew the live figure at least at the end, under its final name only.
+    EXPECT_EQ(slurp(live).substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8)) << live;
+    EXPECT_GT(fs::file_size(live), 10000u);
+    EXPECT_FALSE(fs::exists(live.string() + ".part"));
   }
 
   static void wait_until_ready(const Process& sink) {
@@ -585,10 +591,10 @@ TEST_F(DdsPipeline, KilledMiddleNodeEndsTheProgramDownstreamWithTheReason) {
   EXPECT_EQ(write.wait(45), 1) << slurp(write.log);
   EXPECT_EQ(sink.wait(45), 1) << slurp(sink.log);
   const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  // Fast DDS's 20 s discovery lease is the bound (issue 11 asks for 10 s: not met, see
-  // stages/dds/README.md "Without a supervisor").
+  // The 8 s discovery lease of dds_profiles.xml is the bound (issue 11: 10 s; measured 8.2 s).
+  // Checked against 15 s, which a loaded machine keeps and Fast DDS's default lease (20 s) breaks.
   std::printf("write and sink gave up %.2f s after the kill\n", took);
-  EXPECT_LT(took, 30) << "downstream took too long to give up";
+  EXPECT_LT(took, 15) << "downstream took too long to give up";
   EXPECT_NE(slurp(write.log).find("the writer of gcpipe_toolpath went away mid-program"), std::string::npos)
       << slurp(write.log);
   EXPECT_NE(slurp(sink.log).find("INCOMPLETE"), std::string::npos) << slurp(sink.log);

@@ -128,7 +128,8 @@ int run_pipeline_monitor(const MonitorArgs& a) {
   if (!plan.network.empty() && a.network.empty()) options.network = plan.network;
   dds::install_stop_handlers();
   dds::Participant participant(options);
-  return dds::run_pipeline_monitor(participant, plan.name, dds::watched_stages(plan.nodes), a.period, std::cout);
+  return dds::run_pipeline_monitor(participant, plan.name, dds::watched_stages(plan.nodes), a.period, std::cout,
+                                   a.plot);
 }
 
 int run_monitor(const MonitorArgs& a) {
@@ -143,13 +144,15 @@ int run_monitor(const MonitorArgs& a) {
     if (!a.type.empty()) type = dds::message_type_from_name(a.type);
     else if (!dds::default_topic_type(a.topic, type))
       throw std::invalid_argument("topic '" + a.topic + "' is not one of the pipeline's; give its type with --type program|blocks|gcode|ik|samples");
+    if (!a.plot.empty() && type != dds::MessageType::kSampleBatch)
+      throw std::invalid_argument("--plot draws the simulated contour error: watch gcpipe_samples, not " + a.topic);
   } catch (const std::exception& e) {
     std::cerr << "gcpipe monitor: " << e.what() << "\n";
     return 2;
   }
   dds::install_stop_handlers();
   dds::Participant participant(dds_options(a));
-  return dds::run_monitor(participant, type, a.topic, a.period, std::cout);
+  return dds::run_monitor(participant, type, a.topic, a.period, std::cout, a.plot);
 }
 
 }  // namespace gcpipe::cli

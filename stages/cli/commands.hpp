@@ -129,6 +129,7 @@ struct ReportSinkArgs : DdsArgs {
 int run_report_sink(const ReportSinkArgs& args);
 struct MonitorArgs : DdsArgs {
   std::string topic, type, pipeline;
+  std::string plot;  //!< --plot FILE.png: the live contour-error figure
   double period = 1.0;
 };
 int run_monitor(const MonitorArgs& args);

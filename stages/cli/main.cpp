@@ -245,6 +245,10 @@ void add_monitor(CLI::App& app, MonitorArgs& a) {
   topic->excludes(pipeline);
   s->add_option("--type", a.type, "program, blocks, gcode, ik or samples (default: from the topic name)")->excludes(pipeline);
   s->add_option("--period", a.period, "seconds between summaries")->check(CLI::Range(0.05, 3600.0));
+  s->add_option("--plot", a.plot,
+                "redraw this PNG every period: the simulated contour error over machine time (gcpipe_samples, "
+                "or a pipeline with a simulate node)")
+      ->check(kNonEmpty);
   add_dds_options(*s, a);
 }
 

@@ -14,16 +14,19 @@
 #include <fastdds/dds/topic/Topic.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <charconv>
 #include <chrono>
 #include <csignal>
 #include <cstdlib>
+#include <iomanip>
 #include <iostream>
 #include <map>
 #include <sstream>
 #include <stdexcept>
 #include <thread>
+#include <vector>
 
 #include "gcpipe/pipeline_config.hpp"
 #include "gcpipePubSubTypes.h"
@@ -377,6 +380,7 @@ bool RawWriter::wait_acknowledged() {
 struct RawReader::Impl {
   Participant::Impl* owner = nullptr;
   fdds::DataReader* reader = nullptr;
+  std::vector<double> hop_latencies;  // [s] of the samples taken since the last report
 };
 
 RawReader::RawReader(Participant& participant, MessageType type, const std::string& topic, bool monitor)
@@ -412,6 +416,8 @@ bool RawReader::take(void* sample, double timeout_s, double* source_time, std::u
     // Samples without data (a writer leaving changes the instance state) are skipped.
     while (ok(impl_->reader->take_next_sample(sample, &info))) {
       if (!info.valid_data) continue;
+      impl_->hop_latencies.push_back(
+          static_cast<double>(info.reception_timestamp.to_ns() - info.source_timestamp.to_ns()) * 1e-9);
       if (source_time != nullptr)
         *source_time = static_cast<double>(info.source_timestamp.to_ns()) * 1e-9;
       if (writer != nullptr) *writer = writer_id(info.publication_handle);
@@ -421,6 +427,21 @@ bool RawReader::take(void* sample, double timeout_s, double* source_time, std::u
     if (left <= 0 || stop_requested()) return false;
     impl_->reader->wait_for_unread_message(duration(std::min(left, kPollPeriod)));
   }
+}
+
+std::string RawReader::take_hop_latency_text() {
+  std::vector<double>& v = impl_->hop_latencies;
+  if (v.empty()) return "";
+  auto quantile = [&v](double q) {
+    const auto k = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5);
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+    return v[k] * 1e3;
+  };
+  std::ostringstream o;
+  o << std::fixed << std::setprecision(3) << "hop latency from " << topic_ << ": p50 " << quantile(0.5)
+    << " ms, p99 " << quantile(0.99) << " ms, max " << quantile(1.0) << " ms over " << v.size() << " samples";
+  v.clear();
+  return o.str();
 }
 
 int RawReader::matched_writers() const {

@@ -173,6 +173,11 @@ class RawReader {
   bool take(void* sample, double timeout_s, double* source_time = nullptr, std::uint64_t* writer = nullptr);
   int matched_writers() const;
   const std::string& topic() const { return topic_; }
+  /// The hop latency of the samples taken since the last call: reception minus source timestamp,
+  /// the way across DDS from the writer's write() to this reader's history (not the time a
+  /// sample then waits for this process), as "hop latency from TOPIC: p50 … ms, p99 … ms, max …
+  /// ms over N samples"; "" when none was taken. Across hosts it includes their clock offset.
+  std::string take_hop_latency_text();
 
  private:
   struct Impl;

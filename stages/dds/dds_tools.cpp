@@ -249,6 +249,7 @@ int run_sink(Participant& participant, const SinkOptions& o, std::ostream& log) 
   const ParseSummary s = from_msg(r.last.summary());
   check_end_marker(r, s);
   log_sink_summary(r, s, log);
+  if (const std::string hop = reader.take_hop_latency_text(); !hop.empty()) log << "gcpipe sink: " << hop << "\n";
   if (!r.error.empty()) {
     log << "gcpipe sink: INCOMPLETE, output left in '" << part.string() << "': " << r.error << "\n";
     return 1;

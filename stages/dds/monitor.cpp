@@ -10,6 +10,7 @@
 #include <ostream>
 #include <thread>
 
+#include "contour_figure.hpp"
 #include "dds_convert.hpp"
 #include "gcpipe/kinematics.hpp"
 #include "stage.hpp"
@@ -78,6 +79,7 @@ struct TelemetryFigures {
   std::uint64_t cutting_ticks = 0;
   std::array<std::uint64_t, kNumAxes> saturated{};
   bool ik = false, samples = false;
+  ContourFigure* figure = nullptr;  // monitor --plot: every tick goes to the live figure too
 
   void add(const msg::ProgramChunk&) {}
   void add(const msg::BlockBatch&) {}
@@ -94,6 +96,7 @@ struct TelemetryFigures {
     samples = true;
     for (const auto& s : b.samples()) {
       time = s.time();
+      if (figure != nullptr) figure->add(s.time(), s.contour());
       // Rapids carry no contour error (0): the figures are the cutting moves', as report.json's.
       if (s.contour() > 0) {
         contour_now = s.contour();
@@ -163,8 +166,10 @@ class Watch {
 template <class T>
 class TopicWatch final : public Watch {
  public:
-  TopicWatch(Participant& p, std::string label, std::string topic)
-      : label_(std::move(label)), topic_(std::move(topic)), reader_(p, monitor_topic(topic_), /*monitor=*/true) {}
+  TopicWatch(Participant& p, std::string label, std::string topic, ContourFigure* figure)
+      : label_(std::move(label)), topic_(std::move(topic)), reader_(p, monitor_topic(topic_), /*monitor=*/true) {
+    figures_.figure = figure;
+  }
 
   bool poll(double timeout) override {
     if (!reader_.take(sample_, timeout)) return false;
@@ -236,13 +241,19 @@ class TopicWatch final : public Watch {
   std::optional<Clock::time_point> gone_since_;
 };
 
-std::unique_ptr<Watch> make_watch(Participant& p, MessageType type, const std::string& label, const std::string& topic) {
+// `figure`: the live figure the simulated ticks of this topic go to (SampleBatch only), or null.
+std::unique_ptr<Watch> make_watch(Participant& p, MessageType type, const std::string& label, const std::string& topic,
+                                  ContourFigure* figure = nullptr) {
+  if (figure != nullptr && type != MessageType::kSampleBatch)
+    throw std::invalid_argument("--plot draws the simulated contour error: watch gcpipe_samples (the simulate "
+                                "stage's telemetry), or a pipeline with a simulate node; " + topic + " carries " +
+                                type_name(type));
   switch (type) {
-    case MessageType::kProgramChunk: return std::make_unique<TopicWatch<msg::ProgramChunk>>(p, label, topic);
-    case MessageType::kBlockBatch: return std::make_unique<TopicWatch<msg::BlockBatch>>(p, label, topic);
-    case MessageType::kGcodeChunk: return std::make_unique<TopicWatch<msg::GcodeChunk>>(p, label, topic);
-    case MessageType::kIkBatch: return std::make_unique<TopicWatch<msg::IkBatch>>(p, label, topic);
-    case MessageType::kSampleBatch: return std::make_unique<TopicWatch<msg::SampleBatch>>(p, label, topic);
+    case MessageType::kProgramChunk: return std::make_unique<TopicWatch<msg::ProgramChunk>>(p, label, topic, nullptr);
+    case MessageType::kBlockBatch: return std::make_unique<TopicWatch<msg::BlockBatch>>(p, label, topic, nullptr);
+    case MessageType::kGcodeChunk: return std::make_unique<TopicWatch<msg::GcodeChunk>>(p, label, topic, nullptr);
+    case MessageType::kIkBatch: return std::make_unique<TopicWatch<msg::IkBatch>>(p, label, topic, nullptr);
+    case MessageType::kSampleBatch: return std::make_unique<TopicWatch<msg::SampleBatch>>(p, label, topic, figure);
     case MessageType::kReportFragment: break;  // read by gcpipe report-sink, not monitored
   }
   throw std::invalid_argument("topic " + topic + " carries report parts: gcpipe report-sink reads them");
@@ -252,7 +263,7 @@ std::unique_ptr<Watch> make_watch(Participant& p, MessageType type, const std::s
 // when every watch saw its program's end or lost its writer (then print the endings; 0 when all
 // ended, 1 when some missed the end), on a stop request or after the idle timeout.
 int watch_loop(Participant& participant, const std::vector<std::unique_ptr<Watch>>& watches, const std::string& header,
-               double period, std::ostream& out) {
+               double period, std::ostream& out, ContourFigure* figure, const std::string& figure_title) {
   const auto t0 = Clock::now();
   auto next_print = t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period));
   auto window_start = t0, last_sample = t0;
@@ -265,6 +276,7 @@ int watch_loop(Participant& participant, const std::vector<std::unique_ptr<Watch
       out << "\n";
     }
     out << std::flush;
+    if (figure != nullptr) figure->draw(figure_title);
     window_start = Clock::now();
   };
   while (!stop_requested()) {
@@ -301,12 +313,20 @@ int watch_loop(Participant& participant, const std::vector<std::unique_ptr<Watch
   return 130;
 }
 
+// The live figure of --plot, or none.
+std::unique_ptr<ContourFigure> live_figure(const std::filesystem::path& plot) {
+  if (plot.empty()) return nullptr;
+  return std::make_unique<ContourFigure>(plot);
+}
+
 }  // namespace
 
-int run_monitor(Participant& participant, MessageType type, const std::string& topic, double period, std::ostream& out) {
+int run_monitor(Participant& participant, MessageType type, const std::string& topic, double period, std::ostream& out,
+                const std::filesystem::path& plot) {
+  const auto figure = live_figure(plot);
   std::vector<std::unique_ptr<Watch>> watches;
-  watches.push_back(make_watch(participant, type, topic, topic));
-  return watch_loop(participant, watches, "", period, out);
+  watches.push_back(make_watch(participant, type, topic, topic, figure.get()));
+  return watch_loop(participant, watches, "", period, out, figure.get(), "live contour error (" + topic + ")");
 }
 
 std::vector<WatchedStage> watched_stages(const std::vector<std::string>& nodes) {
@@ -327,19 +347,27 @@ std::vector<WatchedStage> watched_stages(const std::vector<std::string>& nodes) 
 }
 
 int run_pipeline_monitor(Participant& participant, const std::string& name, const std::vector<WatchedStage>& stages,
-                         double period, std::ostream& out) {
+                         double period, std::ostream& out, const std::filesystem::path& plot) {
+  const auto figure = live_figure(plot);
+  bool drawn = false;
   std::vector<std::unique_ptr<Watch>> watches;
   std::size_t width = 0;
   for (const auto& s : stages) width = std::max(width, s.stage.size() + 10);
   auto label = [width](std::string text) { return text + std::string(width - std::min(width, text.size()), ' '); };
   for (const auto& s : stages) {
     watches.push_back(make_watch(participant, s.type, label(s.stage), s.topic));
-    if (!s.telemetry_topic.empty())
-      watches.push_back(make_watch(participant, s.telemetry_type, label(s.stage + " telemetry"), s.telemetry_topic));
+    if (s.telemetry_topic.empty()) continue;
+    const bool draws = figure && s.telemetry_type == MessageType::kSampleBatch;
+    watches.push_back(make_watch(participant, s.telemetry_type, label(s.stage + " telemetry"), s.telemetry_topic,
+                                 draws ? figure.get() : nullptr));
+    drawn = drawn || draws;
   }
+  if (figure && !drawn)
+    throw std::invalid_argument("--plot draws the simulated contour error, and pipeline " + name +
+                                " has no simulate node");
   out << "gcpipe monitor: pipeline " << name << " on domain " << participant.options().domain << ", " << stages.size()
       << " stages" << std::endl;
-  return watch_loop(participant, watches, "", period, out);
+  return watch_loop(participant, watches, "", period, out, figure.get(), "live contour error (pipeline " + name + ")");
 }
 
 }  // namespace gcpipe::dds

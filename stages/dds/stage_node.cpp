@@ -421,6 +421,13 @@ struct StageNode::Impl {
               << totals.blocks_sent << " blocks and " << totals.diagnostics_sent << " diagnostics out in "
               << out.sequence << " batches" << (prog.stopped ? " (strict stop)" : "")
               << "; writes retried on a full history: " << writer->blocked_writes() << "\n";
+    print_hop_latency();
+  }
+
+  // The DDS hop into this node, for the program that just ended (the issue 11 benchmark's figure).
+  void print_hop_latency() {
+    const std::string text = reader->take_hop_latency_text();
+    if (!text.empty()) std::cerr << "gcpipe node " << options.stage << ": " << text << "\n";
   }
 
   void finish_text(Program& prog, std::uint64_t id, const msg::BlockBatch& end) {
@@ -441,6 +448,7 @@ struct StageNode::Impl {
               << prog.arrived.blocks << " blocks, " << prog.arrived.diagnostics() << " diagnostics in; "
               << out.bytes << " bytes out in " << out.sequence << " chunks"
               << (prog.error.empty() ? "" : "; " + prog.error) << "\n";
+    print_hop_latency();
   }
 
   bool ended = false;
