@@ -215,6 +215,68 @@ TEST(Launch, RestartsACrashedStageWhenTheFileSaysSoAndStopsOnSigint) {
   EXPECT_TRUE(shm_of_domain(228).empty());
 }
 
+// A stage that dies with a program in flight is started again, but does not resume that program
+// (its input's history died with the process, and the feed had already gone): the pipeline says
+// so loudly instead. The program's sink ends INCOMPLETE naming the reason, within the discovery
+// lease; the restarted stage then serves the next program, with batch's bytes.
+TEST(Launch, ARestartedStageLosesTheProgramInFlightLoudlyAndServesTheNext) {
+  const fs::path dir = tmpdir("launch_restart_mid_program");
+  const fs::path log = dir / "launch.log";
+  const fs::path big = dir / "big.nc", small = kSource / "samples" / "five_axis_demo.nc";
+  ASSERT_EQ(gcpipe({"synth", "--blocks", "400000", "--seed", "3", "-o", big.string()}).status, 0);
+  const Outcome batch = gcpipe({"batch", small.string(), "-o", (dir / "batch").string(), "--quiet", "--no-simulate"});
+  ASSERT_EQ(batch.status, 0) << batch.err;
+  const std::vector<std::string> dds = {"--domain", "228", "--idle-timeout", "60"};
+  auto with_dds = [&](std::vector<std::string> args) {
+    args.insert(args.end(), dds.begin(), dds.end());
+    return args;
+  };
+  const pid_t launch = spawn_gcpipe(
+      {"launch", "-v", pipeline_file(dir, 228, "  on_crash: restart\n", "[parse, trochoid, write]").string()}, dir / "out", log);
+  // A failed assertion must not leave the pipeline running into the next test on this domain.
+  struct StopOnExit {
+    pid_t pid;
+    ~StopOnExit() {
+      if (kill(pid, SIGINT) == 0) wait_exit(pid, 30);
+    }
+  } stop_launch{launch};
+  ASSERT_TRUE(wait_for(log, "all 3 processes ready", 60)) << slurp(log);
+  const pid_t first_parse = node_pid(log, "parse");
+  const pid_t sink1 = spawn_gcpipe(with_dds({"sink", "-o", (dir / "first.nc").string()}), dir / "sink1.out", dir / "sink1.err");
+  ASSERT_TRUE(wait_for(dir / "sink1.err", "gcpipe sink: ready", 30)) << slurp(dir / "sink1.err");
+  // Parse is killed once its first batches are out: mid-program (its 400,000 lines take it
+  // about a second), as a monitor of its edge sees.
+  const pid_t watch = spawn_gcpipe(with_dds({"monitor", "gcpipe_blocks", "--period", "0.05"}), dir / "watch.out", dir / "watch.err");
+  ASSERT_TRUE(wait_for(dir / "watch.out", "matched", 30)) << slurp(dir / "watch.out") << slurp(dir / "watch.err");
+  const pid_t feed1 = spawn_gcpipe(with_dds({"feed", big.string()}), dir / "feed1.out", dir / "feed1.err");
+  const std::regex started("batches [1-9]");
+  for (int i = 0; i < 3000 && !std::regex_search(slurp(dir / "watch.out"), started); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_TRUE(std::regex_search(slurp(dir / "watch.out"), started)) << slurp(dir / "watch.out");
+  ASSERT_EQ(kill(first_parse, SIGKILL), 0);
+  double took = 0;
+  EXPECT_EQ(wait_exit(sink1, 30, &took), 1) << slurp(dir / "sink1.err");
+  std::printf("the sink gave up %.2f s after the kill\n", took);
+  EXPECT_NE(slurp(dir / "sink1.err").find("went away mid-program"), std::string::npos) << slurp(dir / "sink1.err");
+  EXPECT_FALSE(fs::exists(dir / "first.nc"));
+  EXPECT_NE(wait_exit(feed1, 30), 0) << slurp(dir / "feed1.err");  // its reader went away
+  ASSERT_TRUE(wait_for(log, "parse: restarting (1 of 3)", 20)) << slurp(log);
+  for (int i = 0; i < 400 && node_pid(log, "parse") == first_parse; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_NE(node_pid(log, "parse"), first_parse) << slurp(log);
+  // The next program goes through the restarted stage whole.
+  const pid_t sink2 = spawn_gcpipe(with_dds({"sink", "-o", (dir / "second.nc").string()}), dir / "sink2.out", dir / "sink2.err");
+  ASSERT_TRUE(wait_for(dir / "sink2.err", "gcpipe sink: ready", 30)) << slurp(dir / "sink2.err");
+  const pid_t feed2 = spawn_gcpipe(with_dds({"feed", small.string()}), dir / "feed2.out", dir / "feed2.err");
+  EXPECT_EQ(wait_exit(feed2, 60), 0) << slurp(dir / "feed2.err");
+  EXPECT_EQ(wait_exit(sink2, 60), 0) << slurp(dir / "sink2.err") << slurp(log);
+  EXPECT_TRUE(slurp(dir / "second.nc") == slurp(dir / "batch" / "output.nc"));
+  kill(watch, SIGTERM);
+  wait_exit(watch, 10);
+  kill(launch, SIGINT);
+  EXPECT_EQ(wait_exit(launch, 30), 130) << slurp(log);
+  EXPECT_TRUE(shm_of_domain(228).empty());
+}
+
 TEST(Launch, PipelineFileErrorsNameTheKey) {
   const fs::path dir = tmpdir("launch_errors");
   auto run_with = [&](const std::string& nodes, const std::string& extra = "") {
@@ -227,6 +289,11 @@ TEST(Launch, PipelineFileErrorsNameTheKey) {
   EXPECT_NE(twice.err.find("listed twice"), std::string::npos) << twice.err;
   Outcome crash = run_with("[parse]", "  on_crash: retry\n");
   EXPECT_NE(crash.err.find("on_crash"), std::string::npos) << crash.err;
+  Outcome identity = run_with("[parse]", "  identity: no_such_folder\n");
+  EXPECT_NE(identity.err.find("identity"), std::string::npos) << identity.err;
+  EXPECT_NE(identity.err.find("no such folder"), std::string::npos) << identity.err;
+  Outcome network = run_with("[parse]", "  network: no_such_file.xml\n");
+  EXPECT_NE(network.err.find("network"), std::string::npos) << network.err;
   EXPECT_EQ(gcpipe({"launch", (dir / "missing.yaml").string()}).status, 2);  // CLI: no such file
 }
 

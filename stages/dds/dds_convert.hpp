@@ -171,11 +171,18 @@ class BatchIntake {
   void erase(std::uint64_t id) { programs_.erase(id); }
   /// No program in flight.
   bool empty() const { return programs_.empty(); }
-  /// Calls f(id, program) for every program in flight, then forgets them all.
-  template <class F>
-  void drain(F f) {
-    for (auto& [id, prog] : programs_) f(id, prog);
-    programs_.clear();
+  /// Calls f(id, program) for every program in flight whose writer `gone(writer)` says left,
+  /// then forgets those.
+  template <class Gone, class F>
+  void drain_if(Gone gone, F f) {
+    for (auto it = programs_.begin(); it != programs_.end();) {
+      if (!gone(it->second.writer)) {
+        ++it;
+        continue;
+      }
+      f(it->first, it->second);
+      it = programs_.erase(it);
+    }
   }
 
  private:

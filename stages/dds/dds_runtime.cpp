@@ -7,8 +7,10 @@
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/log/Log.hpp>
 #include <fastdds/dds/publisher/DataWriter.hpp>
+#include <fastdds/dds/publisher/DataWriterListener.hpp>
 #include <fastdds/dds/publisher/Publisher.hpp>
 #include <fastdds/dds/subscriber/DataReader.hpp>
+#include <fastdds/dds/subscriber/DataReaderListener.hpp>
 #include <fastdds/dds/subscriber/SampleInfo.hpp>
 #include <fastdds/dds/subscriber/Subscriber.hpp>
 #include <fastdds/dds/topic/Topic.hpp>
@@ -23,6 +25,8 @@
 #include <iomanip>
 #include <iostream>
 #include <map>
+#include <mutex>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <thread>
@@ -288,9 +292,30 @@ std::string creation_hint(const Participant::Impl& owner, const char* verb) {
   return hint + ")";
 }
 
+// How many readers left: a reader that leaves while a program is being sent will never take its
+// rest, even when another reader (its stage restarted) matched in the meantime and keeps the
+// matched count up.
+class LostReaders : public fdds::DataWriterListener {
+ public:
+  void on_publication_matched(fdds::DataWriter*, const fdds::PublicationMatchedStatus& status) override {
+    if (status.current_count_change < 0) lost_ += -status.current_count_change;
+  }
+  int lost() const { return lost_.load(); }
+
+ private:
+  std::atomic<int> lost_{0};
+};
+
 struct RawWriter::Impl {
   Participant::Impl* owner = nullptr;
   fdds::DataWriter* writer = nullptr;
+  LostReaders listener;
+  int lost_before_first_sample = -1;  // -1: nothing published yet
+  // A reader left since the first sample (for one-program writers). Checked while samples are
+  // still to be written only: a reader that took the end marker and left is done, not lost.
+  bool reader_left_mid_program() const {
+    return lost_before_first_sample >= 0 && listener.lost() > lost_before_first_sample;
+  }
 };
 
 RawWriter::RawWriter(Participant& participant, MessageType type, const std::string& topic, bool monitor,
@@ -299,7 +324,7 @@ RawWriter::RawWriter(Participant& participant, MessageType type, const std::stri
   impl_->owner = &participant.impl();
   const char* profile = profile_name ? profile_name : monitor ? kMonitorWriterProfile : kWriterProfile;
   impl_->writer = impl_->owner->publisher->create_datawriter_with_profile(
-      impl_->owner->topic(type, topic), profile);
+      impl_->owner->topic(type, topic), profile, &impl_->listener, fdds::StatusMask::publication_matched());
   // Inconsistent resource limits in the XML make this return null without an exception.
   if (impl_->writer == nullptr)
     throw std::runtime_error("cannot create a writer of " + topic + " from profile '" + profile + "' of '" +
@@ -342,11 +367,16 @@ bool RawWriter::publish(const void* sample) {
   // A reader that matched and is gone now (its process died, or stopped announcing itself for
   // the discovery lease) will never take the rest: say so at once instead of filling the history
   // and waiting out write_timeout.
+  if (impl_->lost_before_first_sample < 0) impl_->lost_before_first_sample = impl_->listener.lost();
   auto check_readers = [&] {
     if (const int left = o.fail_on_lost_reader ? matched_readers() : o.subscribers; left < o.subscribers)
       throw std::runtime_error(std::string("writing to ") + topic_ + ": a reader went away (" + std::to_string(left) +
                                " of " + std::to_string(o.subscribers) +
                                " left): its stage stopped or died, the rest of the program is not sent");
+    if (o.fail_on_lost_reader && impl_->reader_left_mid_program())
+      throw std::runtime_error(std::string("writing to ") + topic_ +
+                               ": a reader went away mid-program (its stage stopped or died; a restarted stage "
+                               "does not take a program in flight): the rest of the program is not sent");
   };
   check_readers();
   // write() blocks up to the profile's max_blocking_time, then returns false with the sample
@@ -377,27 +407,6 @@ bool RawWriter::wait_acknowledged() {
 
 // ---------------------------------------------------------------------------------------------
 
-struct RawReader::Impl {
-  Participant::Impl* owner = nullptr;
-  fdds::DataReader* reader = nullptr;
-  std::vector<double> hop_latencies;  // [s] of the samples taken since the last report
-};
-
-RawReader::RawReader(Participant& participant, MessageType type, const std::string& topic, bool monitor)
-    : impl_(std::make_unique<Impl>()), topic_(topic) {
-  impl_->owner = &participant.impl();
-  const char* profile = monitor ? kMonitorReaderProfile : kReaderProfile;
-  impl_->reader = impl_->owner->subscriber->create_datareader_with_profile(
-      impl_->owner->topic(type, topic), profile);
-  if (impl_->reader == nullptr)
-    throw std::runtime_error("cannot create a reader of " + topic + " from profile '" + profile + "' of '" +
-                             impl_->owner->options.profiles.string() + "' " + creation_hint(*impl_->owner, "subscribe"));
-}
-
-RawReader::~RawReader() {
-  if (impl_->reader != nullptr) impl_->owner->subscriber->delete_datareader(impl_->reader);
-}
-
 namespace {
 
 // FNV-1a over the writer's 16-byte GUID: an id that tells the writers of one topic apart.
@@ -407,7 +416,49 @@ std::uint64_t writer_id(const fdds::InstanceHandle_t& handle) {
   return h == 0 ? 1 : h;
 }
 
+// Which writers left: Fast DDS 2.9's DataReader::get_matched_publications is not implemented, so
+// the matched-status callbacks are recorded instead (on Fast DDS's event thread).
+class GoneWriters : public fdds::DataReaderListener {
+ public:
+  void on_subscription_matched(fdds::DataReader*, const fdds::SubscriptionMatchedStatus& status) override {
+    const std::uint64_t id = writer_id(status.last_publication_handle);
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (status.current_count_change < 0) gone_.insert(id);
+    else if (status.current_count_change > 0) gone_.erase(id);
+  }
+  bool gone(std::uint64_t id) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return gone_.count(id) != 0;
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::set<std::uint64_t> gone_;
+};
+
 }  // namespace
+
+struct RawReader::Impl {
+  Participant::Impl* owner = nullptr;
+  fdds::DataReader* reader = nullptr;
+  GoneWriters listener;
+  std::vector<double> hop_latencies;  // [s] of the samples taken since the last report
+};
+
+RawReader::RawReader(Participant& participant, MessageType type, const std::string& topic, bool monitor)
+    : impl_(std::make_unique<Impl>()), topic_(topic) {
+  impl_->owner = &participant.impl();
+  const char* profile = monitor ? kMonitorReaderProfile : kReaderProfile;
+  impl_->reader = impl_->owner->subscriber->create_datareader_with_profile(
+      impl_->owner->topic(type, topic), profile, &impl_->listener, fdds::StatusMask::subscription_matched());
+  if (impl_->reader == nullptr)
+    throw std::runtime_error("cannot create a reader of " + topic + " from profile '" + profile + "' of '" +
+                             impl_->owner->options.profiles.string() + "' " + creation_hint(*impl_->owner, "subscribe"));
+}
+
+RawReader::~RawReader() {
+  if (impl_->reader != nullptr) impl_->owner->subscriber->delete_datareader(impl_->reader);
+}
 
 bool RawReader::take(void* sample, double timeout_s, double* source_time, std::uint64_t* writer) {
   const auto t0 = Clock::now();
@@ -443,6 +494,8 @@ std::string RawReader::take_hop_latency_text() {
   v.clear();
   return o.str();
 }
+
+bool RawReader::writer_gone(std::uint64_t writer) const { return impl_->listener.gone(writer); }
 
 int RawReader::matched_writers() const {
   fdds::SubscriptionMatchedStatus status;

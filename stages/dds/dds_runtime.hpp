@@ -172,6 +172,10 @@ class RawReader {
   /// `writer`: which writer sent it (a hash of its GUID, never 0), to tell two writers apart.
   bool take(void* sample, double timeout_s, double* source_time = nullptr, std::uint64_t* writer = nullptr);
   int matched_writers() const;
+  /// True once the writer `writer` (as take() names it) was matched and no longer is: its
+  /// process stopped or died, or its participant's lease ran out. Other writers may still be
+  /// matched (a restarted stage), so a program in flight from this one will never be completed.
+  bool writer_gone(std::uint64_t writer) const;
   const std::string& topic() const { return topic_; }
   /// The hop latency of the samples taken since the last call: reception minus source timestamp,
   /// the way across DDS from the writer's write() to this reader's history (not the time a

@@ -457,17 +457,26 @@ struct StageNode::Impl {
   // everything it had sent is in our history, and take() found nothing more). Each such program
   // is ended now with an end marker that carries the reason, so every stage downstream and the
   // sink stop at once with it, instead of waiting for batches that will never come.
+  // A program's writer is gone when it was unmatched (even if another writer, a restarted stage,
+  // is matched now), or when no writer is matched at all.
   bool end_orphaned_programs() {
-    if (reader->matched_writers() > 0 || (chunk_programs.empty() && intake.empty())) return false;
+    if (chunk_programs.empty() && intake.empty()) return false;
+    const bool none_left = reader->matched_writers() == 0;
+    auto gone = [&](std::uint64_t writer) { return none_left || reader->writer_gone(writer); };
     const std::string why = "the writer of " + options.input_topic + " went away mid-program (its stage stopped or died)";
     bool any = false;
-    for (auto& [id, prog] : chunk_programs) {
+    for (auto it = chunk_programs.begin(); it != chunk_programs.end();) {
+      if (!gone(it->second.writer)) {
+        ++it;
+        continue;
+      }
+      auto& [id, prog] = *it;
       fail(prog, id, why + " after chunk " + std::to_string(prog.next_chunk) + " of the program: the rest is lost");
       finish_blocks(prog, id, parse_summary_of(*prog.stage), false, 0);
       any = true;
+      it = chunk_programs.erase(it);
     }
-    chunk_programs.clear();
-    intake.drain([&](std::uint64_t id, Program& prog) {
+    intake.drain_if(gone, [&](std::uint64_t id, Program& prog) {
       fail(prog, id, why + " after batch " + std::to_string(prog.next_batch) + " of the program: the rest is lost");
       if (info.output == Port::kBlocks) finish_blocks(prog, id, ParseSummary{}, false, 0);
       else finish_text(prog, id, msg::BlockBatch{});
