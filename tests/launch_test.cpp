@@ -170,6 +170,39 @@ TEST(Stream, APipelineWithoutTheForceNodeReadsTheToolpathDirectly) {
   EXPECT_TRUE(slurp(dir / "stream" / "compensated.nc") == slurp(dir / "batch" / "compensated.nc"));
 }
 
+// Stages grouped into processes (`groups:`): two processes run the seven stages, each stage in a
+// thread of its own, and write batch's bytes; a group that dies is named and stops the pipeline.
+TEST(Stream, GroupedStagesWriteBatchModesBytes) {
+  const fs::path dir = tmpdir("stream_groups");
+  const fs::path in = kSource / "samples" / "trochoid_slot_f3000.nc";
+  const fs::path file = pipeline_file(dir, 226, "groups: [parse+trochoid+write, ik+force+simulate+compensate]\n",
+                                      "[parse, trochoid, write, force, ik, simulate, compensate]");
+  const Outcome batch = gcpipe({"batch", in.string(), "-o", (dir / "batch").string(), "--quiet"});
+  ASSERT_EQ(batch.status, 0) << batch.err;
+  const Outcome s = gcpipe({"stream", in.string(), "-o", (dir / "stream").string(), "--pipeline", file.string()});
+  ASSERT_EQ(s.status, 0) << s.err;
+  // Two groups, two G-code sinks, the report sink and the feed.
+  EXPECT_NE(s.err.find("all 6 processes ready"), std::string::npos) << s.err;
+  EXPECT_NE(s.err.find("force+ik+simulate+compensate: started"), std::string::npos) << s.err;  // chain order
+  EXPECT_TRUE(slurp(dir / "stream" / "output.nc") == slurp(dir / "batch" / "output.nc"));
+  EXPECT_TRUE(slurp(dir / "stream" / "compensated.nc") == slurp(dir / "batch" / "compensated.nc"));
+  auto streamed = nlohmann::json::parse(slurp(dir / "stream" / "report.json"));
+  auto expected = nlohmann::json::parse(slurp(dir / "batch" / "report.json"));
+  streamed.erase("seconds");
+  expected.erase("seconds");
+  EXPECT_EQ(streamed, expected);
+  // A dead group stops the pipeline, named as the process it is.
+  const fs::path log = dir / "launch.log";
+  const pid_t launch = spawn_gcpipe({"launch", file.string()}, dir / "out", log);
+  ASSERT_TRUE(wait_for(log, "all 2 processes ready", 60)) << slurp(log);
+  const pid_t victim = node_pid(log, "parse\\+trochoid\\+write");
+  ASSERT_GT(victim, 0) << slurp(log);
+  ASSERT_EQ(kill(victim, SIGKILL), 0);
+  EXPECT_EQ(wait_exit(launch, 30), 1) << slurp(log);
+  EXPECT_NE(slurp(log).find("stage parse+trochoid+write stopped (killed by signal 9)"), std::string::npos) << slurp(log);
+  EXPECT_TRUE(shm_of_domain(226).empty());
+}
+
 TEST(Launch, ADeadStageStopsThePipelineNamingItAndLeavesNoSharedMemory) {
   const fs::path dir = tmpdir("launch_kill");
   // Every stage between the ends in turn, and the last one.
@@ -294,6 +327,12 @@ TEST(Launch, PipelineFileErrorsNameTheKey) {
   EXPECT_NE(identity.err.find("no such folder"), std::string::npos) << identity.err;
   Outcome network = run_with("[parse]", "  network: no_such_file.xml\n");
   EXPECT_NE(network.err.find("network"), std::string::npos) << network.err;
+  Outcome stranger = run_with("[parse, trochoid]", "groups: [parse+write]\n");
+  EXPECT_NE(stranger.err.find("stage 'write' of group 'parse+write' is not in nodes"), std::string::npos) << stranger.err;
+  Outcome alone = run_with("[parse, trochoid]", "groups: [parse]\n");
+  EXPECT_NE(alone.err.find("a group joins two or more"), std::string::npos) << alone.err;
+  Outcome twice_grouped = run_with("[parse, trochoid, write]", "groups: [parse+trochoid, trochoid+write]\n");
+  EXPECT_NE(twice_grouped.err.find("stage 'trochoid' is in two groups"), std::string::npos) << twice_grouped.err;
   EXPECT_EQ(gcpipe({"launch", (dir / "missing.yaml").string()}).status, 2);  // CLI: no such file
 }
 

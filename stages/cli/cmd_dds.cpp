@@ -1,8 +1,12 @@
 // The streaming pipeline's commands: feed, node, sink, monitor (built with GCPIPE_WITH_DDS).
 // Options come from main.cpp; the work is in stages/dds (gcpipe_dds): feed, sink, monitor and
 // StageNode, which runs any registered stage.
+#include <algorithm>
 #include <filesystem>
 #include <iostream>
+#include <memory>
+#include <thread>
+#include <vector>
 
 #include "commands.hpp"
 #include "dds_runtime.hpp"
@@ -32,16 +36,60 @@ dds::DdsOptions dds_options(const DdsArgs& a) {
   return o;
 }
 
-// The stage's declared edges (dds::edges), renamed by --in/--out.
-void node_topics(const NodeArgs& a, std::string& in, std::string& out) {
-  const pipeline::StageInfo& info = pipeline::find_stage(a.stage);
+// --in, --out or --readers: none, or one value per stage.
+template <class T>
+void check_per_stage(const std::vector<T>& values, std::size_t stages, const char* option) {
+  if (!values.empty() && values.size() != stages)
+    throw std::invalid_argument(std::string(option) + " gives " + std::to_string(values.size()) + " values for " +
+                                std::to_string(stages) + " stages: give one per stage, comma-separated");
+}
+
+// Stage k's node options: its declared edges (dds::edges) renamed by --in/--out, its readers.
+dds::StageNodeOptions stage_node_options(const NodeArgs& a, std::size_t k) {
+  const std::string& stage = a.stages[k];
+  const pipeline::StageInfo& info = pipeline::find_stage(stage);
   if (*info.topic == '\0' && a.out.empty())
-    throw std::invalid_argument("stage '" + a.stage + "' has no DDS node yet (nodes: every stage with a topic in gcpipe stages)");
-  in = a.in.empty() ? pipeline::input_topic(a.stage) : a.in;
-  out = a.out.empty() ? std::string(info.topic) : a.out;
-  dds::check_topic_name(in);
-  dds::check_topic_name(out);
-  if (in == out) throw std::invalid_argument("--in and --out name the same topic '" + in + "'");
+    throw std::invalid_argument("stage '" + stage + "' has no DDS node yet (nodes: every stage with a topic in gcpipe stages)");
+  if (a.strict && stage != "parse" && stage != "trochoid")
+    throw std::invalid_argument("--strict belongs to the parse and trochoid nodes, not " + stage);
+  dds::StageNodeOptions o;
+  o.stage = stage;
+  o.input_topic = a.in.empty() ? pipeline::input_topic(stage) : a.in[k];
+  o.output_topic = a.out.empty() ? std::string(info.topic) : a.out[k];
+  dds::check_topic_name(o.input_topic);
+  dds::check_topic_name(o.output_topic);
+  if (o.input_topic == o.output_topic)
+    throw std::invalid_argument("--in and --out name the same topic '" + o.input_topic + "'");
+  o.subscribers = a.readers.empty() ? 0 : a.readers[k];
+  o.batch_bytes = a.batch_bytes;
+  o.forever = a.forever;
+  o.strict = a.strict;
+  o.pipeline_stages = a.pipeline_stages;
+  o.report_dir = a.report_dir;
+  o.report_readers = a.report_readers;
+  return o;
+}
+
+// Every stage's options, or a usage error.
+std::vector<dds::StageNodeOptions> group_options(const NodeArgs& a) {
+  check_per_stage(a.in, a.stages.size(), "--in");
+  check_per_stage(a.out, a.stages.size(), "--out");
+  check_per_stage(a.readers, a.stages.size(), "--readers");
+  std::vector<dds::StageNodeOptions> out;
+  for (std::size_t k = 0; k < a.stages.size(); ++k) {
+    if (std::find(a.stages.begin(), a.stages.begin() + static_cast<std::ptrdiff_t>(k), a.stages[k]) !=
+        a.stages.begin() + static_cast<std::ptrdiff_t>(k))
+      throw std::invalid_argument("stage '" + a.stages[k] + "' is given twice");
+    out.push_back(stage_node_options(a, k));
+  }
+  return out;
+}
+
+// The process's name in its lines: the stage, or the group's stages joined by '+'.
+std::string group_name(const std::vector<std::string>& stages) {
+  std::string name;
+  for (const auto& s : stages) name += (name.empty() ? "" : "+") + s;
+  return name;
 }
 
 }  // namespace
@@ -61,35 +109,40 @@ int run_feed(const FeedArgs& a) {
 
 int run_node(const NodeArgs& a) {
   const PipelineConfig pc = load_config_option(a.config);
+  std::vector<dds::StageNodeOptions> stages;
   try {
-    std::string in, out;
-    node_topics(a, in, out);
+    stages = group_options(a);
   } catch (const std::exception& e) {
     std::cerr << "gcpipe node: " << e.what() << "\n";
-    return 2;
-  }
-  if (a.strict && a.stage != "parse" && a.stage != "trochoid") {
-    std::cerr << "gcpipe node: --strict belongs to the parse and trochoid nodes\n";
     return 2;
   }
   dds::install_stop_handlers();
   dds::DdsOptions options = dds_options(a);
   options.fail_on_lost_reader = !a.forever;
   dds::Participant participant(options);
-  std::string in, out;
-  node_topics(a, in, out);
-  dds::StageNodeOptions o;
-  o.stage = a.stage;
-  o.batch_bytes = a.batch_bytes;
-  o.forever = a.forever;
-  o.strict = a.strict;
-  o.input_topic = in;
-  o.output_topic = out;
-  o.pipeline_stages = a.pipeline_stages;
-  o.report_dir = a.report_dir;
-  o.report_readers = a.report_readers;
-  dds::StageNode node(participant, pc, o);
-  return node.run();
+  if (stages.size() == 1) return dds::StageNode(participant, pc, stages.front()).run();
+  // A group: every node (reader, writers) is made before any runs, on one participant; then
+  // each runs in its own thread, exactly as it would in a process of its own.
+  std::vector<std::unique_ptr<dds::StageNode>> nodes;
+  for (const auto& o : stages) nodes.push_back(std::make_unique<dds::StageNode>(participant, pc, o));
+  dds::say_line("gcpipe node " + group_name(a.stages) + ": up on domain " + std::to_string(options.domain) + ", " +
+                std::to_string(nodes.size()) + " stages in one process");
+  std::vector<int> status(nodes.size(), 0);
+  std::vector<std::thread> threads;
+  for (std::size_t k = 0; k < nodes.size(); ++k)
+    threads.emplace_back([&, k] {
+      try {
+        status[k] = nodes[k]->run();
+      } catch (const std::exception& e) {
+        dds::say_line("gcpipe node " + stages[k].stage + ": " + e.what());
+        status[k] = 1;
+        // Its reader and writers go now, as they would with a process of its own: the stages
+        // after it see its writer leave and end the program with the reason.
+        nodes[k].reset();
+      }
+    });
+  for (auto& t : threads) t.join();
+  return *std::max_element(status.begin(), status.end());
 }
 
 int run_sink(const SinkArgs& a) {

@@ -110,7 +110,11 @@ struct FeedArgs : DdsArgs {
 };
 int run_feed(const FeedArgs& args);
 struct NodeArgs : DdsArgs {
-  std::string stage, config, in, out;
+  /// One stage, or several run in this one process (a group: one thread and node per stage,
+  /// one DDS participant); --in, --out and --readers then give one value per stage.
+  std::vector<std::string> stages, in, out;
+  std::vector<int> readers;  //!< --readers: readers of each stage's output (default --subscribers)
+  std::string config;
   std::size_t batch_bytes = 32 * 1024;
   bool forever = false, strict = false;
   std::vector<std::string> pipeline_stages;  //!< --pipeline-stages

@@ -194,16 +194,20 @@ void add_feed(CLI::App& app, FeedArgs& a) {
 }
 
 void add_node(CLI::App& app, NodeArgs& a) {
-  auto* s = app.add_subcommand("node", "run one stage of the pipeline as a DDS node");
+  auto* s = app.add_subcommand("node", "run one stage of the pipeline as a DDS node (or several in one process)");
   // The stages with a DDS topic, from the registry: the help cannot fall behind a new node.
   std::string nodes;
   for (const auto& info : gcpipe::pipeline::registry())
     if (*info.topic != '\0') nodes += std::string(nodes.empty() ? "" : ", ") + info.name;
-  s->add_option("stage", a.stage, "the stage: " + nodes + " (see gcpipe stages)")->required();
+  s->add_option("stage", a.stages,
+                "the stage: " + nodes + " (see gcpipe stages); several: one process runs them all, each in its own thread")
+      ->required();
   s->add_option("--config", a.config, "pipeline config");
   s->add_option("--batch-bytes", a.batch_bytes, "publish a batch once it holds this much")->check(CLI::Range(1024, 1048576));
-  s->add_option("--in", a.in, "input topic (default: the stage's edge)");
-  s->add_option("--out", a.out, "output topic (default: the stage's edge)");
+  s->add_option("--in", a.in, "input topic (default: the stage's edge); one per stage, comma-separated")->delimiter(',');
+  s->add_option("--out", a.out, "output topic (default: the stage's edge); one per stage, comma-separated")->delimiter(',');
+  s->add_option("--readers", a.readers, "readers of each stage's output, comma-separated (default: --subscribers)")
+      ->delimiter(',')->check(CLI::Range(1, 100));
   s->add_flag("--forever", a.forever, "serve programs until SIGINT/SIGTERM");
   s->add_flag("--strict", a.strict, "stop each program at its first rejected line (parse, trochoid)");
   s->add_option("--pipeline-stages", a.pipeline_stages,

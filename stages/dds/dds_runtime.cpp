@@ -320,7 +320,8 @@ struct RawWriter::Impl {
 
 RawWriter::RawWriter(Participant& participant, MessageType type, const std::string& topic, bool monitor,
                      const char* profile_name)
-    : impl_(std::make_unique<Impl>()), topic_(topic), monitor_(monitor) {
+    : impl_(std::make_unique<Impl>()), topic_(topic), monitor_(monitor),
+      subscribers_(participant.options().subscribers) {
   impl_->owner = &participant.impl();
   const char* profile = profile_name ? profile_name : monitor ? kMonitorWriterProfile : kWriterProfile;
   impl_->writer = impl_->owner->publisher->create_datawriter_with_profile(
@@ -341,7 +342,7 @@ int RawWriter::matched_readers() const {
   return status.current_count;
 }
 
-bool RawWriter::wait_for_readers() { return wait_for_readers(impl_->owner->options.subscribers); }
+bool RawWriter::wait_for_readers() { return wait_for_readers(subscribers_); }
 
 bool RawWriter::wait_for_readers(int count) {
   const auto& o = impl_->owner->options;
@@ -369,9 +370,9 @@ bool RawWriter::publish(const void* sample) {
   // and waiting out write_timeout.
   if (impl_->lost_before_first_sample < 0) impl_->lost_before_first_sample = impl_->listener.lost();
   auto check_readers = [&] {
-    if (const int left = o.fail_on_lost_reader ? matched_readers() : o.subscribers; left < o.subscribers)
+    if (const int left = o.fail_on_lost_reader ? matched_readers() : subscribers_; left < subscribers_)
       throw std::runtime_error(std::string("writing to ") + topic_ + ": a reader went away (" + std::to_string(left) +
-                               " of " + std::to_string(o.subscribers) +
+                               " of " + std::to_string(subscribers_) +
                                " left): its stage stopped or died, the rest of the program is not sent");
     if (o.fail_on_lost_reader && impl_->reader_left_mid_program())
       throw std::runtime_error(std::string("writing to ") + topic_ +
@@ -503,14 +504,21 @@ int RawReader::matched_writers() const {
   return status.current_count;
 }
 
+void say_line(const std::string& line) {
+  const std::string whole = line + "\n";
+  std::cerr.write(whole.data(), static_cast<std::streamsize>(whole.size()));
+  std::cerr.flush();
+}
+
 int run_stage_node(const std::string& node, Participant& participant, RawWriter& output, bool forever,
                    const std::function<Taken(double timeout)>& take, int& status) {
   // `gcpipe launch` takes this line as "started": the participant, reader and writer exist.
-  std::cerr << "gcpipe node " << node << ": up on domain " << participant.options().domain << ", waiting for "
-            << participant.options().subscribers << " reader(s) of " << output.topic() << std::endl;
+  // Each line is written whole (one write): the stages of a group print from their own threads.
+  say_line("gcpipe node " + node + ": up on domain " + std::to_string(participant.options().domain) +
+           ", waiting for " + std::to_string(output.subscribers()) + " reader(s) of " + output.topic());
   if (!output.wait_for_readers()) return 130;
-  std::cerr << "gcpipe node " << node << ": ready, " << output.matched_readers() << " reader(s) of "
-            << output.topic() << " matched" << std::endl;
+  say_line("gcpipe node " + node + ": ready, " + std::to_string(output.matched_readers()) + " reader(s) of " +
+           output.topic() + " matched");
   bool done = false;
   const double idle_timeout = participant.options().idle_timeout;
   auto last_sample = std::chrono::steady_clock::now();

@@ -148,6 +148,10 @@ class RawWriter {
   const std::string& topic() const { return topic_; }
   /// How often write() returned false (history full, a reader behind) and was retried.
   std::uint64_t blocked_writes() const { return blocked_writes_; }
+  /// Readers this writer waits for and must keep (default: the participant's `subscribers`;
+  /// the stages of one process each have their own, `gcpipe node` groups).
+  void set_subscribers(int count) { subscribers_ = count; }
+  int subscribers() const { return subscribers_; }
 
  private:
   struct Impl;
@@ -155,6 +159,7 @@ class RawWriter {
   std::string topic_;
   std::uint64_t blocked_writes_ = 0;
   bool monitor_ = false;
+  int subscribers_ = 1;
 };
 
 /// The topic gcpipe monitor reads for the edge `topic`: a keep-last copy of it.
@@ -211,6 +216,9 @@ enum class Taken : std::uint8_t {
   kHandled,     //!< a sample was handled, the program goes on
   kProgramEnd,  //!< a sample was handled and it completed a program
 };
+
+/// Writes `line` and a newline to stderr in one write, so that lines of threads do not mix.
+void say_line(const std::string& line);
 
 /// The loop every stage node (parse, trochoid, write, compensate) runs: wait until the output has readers
 /// (downstream first, so that no history fills with nobody to drain it), call `take` (which takes

@@ -85,9 +85,62 @@ void remove_unmapped(const std::set<std::string>& files) {
 
 }  // namespace
 
+namespace {
+
+// `groups: [parse+trochoid+write, ik+simulate]`: stages of `nodes`, each in one group at most,
+// put in chain order.
+std::vector<std::vector<std::string>> load_groups(const Config& root, const std::vector<std::string>& nodes) {
+  std::vector<std::vector<std::string>> groups;
+  std::set<std::string> grouped;
+  for (const std::string& text : root.strings("groups")) {
+    std::vector<std::string> group;
+    for (std::size_t from = 0;;) {
+      const std::size_t plus = text.find('+', from);
+      group.push_back(text.substr(from, plus == std::string::npos ? std::string::npos : plus - from));
+      if (plus == std::string::npos) break;
+      from = plus + 1;
+    }
+    if (group.size() < 2) throw root.error("groups", "'" + text + "' is one stage: a group joins two or more with '+'");
+    for (const std::string& stage : group) {
+      if (std::find(nodes.begin(), nodes.end(), stage) == nodes.end())
+        throw root.error("groups", "stage '" + stage + "' of group '" + text + "' is not in nodes");
+      if (!grouped.insert(stage).second) throw root.error("groups", "stage '" + stage + "' is in two groups");
+    }
+    std::sort(group.begin(), group.end(), [&](const std::string& a, const std::string& b) {
+      return std::find(nodes.begin(), nodes.end(), a) < std::find(nodes.begin(), nodes.end(), b);
+    });
+    groups.push_back(std::move(group));
+  }
+  return groups;
+}
+
+// The processes of a plan: each group, and each stage of no group, in chain order (a group where
+// its first stage is).
+std::vector<std::vector<std::string>> process_units(const LaunchPlan& plan) {
+  std::vector<std::vector<std::string>> units;
+  std::set<std::string> done;
+  for (const std::string& n : plan.nodes) {
+    if (done.count(n) != 0) continue;
+    std::vector<std::string> unit{n};
+    for (const auto& g : plan.groups)
+      if (std::find(g.begin(), g.end(), n) != g.end()) unit = g;
+    done.insert(unit.begin(), unit.end());
+    units.push_back(std::move(unit));
+  }
+  return units;
+}
+
+std::string joined(const std::vector<std::string>& parts, char separator) {
+  std::string out;
+  for (const auto& p : parts) out += (out.empty() ? "" : std::string(1, separator)) + p;
+  return out;
+}
+
+}  // namespace
+
 LaunchPlan load_launch_plan(const std::filesystem::path& file) {
   const Config root = Config::load_file(file);
-  root.reject_unknown({"pipeline", "nodes"});
+  root.reject_unknown({"pipeline", "nodes", "groups"});
   const Config p = root.section("pipeline");
   p.reject_unknown({"name", "domain", "config", "profiles", "network", "identity", "on_crash", "max_restarts", "ready_timeout", "stop_timeout",
                     "timeout"});
@@ -108,6 +161,7 @@ LaunchPlan load_launch_plan(const std::filesystem::path& file) {
   std::set<std::string> seen;
   for (const auto& n : plan.nodes)
     if (!seen.insert(n).second) throw root.error("nodes", "stage '" + n + "' is listed twice: one node per stage");
+  if (root.has("groups")) plan.groups = load_groups(root, plan.nodes);
   return plan;
 }
 
@@ -124,17 +178,23 @@ std::vector<LaunchProcess> node_processes(const LaunchPlan& plan, bool forever,
   std::map<std::string, int> readers = extra_readers;
   for (const auto& n : plan.nodes) ++readers[plan_input_topic(plan.nodes, n)];
   std::vector<LaunchProcess> out;
-  for (const auto& n : plan.nodes) {
-    const std::string topic = pipeline::find_stage(n).topic;
+  for (const auto& unit : process_units(plan)) {
+    std::vector<std::string> inputs, counts;
+    for (const auto& n : unit) {
+      inputs.push_back(plan_input_topic(plan.nodes, n));
+      counts.push_back(std::to_string(std::max(1, readers[pipeline::find_stage(n).topic])));
+    }
     LaunchProcess p;
-    p.name = n;
-    p.args = {"node", n, "--config", plan.config.string(), "--in", plan_input_topic(plan.nodes, n),
-              "--subscribers", std::to_string(std::max(1, readers[topic]))};
+    p.name = joined(unit, '+');
+    p.args = {"node"};
+    p.args.insert(p.args.end(), unit.begin(), unit.end());
+    p.args.insert(p.args.end(), {"--config", plan.config.string(), "--in", joined(inputs, ','), "--readers",
+                                 joined(counts, ',')});
     if (forever) p.args.emplace_back("--forever");
     const auto dds = plan_dds_args(plan);
     p.args.insert(p.args.end(), dds.begin(), dds.end());
     p.args.insert(p.args.end(), {"--timeout", std::to_string(plan.timeout)});
-    p.ready_text = "gcpipe node " + n + ": up";
+    p.ready_text = "gcpipe node " + p.name + ": up";
     p.one_shot = !forever;
     out.push_back(std::move(p));
   }

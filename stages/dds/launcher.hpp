@@ -33,6 +33,9 @@ struct LaunchPlan {
   double timeout = 30;              //!< [s] the nodes' --timeout: longest wait for readers, a blocked
                                     //!< write, acknowledgements (then the node stops, loudly)
   std::vector<std::string> nodes;   //!< registered stages with a DDS node, in chain order
+  /// Stages run together in one process (`groups: [parse+trochoid+write]`), each group in
+  /// chain order; a stage of no group runs in a process of its own.
+  std::vector<std::vector<std::string>> groups;
 };
 
 /// Reads and checks a pipeline file; throws ConfigError naming file, line and key.

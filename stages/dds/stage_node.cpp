@@ -205,6 +205,7 @@ struct StageNode::Impl {
         config_strict(load_parse_options(c.root.section("parse")).strict) {
     reader = std::make_unique<RawReader>(p, wire_type(info.input), options.input_topic);
     writer = std::make_unique<RawWriter>(p, wire_type(info.output), options.output_topic);
+    if (options.subscribers > 0) writer->set_subscribers(options.subscribers);
     monitor_writer = std::make_unique<RawWriter>(p, wire_type(info.output), monitor_topic(options.output_topic), true);
     if (info.telemetry != pipeline::Telemetry::kNone) {
       telemetry_writer = std::make_unique<RawWriter>(p, telemetry_type(info.telemetry), monitor_topic(info.telemetry_topic), true);
