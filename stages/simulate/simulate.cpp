@@ -16,6 +16,7 @@ namespace gcpipe::simulate {
 
 NominalPath nominal_path(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program) {
   NominalPath p;
+  p.pts.reserve(nom.raw.size());  // at most one point a tick; grown by doubling it held twice that
   p.index_of_tick.reserve(nom.raw.size());
   for (std::size_t n = 0; n < nom.raw.size(); ++n) {
     const Vec3 tip = forward_kinematics(model.kin, nom.raw[n], tool_length_of(model, program[nom.block[n]])).tip;
