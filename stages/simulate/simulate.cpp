@@ -132,7 +132,7 @@ double tool_length_of(const Model& model, const ResolvedBlock& b) {
   return b.tool_length_active ? b.tool_length : model.kin.tool_length;
 }
 
-RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, const Axes& start,
+RunStats run_program(const Model& model, const BlockSource& blocks, const Axes& start,
                      const std::function<void(const Tick&)>& on_tick, std::uint64_t max_ticks) {
   struct Sink final : interpolate::SampleSink {
     servo::ServoSimulator sim;
@@ -179,11 +179,11 @@ RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, 
   Sink sink(model, stats, on_tick);
   sink.max_ticks = max_ticks;
   interpolate::Interpolator interp(io, start);
-  while (sink.block + 1 < blocks.size() && blocks[sink.block].motion == Motion::kNone) ++sink.block;
+  while (sink.block + 1 < blocks.count && blocks.at(sink.block).motion == Motion::kNone) ++sink.block;
   sink.raw.emplace_back(start, sink.block);
   sink.emit(sink.sim.reset(start, 0.0));
-  for (std::size_t i = 0; i < blocks.size(); ++i) {
-    const ResolvedBlock& b = blocks[i];
+  for (std::size_t i = 0; i < blocks.count; ++i) {
+    const ResolvedBlock& b = blocks.at(i);
     // Samples belong to the block that moves (or dwells): a block without motion emits none,
     // and the settling after the last move belongs to that move.
     if (b.motion != Motion::kNone) sink.block = static_cast<std::uint32_t>(i);
@@ -476,7 +476,7 @@ Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program
 }
 
 Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
-                    std::span<const ResolvedBlock> blocks, const Axes& start,
+                    const BlockSource& blocks, const Axes& start,
                     const std::function<std::uint32_t(std::uint32_t)>& source_block,
                     const std::function<void(const Tick&)>& also, bool on_reference_clock) {
   const NominalPath path = nominal_path(model, nom, program);
