@@ -471,10 +471,14 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
         du[k][i] = gain_at[k] * apply_learning(best_error, static_cast<std::int64_t>(nodes[k].tick), i, L, T, h);
     }
     for (int pass = 0; pass < 2; ++pass) {
-      std::vector<Axes> sm = du;
-      for (std::size_t k = 1; k + 1 < du.size(); ++k)
-        for (std::size_t i = 0; i < kNumAxes; ++i) sm[k][i] = 0.25 * du[k - 1][i] + 0.5 * du[k][i] + 0.25 * du[k + 1][i];
-      du = std::move(sm);
+      // In place: `before_k` holds du[k - 1] as it was before this pass (no second series).
+      Axes before_k = du.empty() ? Axes{} : du[0];
+      for (std::size_t k = 1; k + 1 < du.size(); ++k) {
+        const Axes unsmoothed = du[k];
+        for (std::size_t i = 0; i < kNumAxes; ++i)
+          du[k][i] = 0.25 * before_k[i] + 0.5 * unsmoothed[i] + 0.25 * du[k + 1][i];
+        before_k = unsmoothed;
+      }
     }
     for (std::size_t k = 1; k + 1 < nodes.size(); ++k)
       for (std::size_t i = 0; i < kNumAxes; ++i) {
