@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <deque>
 #include <limits>
+#include <stdexcept>
 
 #include "contour.hpp"
 #include "nominal_path.hpp"
@@ -475,12 +476,58 @@ Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program
   return nom;
 }
 
+namespace {
+
+/// The nominal tool-tip polyline of a recorded run (nominal_path()'s points: the raw samples'
+/// tips, repeated points dropped), made as an evaluated run reaches it and pushed into a
+/// streaming ContourSearch, which keeps only its window: the whole polyline, 28 bytes a tick, is
+/// never held. The search gets the same points at the same calls as over a whole polyline.
+class NominalPolyline {
+ public:
+  NominalPolyline(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program, ContourSearch& search)
+      : model_(model), nom_(nom), program_(program), search_(search) {}
+
+  /// The polyline index of raw tick k (clamped to the last); k never decreases between calls.
+  std::size_t index_of_tick(std::size_t k) {
+    if (nom_.raw.empty()) return 0;
+    k = std::min(k, nom_.raw.size() - 1);
+    if (k < first_tick_) throw std::logic_error("NominalPolyline: raw ticks asked for out of order");
+    while (walked_ <= k) walk();
+    while (first_tick_ < k) index_.pop_front(), ++first_tick_;
+    return index_[k - first_tick_];
+  }
+
+  /// Makes points until the search holds `count` of them or the polyline ends.
+  void fill(std::size_t count) {
+    while (search_.size() < count && walked_ < nom_.raw.size()) walk();
+  }
+
+ private:
+  void walk() {
+    const std::size_t k = walked_++;
+    const Vec3 tip = forward_kinematics(model_.kin, nom_.raw[k], tool_length_of(model_, program_[nom_.block[k]])).tip;
+    if (search_.size() == 0 || dist3(last_, tip) > 1e-9) search_.push(tip), last_ = tip;
+    index_.push_back(static_cast<std::uint32_t>(search_.size() - 1));
+  }
+
+  const Model& model_;
+  const Nominal& nom_;
+  std::span<const ResolvedBlock> program_;
+  ContourSearch& search_;
+  std::size_t walked_ = 0;               // raw ticks turned into points so far
+  Vec3 last_{};                          // the newest point
+  std::deque<std::uint32_t> index_;      // polyline index of raw ticks first_tick_ .. walked_ - 1
+  std::size_t first_tick_ = 0;
+};
+
+}  // namespace
+
 Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
                     const BlockSource& blocks, const Axes& start,
                     const std::function<std::uint32_t(std::uint32_t)>& source_block,
                     const std::function<void(const Tick&)>& also, bool on_reference_clock) {
-  const NominalPath path = nominal_path(model, nom, program);
-  ContourSearch contour(path.pts);
+  ContourSearch contour;
+  NominalPolyline path(model, nom, program, contour);
   RunAccumulator acc(model, nom.segments.size());
   const Axes& ref_end = nom.reference.empty() ? start : nom.reference.back();
   const RunStats stats = run_program(model, blocks, start, [&](const Tick& t) {
@@ -494,9 +541,10 @@ Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const Reso
     std::size_t raw_tick = n;
     if (on_reference_clock && !nom.progress.empty())
       raw_tick = static_cast<std::size_t>(nom.progress[std::min(n, nom.progress.size() - 1)]) + 300;
-    const std::uint32_t limit = path.index_of_tick.empty()
-                                    ? 0
-                                    : path.index_of_tick[std::min(raw_tick, path.index_of_tick.size() - 1)];
+    const std::size_t limit = path.index_of_tick(raw_tick);
+    // The points up to the segment that ends at `limit` (at least the first segment), as the
+    // search over a whole polyline takes them.
+    path.fill(std::max<std::size_t>(limit, 1) + 1);
     Vec3 nearest;
     const double e = contour.distance(tip, limit, nearest);
     const std::uint32_t seg = nom.segment_of_block.empty() ? 0 : nom.segment_of_block[std::min<std::size_t>(src, nom.segment_of_block.size() - 1)];
