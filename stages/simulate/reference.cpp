@@ -286,18 +286,21 @@ void blend(const RawPath& p, const std::vector<double>& sig, std::size_t ma, std
 }
 
 /// Ticks where the reference leaves the nominal tool-tip path by more than `tolerance`, and by
-/// how much, found with the contour metric itself.
+/// how much, found with the contour metric itself (the polyline made as the reference reaches it,
+/// not held whole: 28 bytes a tick at the planner's peak).
 std::vector<std::pair<std::size_t, double>> excursions(const Model& model, std::span<const ResolvedBlock> program,
-                                                       const Nominal& nom, const NominalPath& path, std::size_t h,
-                                                       double tolerance) {
+                                                       const Nominal& nom, std::size_t h, double tolerance) {
   std::vector<std::pair<std::size_t, double>> out;
-  ContourSearch search(path.pts);
+  ContourSearch search;
+  NominalPolyline path(model, nom, program, search);
   const std::size_t N = nom.raw.size();
   for (std::size_t n = 0; n < nom.reference.size(); ++n) {
     const auto k = std::min(static_cast<std::size_t>(nom.progress[n]), N - 1);
     const Vec3 tip = forward_kinematics(model.kin, nom.reference[n], tool_length_of(model, program[nom.block[k]])).tip;
+    const std::size_t limit = path.index_of_tick(k + h + 2);
+    path.fill(std::max<std::size_t>(limit, 1) + 1);  // as the search over a whole polyline takes them
     Vec3 c;
-    const double e = search.distance(tip, path.index_of_tick[std::min(k + h + 2, N - 1)], c);
+    const double e = search.distance(tip, limit, c);
     if (e > tolerance) out.emplace_back(k, e);
   }
   return out;
@@ -343,7 +346,6 @@ void plan_reference(const Model& model, std::span<const ResolvedBlock> program, 
   const double T1 = static_cast<double>(m1) * T;
   const std::size_t h = (m1 + m2) / 2 + 1, spread = (ma + mb) / 2 + h;
   const RawPath raw = raw_path(model, program, nom);
-  const NominalPath path = nominal_path(model, nom, program);
   std::vector<double> w = step_speed_limits(model, nom, raw, T, T1, a_sigma);
   // Where the blend still leaves the path by more than the tolerance (a sharp corner taken fast,
   // a tight arc), the speed there is lowered and the plan made again: the deviation of a blended
@@ -357,7 +359,7 @@ void plan_reference(const Model& model, std::span<const ResolvedBlock> program, 
       return;
     }
     blend(raw, sig, ma, mb, m1, m2, nom);
-    const auto over = excursions(model, program, nom, path, spread, plan.tolerance);
+    const auto over = excursions(model, program, nom, spread, plan.tolerance);
     if (over.empty()) return;
     slow_down(raw, over, plan.tolerance, static_cast<double>(ma + mb) * T / 2, h, w);
   }

@@ -15,18 +15,6 @@
 
 namespace gcpipe::simulate {
 
-NominalPath nominal_path(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program) {
-  NominalPath p;
-  p.pts.reserve(nom.raw.size());  // at most one point a tick; grown by doubling it held twice that
-  p.index_of_tick.reserve(nom.raw.size());
-  for (std::size_t n = 0; n < nom.raw.size(); ++n) {
-    const Vec3 tip = forward_kinematics(model.kin, nom.raw[n], tool_length_of(model, program[nom.block[n]])).tip;
-    if (p.pts.empty() || dist3(p.pts.back(), tip) > 1e-9) p.pts.push_back(tip);
-    p.index_of_tick.push_back(static_cast<std::uint32_t>(p.pts.size() - 1));
-  }
-  return p;
-}
-
 namespace {
 
 
@@ -278,6 +266,22 @@ void add_tracking(AxisStats& axes, const Axes& reference, const Axes& actual) {
     axes.max_tracking[i] = std::max(axes.max_tracking[i], std::abs(reference[i] - actual[i]));
 }
 
+/// The distance of the program's own actual joints from the planned reference, tick by tick. The
+/// reference is planned after the run, so the run is simulated once more for it (interpolator and
+/// drives only, the same ticks): cheaper than holding the actual joints of the whole run, 40 bytes
+/// a tick, through the planner, where the peak memory is.
+void add_tracking_against_reference(const Model& model, std::span<const ResolvedBlock> program, const Axes& start,
+                                    const Nominal& nom, std::uint64_t max_ticks, AxisStats& axes) {
+  const Axes& ref_end = nom.reference.empty() ? start : nom.reference.back();
+  run_program(
+      model, program, start,
+      [&](const Tick& t) {
+        const auto n = static_cast<std::size_t>(t.n);
+        add_tracking(axes, n < nom.reference.size() ? nom.reference[n] : ref_end, t.actual);
+      },
+      max_ticks);
+}
+
 /// What a tap sees of a tick: the tick with its tool tip and its contour error (0 off cutting moves).
 void hand_on(const std::function<void(const Tick&)>& tap, const Tick& t, bool cutting, double e, const Vec3& tip) {
   if (!tap) return;
@@ -412,11 +416,10 @@ class RunAccumulator {
 
 /// The program's own run, evaluated as it goes: each tick's raw sample is the nominal (pushed to
 /// the contour search), its actual is measured against the nominal path so far. With
-/// `nom.keep` the run is also recorded for the report and the compensation: raw samples,
-/// blocks, and the actual joints for the tracking error against the reference built after it.
+/// `record` the run is also recorded for the report and the compensation: raw samples and blocks
+/// (the tracking error against the reference built after it is add_tracking_against_reference's).
 struct OwnRun {
   Evaluation eval;
-  std::vector<Axes> actual;  //!< when recording
 };
 
 OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> program, const Axes& start, Nominal& nom,
@@ -440,7 +443,6 @@ OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> progra
     if (record) {
       nom.raw.push_back(t.raw);
       nom.block.push_back(t.block);
-      own.actual.push_back(t.actual);
     }
     hand_on(on_tick, t, cutting, e, tip);
   };
@@ -475,52 +477,6 @@ Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program
   plan_reference(model, program, plan, max_ticks, nom);
   return nom;
 }
-
-namespace {
-
-/// The nominal tool-tip polyline of a recorded run (nominal_path()'s points: the raw samples'
-/// tips, repeated points dropped), made as an evaluated run reaches it and pushed into a
-/// streaming ContourSearch, which keeps only its window: the whole polyline, 28 bytes a tick, is
-/// never held. The search gets the same points at the same calls as over a whole polyline.
-class NominalPolyline {
- public:
-  NominalPolyline(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program, ContourSearch& search)
-      : model_(model), nom_(nom), program_(program), search_(search) {}
-
-  /// The polyline index of raw tick k (clamped to the last); k never decreases between calls.
-  std::size_t index_of_tick(std::size_t k) {
-    if (nom_.raw.empty()) return 0;
-    k = std::min(k, nom_.raw.size() - 1);
-    if (k < first_tick_) throw std::logic_error("NominalPolyline: raw ticks asked for out of order");
-    while (walked_ <= k) walk();
-    while (first_tick_ < k) index_.pop_front(), ++first_tick_;
-    return index_[k - first_tick_];
-  }
-
-  /// Makes points until the search holds `count` of them or the polyline ends.
-  void fill(std::size_t count) {
-    while (search_.size() < count && walked_ < nom_.raw.size()) walk();
-  }
-
- private:
-  void walk() {
-    const std::size_t k = walked_++;
-    const Vec3 tip = forward_kinematics(model_.kin, nom_.raw[k], tool_length_of(model_, program_[nom_.block[k]])).tip;
-    if (search_.size() == 0 || dist3(last_, tip) > 1e-9) search_.push(tip), last_ = tip;
-    index_.push_back(static_cast<std::uint32_t>(search_.size() - 1));
-  }
-
-  const Model& model_;
-  const Nominal& nom_;
-  std::span<const ResolvedBlock> program_;
-  ContourSearch& search_;
-  std::size_t walked_ = 0;               // raw ticks turned into points so far
-  Vec3 last_{};                          // the newest point
-  std::deque<std::uint32_t> index_;      // polyline index of raw ticks first_tick_ .. walked_ - 1
-  std::size_t first_tick_ = 0;
-};
-
-}  // namespace
 
 Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
                     const BlockSource& blocks, const Axes& start,
@@ -607,10 +563,7 @@ SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> pr
   if (bounds.record_nominal) {
     describe_segments(model, p, nom);
     plan_reference(model, p, bounds.plan, max_ticks, nom);
-    const Axes& ref_end = nom.reference.empty() ? run.start : nom.reference.back();
-    for (std::size_t n = 0; n < own.actual.size(); ++n) {
-      add_tracking(own.eval.axes, n < nom.reference.size() ? nom.reference[n] : ref_end, own.actual[n]);
-    }
+    add_tracking_against_reference(model, p, run.start, nom, tick_bound(max_ticks), own.eval.axes);
   }
   run.before = std::move(own.eval);
   return run;
