@@ -121,16 +121,18 @@ double apply_learning(const std::vector<Axes>& x, std::int64_t n, std::size_t i,
 /// Forward projection onto the speed bound: a node that would need a faster axis than the bound
 /// is pulled back along that axis, so the interpolator never lengthens a point (which would
 /// shift every later point in time).
-void project_speed(std::vector<Node>& nodes, const Axes& vmax, double period) {
-  for (std::size_t k = 1; k < nodes.size(); ++k) {
-    const double dt = static_cast<double>(nodes[k].tick - nodes[k - 1].tick) * period;
-    for (std::size_t i = 0; i < kNumAxes; ++i) {
-      if (!(vmax[i] > 0)) continue;
-      const double step = vmax[i] * dt * (1 - 1e-6);
-      const double d = nodes[k].joints[i] - nodes[k - 1].joints[i];
-      if (std::abs(d) > step) nodes[k].joints[i] = nodes[k - 1].joints[i] + std::copysign(step, d);
-    }
+void project_step(const Axes& from, Axes& to, const Axes& vmax, double dt) {
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    if (!(vmax[i] > 0)) continue;
+    const double step = vmax[i] * dt * (1 - 1e-6);
+    const double d = to[i] - from[i];
+    if (std::abs(d) > step) to[i] = from[i] + std::copysign(step, d);
   }
+}
+
+void project_speed(std::vector<Node>& nodes, const Axes& vmax, double period) {
+  for (std::size_t k = 1; k < nodes.size(); ++k)
+    project_step(nodes[k - 1].joints, nodes[k].joints, vmax, static_cast<double>(nodes[k].tick - nodes[k - 1].tick) * period);
 }
 
 // Where a tick of the planned reference is in the program, and its reference tool tip.
@@ -235,6 +237,44 @@ std::vector<Node> model_inverse_nodes(const ReferenceClock& clock, const std::ve
   return nodes;
 }
 
+// The model-inverse start as model_inverse_nodes() and project_speed() make it, node by node in
+// order: the learning falls back on it where nothing was accepted yet, and makes it again in
+// each iteration instead of holding a third node series (56 bytes a node) for the whole run.
+class InverseStart {
+ public:
+  InverseStart(const Nominal& nom, const std::vector<std::uint64_t>& grid, const Axes& start, const Learning& L,
+               std::int64_t h, const Axes& vmax)
+      : nom_(nom), grid_(grid), start_(start), L_(L), h_(h), vmax_(vmax) {}
+
+  /// Node k's joints; k only grows between calls until restart().
+  const Axes& at(std::size_t k) {
+    while (next_ <= k) step();
+    return joints_;
+  }
+  void restart() { next_ = 0; }
+
+ private:
+  void step() {
+    const std::size_t k = next_++;
+    const Axes before = joints_;
+    if (k + 1 == grid_.size()) joints_ = nom_.reference.back();
+    else if (k == 0) joints_ = start_;
+    else
+      for (std::size_t i = 0; i < kNumAxes; ++i)
+        joints_[i] = apply_learning(nom_.reference, static_cast<std::int64_t>(grid_[k]), i, L_, nom_.period, h_);
+    if (k > 0) project_step(before, joints_, vmax_, static_cast<double>(grid_[k] - grid_[k - 1]) * nom_.period);
+  }
+
+  const Nominal& nom_;
+  const std::vector<std::uint64_t>& grid_;
+  Axes start_;
+  Learning L_;
+  std::int64_t h_;
+  Axes vmax_;
+  std::size_t next_ = 0;
+  Axes joints_{};  // node next_ - 1
+};
+
 }  // namespace
 
 Result compensate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
@@ -316,7 +356,7 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
   std::vector<Axes> best_error;             // r - y per tick, each window from its best run
   best_error.reserve(E + Wt);               // the run settles a little past the reference's end
   std::vector<Node> best = nodes;
-  const std::vector<Node> inverse = nodes;  // the model-inverse start
+  InverseStart inverse(nom, grid, start, L, h, vbound);  // the model-inverse start, node by node
   std::vector<double> win_best(nwin, std::numeric_limits<double>::infinity());
   std::vector<double> win_gain(nwin, opt.gain);
   std::vector<int> win_stalls(nwin, 0);
@@ -446,12 +486,14 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
     const std::vector<double> take = smooth_over_nodes(nodes, [&](std::size_t w) { return improved[w] ? 1.0 : 0.0; });
     const std::vector<double> learned = smooth_over_nodes(nodes, [&](std::size_t w) { return win_learned[w] ? 1.0 : 0.0; });
     const std::vector<double> blend = smooth_over_nodes(nodes, [&](std::size_t w) { return win_gain[w]; });
+    inverse.restart();
     for (std::size_t k = 1; k < nodes.size(); ++k) {
       // Where nothing was accepted yet: the model-inverse start blended back towards the
       // reference (the uncompensated motion, gentler than the program's own) by the gain.
       const Axes& r = nom.reference[nodes[k].tick];
+      const Axes& u0 = inverse.at(k);
       for (std::size_t i = 0; i < kNumAxes; ++i) {
-        const double fallback = r[i] + std::min(1.0, blend[k]) * (inverse[k].joints[i] - r[i]);
+        const double fallback = r[i] + std::min(1.0, blend[k]) * (u0[i] - r[i]);
         const double kept = learned[k] * best[k].joints[i] + (1 - learned[k]) * fallback;
         best[k].joints[i] = take[k] * nodes[k].joints[i] + (1 - take[k]) * kept;
       }
