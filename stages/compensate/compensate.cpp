@@ -237,6 +237,36 @@ std::vector<Node> model_inverse_nodes(const ReferenceClock& clock, const std::ve
   return nodes;
 }
 
+// A value per node (of the node's tick) averaged over the nodes within +-R ticks of each node,
+// made node by node in order: the two ends of the span move forward, the sum adds a node as it
+// enters and takes it off as it leaves, in the order a pass over a whole series of values would.
+class WindowAverage {
+ public:
+  WindowAverage(const std::vector<Node>& nodes, std::uint64_t R, std::function<double(std::uint64_t tick)> value)
+      : nodes_(nodes), R_(R), value_(std::move(value)) {}
+
+  /// The average at node k; k only grows between calls.
+  double at(std::size_t k) {
+    while (next_ <= k) step();
+    return current_;
+  }
+
+ private:
+  void step() {
+    const std::size_t k = next_++;
+    const std::size_t n = nodes_.size();
+    while (hi_ < n && nodes_[hi_].tick <= nodes_[k].tick + R_) sum_ += value_(nodes_[hi_++].tick);
+    while (nodes_[lo_].tick + R_ < nodes_[k].tick) sum_ -= value_(nodes_[lo_++].tick);
+    current_ = sum_ / static_cast<double>(hi_ - lo_);
+  }
+
+  const std::vector<Node>& nodes_;
+  std::uint64_t R_;
+  std::function<double(std::uint64_t)> value_;
+  std::size_t next_ = 0, lo_ = 0, hi_ = 0;
+  double sum_ = 0, current_ = 0;
+};
+
 // The model-inverse start as model_inverse_nodes() and project_speed() make it, node by node in
 // order: the learning falls back on it where nothing was accepted yet, and makes it again in
 // each iteration instead of holding a third node series (56 bytes a node) for the whole run.
@@ -417,19 +447,11 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
     ticks = seen;
     return ev;
   };
-  // A per-window value at every node, moving-averaged over +-0.1 s of nodes.
-  auto smooth_over_nodes = [&](const std::vector<Node>& nd, const std::function<double(std::size_t)>& value) {
-    std::vector<double> v(nd.size()), out(nd.size());
-    for (std::size_t k = 0; k < nd.size(); ++k) v[k] = value(window_of(nd[k].tick));
-    const auto R = static_cast<std::uint64_t>(std::lround(0.1 / T));
-    std::size_t lo = 0, hi = 0;
-    double sum = 0;
-    for (std::size_t k = 0; k < nd.size(); ++k) {
-      while (hi < nd.size() && nd[hi].tick <= nd[k].tick + R) sum += v[hi++];
-      while (nd[lo].tick + R < nd[k].tick) sum -= v[lo++];
-      out[k] = sum / static_cast<double>(hi - lo);
-    }
-    return out;
+  // A per-window value at every node, moving-averaged over +-0.1 s of nodes, node by node in
+  // order (WindowAverage): four of these per iteration were a double a node each.
+  const auto R = static_cast<std::uint64_t>(std::lround(0.1 / T));
+  auto over_nodes = [&](const std::vector<Node>& nd, std::function<double(std::size_t)> value) {
+    return WindowAverage(nd, R, [value = std::move(value), &window_of](std::uint64_t tick) { return value(window_of(tick)); });
   };
   auto node_source = [&nodes](std::uint32_t i) { return nodes[std::min<std::size_t>(i + 1, nodes.size() - 1)].block; };
   // The error series is refilled every iteration in the same buffer: a fresh allocation of a
@@ -483,19 +505,20 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
     // Accepting some windows and not others must not leave a step in the commands at a window
     // boundary (the step itself would break the acceleration limit there): the per-window
     // decisions are blended over about 0.1 s of nodes on either side of each boundary.
-    const std::vector<double> take = smooth_over_nodes(nodes, [&](std::size_t w) { return improved[w] ? 1.0 : 0.0; });
-    const std::vector<double> learned = smooth_over_nodes(nodes, [&](std::size_t w) { return win_learned[w] ? 1.0 : 0.0; });
-    const std::vector<double> blend = smooth_over_nodes(nodes, [&](std::size_t w) { return win_gain[w]; });
+    WindowAverage take = over_nodes(nodes, [&](std::size_t w) { return improved[w] ? 1.0 : 0.0; });
+    WindowAverage learned = over_nodes(nodes, [&](std::size_t w) { return win_learned[w] ? 1.0 : 0.0; });
+    WindowAverage blend = over_nodes(nodes, [&](std::size_t w) { return win_gain[w]; });
     inverse.restart();
     for (std::size_t k = 1; k < nodes.size(); ++k) {
       // Where nothing was accepted yet: the model-inverse start blended back towards the
       // reference (the uncompensated motion, gentler than the program's own) by the gain.
       const Axes& r = nom.reference[nodes[k].tick];
       const Axes& u0 = inverse.at(k);
+      const double take_k = take.at(k), learned_k = learned.at(k), blend_k = blend.at(k);
       for (std::size_t i = 0; i < kNumAxes; ++i) {
-        const double fallback = r[i] + std::min(1.0, blend[k]) * (u0[i] - r[i]);
-        const double kept = learned[k] * best[k].joints[i] + (1 - learned[k]) * fallback;
-        best[k].joints[i] = take[k] * nodes[k].joints[i] + (1 - take[k]) * kept;
+        const double fallback = r[i] + std::min(1.0, blend_k) * (u0[i] - r[i]);
+        const double kept = learned_k * best[k].joints[i] + (1 - learned_k) * fallback;
+        best[k].joints[i] = take_k * nodes[k].joints[i] + (1 - take_k) * kept;
       }
     }
     bool all_stalled = true;
@@ -506,11 +529,12 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
     // Learning update on each window's best error, zero-phase smoothed over nodes ([1 2 1]/4
     // twice) so that the derivative term does not feed tick-scale roughness back.
     std::vector<Axes> du(nodes.size(), Axes{});
-    const std::vector<double> gain_at = smooth_over_nodes(nodes, [&](std::size_t w) { return win_learned[w] ? win_gain[w] : 0.0; });
+    WindowAverage gain_at = over_nodes(nodes, [&](std::size_t w) { return win_learned[w] ? win_gain[w] : 0.0; });
     for (std::size_t k = 1; k < nodes.size(); ++k) {
-      if (gain_at[k] <= 0) continue;
+      const double gain_k = gain_at.at(k);
+      if (gain_k <= 0) continue;
       for (std::size_t i = 0; i < kNumAxes; ++i)
-        du[k][i] = gain_at[k] * apply_learning(best_error, static_cast<std::int64_t>(nodes[k].tick), i, L, T, h);
+        du[k][i] = gain_k * apply_learning(best_error, static_cast<std::int64_t>(nodes[k].tick), i, L, T, h);
     }
     for (int pass = 0; pass < 2; ++pass) {
       // In place: `before_k` holds du[k - 1] as it was before this pass (no second series).
