@@ -7,6 +7,7 @@
 #include <deque>
 #include <limits>
 #include <memory>
+#include <stdexcept>
 
 #include "contour.hpp"
 #include "gcpipe/config.hpp"
@@ -266,6 +267,37 @@ class WindowAverage {
   std::size_t next_ = 0, lo_ = 0, hi_ = 0;
   double sum_ = 0, current_ = 0;
 };
+
+// A series made one value at a time, in order, of which only the last few are kept: the learning
+// update and its two smoothing passes are chained through these instead of held as node series
+// (the smoothing reads one node ahead, so a pass runs one node ahead of the next).
+class InOrder {
+ public:
+  explicit InOrder(std::function<Axes(std::size_t)> make) : make_(std::move(make)) {}
+
+  /// Value k; k may go back by at most kKept - 1 from the largest asked for.
+  Axes at(std::size_t k) {
+    while (first_ + kept_.size() <= k) kept_.push_back(make_(first_ + kept_.size()));
+    while (first_ + kKept <= k) kept_.pop_front(), ++first_;
+    if (k < first_) throw std::logic_error("InOrder: a value no longer kept");
+    return kept_[k - first_];
+  }
+
+ private:
+  static constexpr std::size_t kKept = 4;
+  std::function<Axes(std::size_t)> make_;
+  std::deque<Axes> kept_;
+  std::size_t first_ = 0;  // index of kept_.front()
+};
+
+// One zero-phase [1 2 1]/4 pass at node k of n, the two end nodes kept.
+Axes smoothed_121(InOrder& in, std::size_t k, std::size_t n) {
+  if (k == 0 || k + 1 >= n) return in.at(k);
+  const Axes before = in.at(k - 1), at = in.at(k), after = in.at(k + 1);
+  Axes out;
+  for (std::size_t i = 0; i < kNumAxes; ++i) out[i] = 0.25 * before[i] + 0.5 * at[i] + 0.25 * after[i];
+  return out;
+}
 
 // The model-inverse start as model_inverse_nodes() and project_speed() make it, node by node in
 // order: the learning falls back on it where nothing was accepted yet, and makes it again in
@@ -528,29 +560,25 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
     project_speed(nodes, vbound, T);
     // Learning update on each window's best error, zero-phase smoothed over nodes ([1 2 1]/4
     // twice) so that the derivative term does not feed tick-scale roughness back.
-    std::vector<Axes> du(nodes.size(), Axes{});
     WindowAverage gain_at = over_nodes(nodes, [&](std::size_t w) { return win_learned[w] ? win_gain[w] : 0.0; });
-    for (std::size_t k = 1; k < nodes.size(); ++k) {
-      const double gain_k = gain_at.at(k);
-      if (gain_k <= 0) continue;
-      for (std::size_t i = 0; i < kNumAxes; ++i)
-        du[k][i] = gain_k * apply_learning(best_error, static_cast<std::int64_t>(nodes[k].tick), i, L, T, h);
-    }
-    for (int pass = 0; pass < 2; ++pass) {
-      // In place: `before_k` holds du[k - 1] as it was before this pass (no second series).
-      Axes before_k = du.empty() ? Axes{} : du[0];
-      for (std::size_t k = 1; k + 1 < du.size(); ++k) {
-        const Axes unsmoothed = du[k];
+    const std::size_t n = nodes.size();
+    InOrder raw_update([&](std::size_t k) {
+      Axes du{};
+      const double gain_k = k == 0 ? 0.0 : gain_at.at(k);
+      if (gain_k > 0)
         for (std::size_t i = 0; i < kNumAxes; ++i)
-          du[k][i] = 0.25 * before_k[i] + 0.5 * unsmoothed[i] + 0.25 * du[k + 1][i];
-        before_k = unsmoothed;
-      }
-    }
-    for (std::size_t k = 1; k + 1 < nodes.size(); ++k)
+          du[i] = gain_k * apply_learning(best_error, static_cast<std::int64_t>(nodes[k].tick), i, L, T, h);
+      return du;
+    });
+    InOrder once([&](std::size_t k) { return smoothed_121(raw_update, k, n); });
+    InOrder twice([&](std::size_t k) { return smoothed_121(once, k, n); });
+    for (std::size_t k = 1; k + 1 < n; ++k) {
+      const Axes du = twice.at(k);
       for (std::size_t i = 0; i < kNumAxes; ++i) {
         const auto& tr = model.kin.travel[i];
-        nodes[k].joints[i] = std::clamp(nodes[k].joints[i] + du[k][i], tr.min, tr.max);
+        nodes[k].joints[i] = std::clamp(nodes[k].joints[i] + du[i], tr.min, tr.max);
       }
+    }
     project_speed(nodes, vbound, T);
   }
   double best_max = 0;
