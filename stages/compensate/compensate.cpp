@@ -6,6 +6,8 @@
 #include <cstdlib>
 #include <deque>
 #include <limits>
+#include <memory>
+#include <stdexcept>
 
 #include "contour.hpp"
 #include "gcpipe/config.hpp"
@@ -43,44 +45,41 @@ simulate::RunBounds run_bounds(const CompensateOptions& o) {
 
 namespace {
 
-/// A node program as resolved blocks (no interleaved M words: what the ILC simulates).
-void node_blocks(std::span<const ResolvedBlock> program, const std::vector<Node>& nodes, const Axes& start,
-                 double period, std::vector<ResolvedBlock>& out) {
-  out.clear();
-  out.reserve(nodes.size());
-  Axes prev = start;
-  std::uint64_t prev_tick = 0;
-  for (const Node& nd : nodes) {
-    if (nd.tick == 0) continue;
-    ResolvedBlock b;
-    const ResolvedBlock& src = program[nd.block];
-    b.line = src.line;
-    b.motion = Motion::kLinear;
-    b.start = prev;
-    b.target = nd.joints;
-    b.axis_words = 0x1F;
-    b.feed_mode = FeedMode::kInverseTime;
-    b.feed = 60.0 / (static_cast<double>(nd.tick - prev_tick) * period);
-    b.spindle_speed = src.spindle_speed;
-    b.spindle = src.spindle;
-    b.tool = src.tool;
-    b.tool_in_spindle = src.tool_in_spindle;
-    b.coolant = src.coolant;
-    b.work_offset = src.work_offset;
-    b.work_origin = src.work_origin;
-    b.source_units = src.source_units;
-    b.plane = src.plane;
-    out.push_back(std::move(b));
-    prev = nd.joints;
-    prev_tick = nd.tick;
-  }
+/// Block i of a node program: the G93 G1 move to node i + 1 in machine axes, from node i (from
+/// `start` for the first: node 0 is the start, at tick 0), with the source block's modal state.
+void node_block(std::span<const ResolvedBlock> program, const std::vector<Node>& nodes, std::size_t i, const Axes& start,
+                double period, ResolvedBlock& b) {
+  const Node& nd = nodes[i + 1];
+  const ResolvedBlock& src = program[nd.block];
+  b = ResolvedBlock{};
+  b.line = src.line;
+  b.motion = Motion::kLinear;
+  b.start = i == 0 ? start : nodes[i].joints;
+  b.target = nd.joints;
+  b.axis_words = 0x1F;
+  b.feed_mode = FeedMode::kInverseTime;
+  b.feed = 60.0 / (static_cast<double>(nd.tick - nodes[i].tick) * period);
+  b.spindle_speed = src.spindle_speed;
+  b.spindle = src.spindle;
+  b.tool = src.tool;
+  b.tool_in_spindle = src.tool_in_spindle;
+  b.coolant = src.coolant;
+  b.work_offset = src.work_offset;
+  b.work_origin = src.work_origin;
+  b.source_units = src.source_units;
+  b.plane = src.plane;
 }
 
-std::vector<ResolvedBlock> node_blocks(std::span<const ResolvedBlock> program, const std::vector<Node>& nodes,
-                                       const Axes& start, double period) {
-  std::vector<ResolvedBlock> out;
-  node_blocks(program, nodes, start, period, out);
-  return out;
+/// A node program as the simulation reads it (no interleaved M words): made block by block, not
+/// held (a block is 464 bytes, and a long program has a node every 4 ms). `nodes` and `program`
+/// must outlive the source; the block it gives is valid until the next one is asked for.
+simulate::BlockSource node_program(std::span<const ResolvedBlock> program, const std::vector<Node>& nodes,
+                                   const Axes& start, double period) {
+  auto buffer = std::make_shared<ResolvedBlock>();
+  return {nodes.empty() ? 0 : nodes.size() - 1, [program, &nodes, start, period, buffer](std::size_t i) -> const ResolvedBlock& {
+            node_block(program, nodes, i, start, period, *buffer);
+            return *buffer;
+          }};
 }
 
 struct Learning {
@@ -123,16 +122,18 @@ double apply_learning(const std::vector<Axes>& x, std::int64_t n, std::size_t i,
 /// Forward projection onto the speed bound: a node that would need a faster axis than the bound
 /// is pulled back along that axis, so the interpolator never lengthens a point (which would
 /// shift every later point in time).
-void project_speed(std::vector<Node>& nodes, const Axes& vmax, double period) {
-  for (std::size_t k = 1; k < nodes.size(); ++k) {
-    const double dt = static_cast<double>(nodes[k].tick - nodes[k - 1].tick) * period;
-    for (std::size_t i = 0; i < kNumAxes; ++i) {
-      if (!(vmax[i] > 0)) continue;
-      const double step = vmax[i] * dt * (1 - 1e-6);
-      const double d = nodes[k].joints[i] - nodes[k - 1].joints[i];
-      if (std::abs(d) > step) nodes[k].joints[i] = nodes[k - 1].joints[i] + std::copysign(step, d);
-    }
+void project_step(const Axes& from, Axes& to, const Axes& vmax, double dt) {
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    if (!(vmax[i] > 0)) continue;
+    const double step = vmax[i] * dt * (1 - 1e-6);
+    const double d = to[i] - from[i];
+    if (std::abs(d) > step) to[i] = from[i] + std::copysign(step, d);
   }
+}
+
+void project_speed(std::vector<Node>& nodes, const Axes& vmax, double period) {
+  for (std::size_t k = 1; k < nodes.size(); ++k)
+    project_step(nodes[k - 1].joints, nodes[k].joints, vmax, static_cast<double>(nodes[k].tick - nodes[k - 1].tick) * period);
 }
 
 // Where a tick of the planned reference is in the program, and its reference tool tip.
@@ -237,6 +238,105 @@ std::vector<Node> model_inverse_nodes(const ReferenceClock& clock, const std::ve
   return nodes;
 }
 
+// A value per node (of the node's tick) averaged over the nodes within +-R ticks of each node,
+// made node by node in order: the two ends of the span move forward, the sum adds a node as it
+// enters and takes it off as it leaves, in the order a pass over a whole series of values would.
+class WindowAverage {
+ public:
+  WindowAverage(const std::vector<Node>& nodes, std::uint64_t R, std::function<double(std::uint64_t tick)> value)
+      : nodes_(nodes), R_(R), value_(std::move(value)) {}
+
+  /// The average at node k; k only grows between calls.
+  double at(std::size_t k) {
+    while (next_ <= k) step();
+    return current_;
+  }
+
+ private:
+  void step() {
+    const std::size_t k = next_++;
+    const std::size_t n = nodes_.size();
+    while (hi_ < n && nodes_[hi_].tick <= nodes_[k].tick + R_) sum_ += value_(nodes_[hi_++].tick);
+    while (nodes_[lo_].tick + R_ < nodes_[k].tick) sum_ -= value_(nodes_[lo_++].tick);
+    current_ = sum_ / static_cast<double>(hi_ - lo_);
+  }
+
+  const std::vector<Node>& nodes_;
+  std::uint64_t R_;
+  std::function<double(std::uint64_t)> value_;
+  std::size_t next_ = 0, lo_ = 0, hi_ = 0;
+  double sum_ = 0, current_ = 0;
+};
+
+// A series made one value at a time, in order, of which only the last few are kept: the learning
+// update and its two smoothing passes are chained through these instead of held as node series
+// (the smoothing reads one node ahead, so a pass runs one node ahead of the next).
+class InOrder {
+ public:
+  explicit InOrder(std::function<Axes(std::size_t)> make) : make_(std::move(make)) {}
+
+  /// Value k; k may go back by at most kKept - 1 from the largest asked for.
+  Axes at(std::size_t k) {
+    while (first_ + kept_.size() <= k) kept_.push_back(make_(first_ + kept_.size()));
+    while (first_ + kKept <= k) kept_.pop_front(), ++first_;
+    if (k < first_) throw std::logic_error("InOrder: a value no longer kept");
+    return kept_[k - first_];
+  }
+
+ private:
+  static constexpr std::size_t kKept = 4;
+  std::function<Axes(std::size_t)> make_;
+  std::deque<Axes> kept_;
+  std::size_t first_ = 0;  // index of kept_.front()
+};
+
+// One zero-phase [1 2 1]/4 pass at node k of n, the two end nodes kept.
+Axes smoothed_121(InOrder& in, std::size_t k, std::size_t n) {
+  if (k == 0 || k + 1 >= n) return in.at(k);
+  const Axes before = in.at(k - 1), at = in.at(k), after = in.at(k + 1);
+  Axes out;
+  for (std::size_t i = 0; i < kNumAxes; ++i) out[i] = 0.25 * before[i] + 0.5 * at[i] + 0.25 * after[i];
+  return out;
+}
+
+// The model-inverse start as model_inverse_nodes() and project_speed() make it, node by node in
+// order: the learning falls back on it where nothing was accepted yet, and makes it again in
+// each iteration instead of holding a third node series (56 bytes a node) for the whole run.
+class InverseStart {
+ public:
+  InverseStart(const Nominal& nom, const std::vector<std::uint64_t>& grid, const Axes& start, const Learning& L,
+               std::int64_t h, const Axes& vmax)
+      : nom_(nom), grid_(grid), start_(start), L_(L), h_(h), vmax_(vmax) {}
+
+  /// Node k's joints; k only grows between calls until restart().
+  const Axes& at(std::size_t k) {
+    while (next_ <= k) step();
+    return joints_;
+  }
+  void restart() { next_ = 0; }
+
+ private:
+  void step() {
+    const std::size_t k = next_++;
+    const Axes before = joints_;
+    if (k + 1 == grid_.size()) joints_ = nom_.reference.back();
+    else if (k == 0) joints_ = start_;
+    else
+      for (std::size_t i = 0; i < kNumAxes; ++i)
+        joints_[i] = apply_learning(nom_.reference, static_cast<std::int64_t>(grid_[k]), i, L_, nom_.period, h_);
+    if (k > 0) project_step(before, joints_, vmax_, static_cast<double>(grid_[k] - grid_[k - 1]) * nom_.period);
+  }
+
+  const Nominal& nom_;
+  const std::vector<std::uint64_t>& grid_;
+  Axes start_;
+  Learning L_;
+  std::int64_t h_;
+  Axes vmax_;
+  std::size_t next_ = 0;
+  Axes joints_{};  // node next_ - 1
+};
+
 }  // namespace
 
 Result compensate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
@@ -290,17 +390,71 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
     std::size_t segment = 0;  // of the window's first tick, for the original's demand there
     bool seen = false;
   };
+  const std::vector<SegmentDemand>& base = before.demand;
+  // Which limit a window's run broke, or empty: the torque-limited ticks and the smoothed
+  // command's acceleration, against the original's own demand in the window's segment.
+  auto limit_broken = [&](const Limits& lw) {
+    const SegmentDemand& allowed = base[std::min(lw.segment, base.size() - 1)];
+    std::string why;
+    for (std::size_t i = 0; i < kNumAxes && why.empty(); ++i) {
+      char msg[160];
+      // The acceleration bound: the machine's limit, or the uncompensated program's own peak
+      // in that segment where the control's acc/dec already reaches beyond it, plus 1 % of the
+      // limit for the second difference of 1 ms samples (a sampling figure, not a motion).
+      const double alim = std::max(model.kin.max_acceleration[i], allowed.peak_acceleration[i]) +
+                          0.01 * model.kin.max_acceleration[i];
+      if (lw.saturated[i] > allowed.saturated_ticks[i]) {
+        std::snprintf(msg, sizeof msg, "axis %c torque-limited in %llu ticks (uncompensated segment: %llu)", kAxisLetters[i],
+                      static_cast<unsigned long long>(lw.saturated[i]), static_cast<unsigned long long>(allowed.saturated_ticks[i]));
+        why = msg;
+      } else if (model.kin.max_acceleration[i] > 0 && lw.peak_acceleration[i] > alim) {
+        std::snprintf(msg, sizeof msg, "axis %c acceleration %.0f > limit %.0f", kAxisLetters[i], lw.peak_acceleration[i], alim);
+        why = msg;
+      }
+    }
+    return why;
+  };
+
+  std::vector<Axes> best_error;             // r - y per tick, each window from its best run
+  best_error.reserve(E + Wt);               // the run settles a little past the reference's end
+  std::vector<Node> best = nodes;
+  InverseStart inverse(nom, grid, start, L, h, vbound);  // the model-inverse start, node by node
+  std::vector<double> win_best(nwin, std::numeric_limits<double>::infinity());
+  std::vector<double> win_gain(nwin, opt.gain);
+  std::vector<int> win_stalls(nwin, 0);
+  std::vector<bool> win_learned(nwin, false);
+  std::string last_rejection;
+  // A window that does better within the limits hands its error r - y to the learning. That is
+  // known when its last tick has run, so the run keeps only the error of its current window (1 s)
+  // and copies it to best_error there, instead of a whole-program series per iteration.
+  auto keep_if_improved = [&](std::size_t w, const Limits& lw, const std::vector<Axes>& window_err) {
+    if (!lw.seen || !limit_broken(lw).empty() || !(lw.max_contour < win_best[w])) return;
+    const std::size_t n0 = w * Wt, n1 = n0 + window_err.size();
+    if (best_error.size() < n1) best_error.resize(n1, Axes{});
+    std::copy(window_err.begin(), window_err.end(), best_error.begin() + static_cast<std::ptrdiff_t>(n0));
+  };
   // Torque saturation, smoothed-command acceleration and contour error of one node-program run
-  // per window, and the error r - y per tick for the learning.
-  auto measure = [&](std::span<const ResolvedBlock> blocks, const std::function<std::uint32_t(std::uint32_t)>& source,
-                     std::vector<Limits>& lim, std::vector<Axes>& err) {
+  // per window; each window's error r - y per tick goes to keep_if_improved as the window ends.
+  // Returns the run's evaluation and, in `ticks`, how many ticks it ran.
+  std::vector<Axes> window_err;
+  window_err.reserve(Wt);
+  auto measure = [&](const simulate::BlockSource& blocks, const std::function<std::uint32_t(std::uint32_t)>& source,
+                     std::vector<Limits>& lim, std::uint64_t& ticks) {
     lim.assign(nwin, Limits{});
     Axes c1{}, c2{};
     std::uint64_t seen = 0;
-    return evaluate(
+    std::size_t current = 0;  // the window being run
+    window_err.clear();
+    Evaluation ev = evaluate(
         model, nom, program, blocks, start, source,
         [&](const Tick& t) {
-          Limits& L0 = lim[window_of(t.n)];
+          const std::size_t w = window_of(t.n);
+          if (w != current) {
+            keep_if_improved(current, lim[current], window_err);
+            window_err.clear();
+            current = w;
+          }
+          Limits& L0 = lim[w];
           if (!L0.seen) L0.segment = seg_of_block(source(t.block)), L0.seen = true;
           L0.max_contour = std::max(L0.max_contour, t.contour);
           for (std::size_t i = 0; i < kNumAxes; ++i) {
@@ -314,50 +468,33 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
           c1 = t.command;
           ++seen;
           const std::size_t n = static_cast<std::size_t>(t.n);
+          if (n >= (w + 1) * Wt) return;  // past the last window's second: not learned from
           const Axes& r = n < nom.reference.size() ? nom.reference[n] : nom.reference.back();
           Axes e;
           for (std::size_t i = 0; i < kNumAxes; ++i) e[i] = r[i] - t.actual[i];
-          err.push_back(e);
+          window_err.push_back(e);
         },
         true);
+    keep_if_improved(current, lim[current], window_err);
+    ticks = seen;
+    return ev;
   };
-  const std::vector<SegmentDemand>& base = before.demand;
-
-  std::vector<Axes> best_error;             // r - y per tick, each window from its best run
-  std::vector<Node> best = nodes;
-  const std::vector<Node> inverse = nodes;  // the model-inverse start
-  std::vector<double> win_best(nwin, std::numeric_limits<double>::infinity());
-  std::vector<double> win_gain(nwin, opt.gain);
-  std::vector<int> win_stalls(nwin, 0);
-  std::vector<bool> win_learned(nwin, false);
-  std::string last_rejection;
-  // A per-window value at every node, moving-averaged over +-0.1 s of nodes.
-  auto smooth_over_nodes = [&](const std::vector<Node>& nd, const std::function<double(std::size_t)>& value) {
-    std::vector<double> v(nd.size()), out(nd.size());
-    for (std::size_t k = 0; k < nd.size(); ++k) v[k] = value(window_of(nd[k].tick));
-    const auto R = static_cast<std::uint64_t>(std::lround(0.1 / T));
-    std::size_t lo = 0, hi = 0;
-    double sum = 0;
-    for (std::size_t k = 0; k < nd.size(); ++k) {
-      while (hi < nd.size() && nd[hi].tick <= nd[k].tick + R) sum += v[hi++];
-      while (nd[lo].tick + R < nd[k].tick) sum -= v[lo++];
-      out[k] = sum / static_cast<double>(hi - lo);
-    }
-    return out;
+  // A per-window value at every node, moving-averaged over +-0.1 s of nodes, node by node in
+  // order (WindowAverage): four of these per iteration were a double a node each.
+  const auto R = static_cast<std::uint64_t>(std::lround(0.1 / T));
+  auto over_nodes = [&](const std::vector<Node>& nd, std::function<double(std::size_t)> value) {
+    return WindowAverage(nd, R, [value = std::move(value), &window_of](std::uint64_t tick) { return value(window_of(tick)); });
   };
   auto node_source = [&nodes](std::uint32_t i) { return nodes[std::min<std::size_t>(i + 1, nodes.size() - 1)].block; };
-  // The node program and the error series are refilled every iteration in the same buffers: a
-  // fresh allocation of a long program's node blocks (464 bytes each, one per node) cost more in
-  // page faults than the simulation that reads them (measured on a 566 s CAM-like program).
-  std::vector<ResolvedBlock> blocks;
-  std::vector<Axes> err;
-  err.reserve(E + 64);
+  // The error series is refilled every iteration in the same buffer: a fresh allocation of a
+  // long program's series cost more in page faults than the simulation that fills it (measured
+  // on a 566 s CAM-like program). The node program is made block by block as it is simulated.
+  const simulate::BlockSource blocks = node_program(program, nodes, start, T);
   for (int it = 0; it <= opt.max_iterations; ++it) {
     if (progress) progress("compensating (learning iterations)", static_cast<std::uint64_t>(it), static_cast<std::uint64_t>(opt.max_iterations));
-    node_blocks(program, nodes, start, T, blocks);
-    err.clear();
     std::vector<Limits> lim;
-    const Evaluation ev = measure(blocks, node_source, lim, err);
+    std::uint64_t ticks = 0;
+    const Evaluation ev = measure(blocks, node_source, lim, ticks);
     Iteration rec;
     rec.index = it;
     rec.max_contour = ev.contour.max;
@@ -370,37 +507,19 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
       last_rejection = rec.rejected_because;
       break;
     }
-    if (best_error.size() < err.size()) best_error.resize(err.size(), Axes{});
+    // The error series is as long as the longest run learned from (apply_learning holds its end).
+    if (best_error.size() < ticks) best_error.resize(ticks, Axes{});
     std::vector<bool> improved(nwin, false);
     std::string why_iteration;
     for (std::size_t w = 0; w < nwin; ++w) {
       if (!lim[w].seen) continue;
-      const SegmentDemand& allowed = base[std::min(lim[w].segment, base.size() - 1)];
-      std::string why;
-      for (std::size_t i = 0; i < kNumAxes && why.empty(); ++i) {
-        char msg[160];
-        // The acceleration bound: the machine's limit, or the uncompensated program's own peak
-        // in that segment where the control's acc/dec already reaches beyond it, plus 1 % of the
-        // limit for the second difference of 1 ms samples (a sampling figure, not a motion).
-        const double alim = std::max(model.kin.max_acceleration[i], allowed.peak_acceleration[i]) +
-                            0.01 * model.kin.max_acceleration[i];
-        if (lim[w].saturated[i] > allowed.saturated_ticks[i]) {
-          std::snprintf(msg, sizeof msg, "axis %c torque-limited in %llu ticks (uncompensated segment: %llu)", kAxisLetters[i],
-                        static_cast<unsigned long long>(lim[w].saturated[i]), static_cast<unsigned long long>(allowed.saturated_ticks[i]));
-          why = msg;
-        } else if (model.kin.max_acceleration[i] > 0 && lim[w].peak_acceleration[i] > alim) {
-          std::snprintf(msg, sizeof msg, "axis %c acceleration %.0f > limit %.0f", kAxisLetters[i], lim[w].peak_acceleration[i], alim);
-          why = msg;
-        }
-      }
+      const std::string why = limit_broken(lim[w]);
       const double emax = lim[w].max_contour;
       const double previous = win_best[w];
-      if (why.empty() && emax < previous) {
+      if (why.empty() && emax < previous) {  // its error is in best_error already (measure)
         win_best[w] = emax;
         improved[w] = true;
         win_learned[w] = true;
-        const std::size_t n1 = std::min<std::size_t>(err.size(), (w + 1) * Wt);
-        for (std::size_t n = w * Wt; n < n1; ++n) best_error[n] = err[n];
       } else {
         win_gain[w] *= 0.5;
       }
@@ -418,17 +537,20 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
     // Accepting some windows and not others must not leave a step in the commands at a window
     // boundary (the step itself would break the acceleration limit there): the per-window
     // decisions are blended over about 0.1 s of nodes on either side of each boundary.
-    const std::vector<double> take = smooth_over_nodes(nodes, [&](std::size_t w) { return improved[w] ? 1.0 : 0.0; });
-    const std::vector<double> learned = smooth_over_nodes(nodes, [&](std::size_t w) { return win_learned[w] ? 1.0 : 0.0; });
-    const std::vector<double> blend = smooth_over_nodes(nodes, [&](std::size_t w) { return win_gain[w]; });
+    WindowAverage take = over_nodes(nodes, [&](std::size_t w) { return improved[w] ? 1.0 : 0.0; });
+    WindowAverage learned = over_nodes(nodes, [&](std::size_t w) { return win_learned[w] ? 1.0 : 0.0; });
+    WindowAverage blend = over_nodes(nodes, [&](std::size_t w) { return win_gain[w]; });
+    inverse.restart();
     for (std::size_t k = 1; k < nodes.size(); ++k) {
       // Where nothing was accepted yet: the model-inverse start blended back towards the
       // reference (the uncompensated motion, gentler than the program's own) by the gain.
       const Axes& r = nom.reference[nodes[k].tick];
+      const Axes& u0 = inverse.at(k);
+      const double take_k = take.at(k), learned_k = learned.at(k), blend_k = blend.at(k);
       for (std::size_t i = 0; i < kNumAxes; ++i) {
-        const double fallback = r[i] + std::min(1.0, blend[k]) * (inverse[k].joints[i] - r[i]);
-        const double kept = learned[k] * best[k].joints[i] + (1 - learned[k]) * fallback;
-        best[k].joints[i] = take[k] * nodes[k].joints[i] + (1 - take[k]) * kept;
+        const double fallback = r[i] + std::min(1.0, blend_k) * (u0[i] - r[i]);
+        const double kept = learned_k * best[k].joints[i] + (1 - learned_k) * fallback;
+        best[k].joints[i] = take_k * nodes[k].joints[i] + (1 - take_k) * kept;
       }
     }
     bool all_stalled = true;
@@ -438,24 +560,25 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
     project_speed(nodes, vbound, T);
     // Learning update on each window's best error, zero-phase smoothed over nodes ([1 2 1]/4
     // twice) so that the derivative term does not feed tick-scale roughness back.
-    std::vector<Axes> du(nodes.size(), Axes{});
-    const std::vector<double> gain_at = smooth_over_nodes(nodes, [&](std::size_t w) { return win_learned[w] ? win_gain[w] : 0.0; });
-    for (std::size_t k = 1; k < nodes.size(); ++k) {
-      if (gain_at[k] <= 0) continue;
-      for (std::size_t i = 0; i < kNumAxes; ++i)
-        du[k][i] = gain_at[k] * apply_learning(best_error, static_cast<std::int64_t>(nodes[k].tick), i, L, T, h);
-    }
-    for (int pass = 0; pass < 2; ++pass) {
-      std::vector<Axes> sm = du;
-      for (std::size_t k = 1; k + 1 < du.size(); ++k)
-        for (std::size_t i = 0; i < kNumAxes; ++i) sm[k][i] = 0.25 * du[k - 1][i] + 0.5 * du[k][i] + 0.25 * du[k + 1][i];
-      du = std::move(sm);
-    }
-    for (std::size_t k = 1; k + 1 < nodes.size(); ++k)
+    WindowAverage gain_at = over_nodes(nodes, [&](std::size_t w) { return win_learned[w] ? win_gain[w] : 0.0; });
+    const std::size_t n = nodes.size();
+    InOrder raw_update([&](std::size_t k) {
+      Axes du{};
+      const double gain_k = k == 0 ? 0.0 : gain_at.at(k);
+      if (gain_k > 0)
+        for (std::size_t i = 0; i < kNumAxes; ++i)
+          du[i] = gain_k * apply_learning(best_error, static_cast<std::int64_t>(nodes[k].tick), i, L, T, h);
+      return du;
+    });
+    InOrder once([&](std::size_t k) { return smoothed_121(raw_update, k, n); });
+    InOrder twice([&](std::size_t k) { return smoothed_121(once, k, n); });
+    for (std::size_t k = 1; k + 1 < n; ++k) {
+      const Axes du = twice.at(k);
       for (std::size_t i = 0; i < kNumAxes; ++i) {
         const auto& tr = model.kin.travel[i];
-        nodes[k].joints[i] = std::clamp(nodes[k].joints[i] + du[k][i], tr.min, tr.max);
+        nodes[k].joints[i] = std::clamp(nodes[k].joints[i] + du[i], tr.min, tr.max);
       }
+    }
     project_speed(nodes, vbound, T);
   }
   double best_max = 0;
@@ -469,16 +592,16 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
   return res;
 }
 
-std::vector<ResolvedBlock> compensated_blocks(std::span<const ResolvedBlock> program, const Result& result,
-                                              double period) {
-  std::vector<ResolvedBlock> out;
-  if (result.nodes.empty()) return out;
+void for_each_compensated_block(std::span<const ResolvedBlock> program, const Result& result, double period,
+                                const std::function<void(const ResolvedBlock&)>& emit) {
+  if (result.nodes.empty()) return;
   const Axes start = result.nodes.front().joints;
-  const std::vector<ResolvedBlock> nodes = node_blocks(program, result.nodes, start, period);
+  const simulate::BlockSource nodes = node_program(program, result.nodes, start, period);
   std::size_t next = 0;  // next program block not yet passed
   std::uint64_t noted_line = 0;  // source line of the last motion note
   bool have_node = false;
   double last_feed = 0;
+  Axes last_target = start;  // where the last block written leaves the machine
   auto pass_block = [&](std::size_t i) {
     const ResolvedBlock& b = program[i];
     ResolvedBlock c = b;
@@ -503,25 +626,33 @@ std::vector<ResolvedBlock> compensated_blocks(std::span<const ResolvedBlock> pro
     }
     // Between timed points the inverse-time mode stays (no G94/G93 flip-flop in the output);
     // before the first point the block keeps its own feed mode.
-    c.start = c.target = have_node ? out.back().target : start;
+    c.start = c.target = last_target;
     if (have_node) {
       c.feed_mode = FeedMode::kInverseTime;
       c.feed = last_feed;
     }
-    out.push_back(std::move(c));
+    emit(c);
   };
-  for (std::size_t k = 0; k < nodes.size(); ++k) {
+  for (std::size_t k = 0; k < nodes.count; ++k) {
     const std::uint32_t src = result.nodes[k + 1].block;
     // Program blocks up to this node's source block are passed in order (their M/S/T words and
     // comments), each source line's motion once as a note.
     while (next <= src && next < program.size()) {
       pass_block(next++);
     }
-    out.push_back(nodes[k]);
+    const ResolvedBlock& node = nodes.at(k);
+    emit(node);
     have_node = true;
-    last_feed = nodes[k].feed;
+    last_feed = node.feed;
+    last_target = node.target;
   }
   while (next < program.size()) pass_block(next++);
+}
+
+std::vector<ResolvedBlock> compensated_blocks(std::span<const ResolvedBlock> program, const Result& result,
+                                              double period) {
+  std::vector<ResolvedBlock> out;
+  for_each_compensated_block(program, result, period, [&out](const ResolvedBlock& b) { out.push_back(b); });
   return out;
 }
 

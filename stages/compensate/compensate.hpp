@@ -120,7 +120,12 @@ Result compensate(const Model& model, const Nominal& nominal, std::span<const Re
                   const Progress& progress);
 
 /// The node blocks of a result as resolved blocks (G93 G1 in machine axes, TCP and tool length
-/// off, N = source line) interleaved with the program's non-motion blocks, in program order.
+/// off, N = source line) interleaved with the program's non-motion blocks, in program order, handed
+/// to `emit` one at a time (the block is valid during the call): the writer needs no more.
+void for_each_compensated_block(std::span<const ResolvedBlock> program, const Result& result, double period,
+                                const std::function<void(const ResolvedBlock&)>& emit);
+
+/// The same blocks collected in a vector (for tests: on a long program they take 464 bytes a node).
 std::vector<ResolvedBlock> compensated_blocks(std::span<const ResolvedBlock> program, const Result& result,
                                               double period);
 

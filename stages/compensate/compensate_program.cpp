@@ -19,10 +19,10 @@ ProgramCompensation compensate_program(const Model& model, const CompensateOptio
     pc.note = pc.result->note;
     return pc;
   }
-  const std::vector<ResolvedBlock> blocks = compensated_blocks(run.program, *pc.result, model.interp.period);
   Writer writer(write_options);
-  pc.text.reserve(blocks.size() * 64);
-  for (const auto& b : blocks) writer.write(b, pc.text);
+  pc.text.reserve(pc.result->nodes.size() * 64);
+  for_each_compensated_block(run.program, *pc.result, model.interp.period,
+                             [&](const ResolvedBlock& b) { writer.write(b, pc.text); });
   return pc;
 }
 

@@ -4,6 +4,8 @@
 // back by the parser, for the "after" figures.
 #include <algorithm>
 #include <cstdio>
+#include <deque>
+#include <stdexcept>
 
 #include <nlohmann/json.hpp>
 
@@ -18,6 +20,73 @@ namespace gcpipe {
 namespace {
 
 using pipeline::Emitter;
+
+/// compensated.nc read back block by block as the simulation asks for them: the parser is fed
+/// line by line until the next motion block comes out, so the text's blocks (one a node, 464 bytes
+/// each) are never all held. Blocks are asked for in order; a few are kept behind the newest.
+class ReadBack {
+ public:
+  ReadBack(const ParseOptions& options, const MachineConfig& machine, std::string_view text)
+      : parser_(options, machine, "compensated.nc"), text_(text) {
+    sink_.block = [this](const ResolvedBlock& b) {
+      if (b.motion != Motion::kNone) kept_.push_back(b);
+      return true;
+    };
+    sink_.diagnostic = [](const Diagnostic& d) {
+      if (d.severity == Severity::kError) throw std::runtime_error("compensated.nc does not read back: " + format(d));
+      return true;
+    };
+  }
+
+  /// Motion block i of the text; throws when the text has fewer (`expected` is the number
+  /// written, for the message).
+  const ResolvedBlock& at(std::size_t i, std::size_t expected) {
+    if (i < first_) throw std::logic_error("compensated.nc read back out of order");
+    while (first_ + kept_.size() <= i)
+      if (!feed_line()) throw does_not_read_back(expected);
+    while (first_ + kKeptBehind < i) kept_.pop_front(), ++first_;
+    return kept_[i - first_];
+  }
+
+  /// All motion blocks of the text (reads it to the end).
+  std::size_t count() {
+    while (feed_line()) {
+    }
+    return first_ + kept_.size();
+  }
+
+  std::runtime_error does_not_read_back(std::size_t expected) {
+    return std::runtime_error("compensated.nc does not read back as written (" + std::to_string(count()) +
+                              " motion blocks for " + std::to_string(expected) + " points)");
+  }
+
+ private:
+  static constexpr std::size_t kKeptBehind = 8;
+
+  /// Feeds the next line (or, past the last, finishes the parse once); false when nothing is left.
+  bool feed_line() {
+    if (pos_ >= text_.size()) {
+      if (finished_) return false;
+      finished_ = true;
+      parser_.finish(sink_);
+      return true;
+    }
+    const std::size_t end = std::min(text_.find('\n', pos_), text_.size());
+    std::string_view line = text_.substr(pos_, end - pos_);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    pos_ = end + 1;
+    parser_.feed(line, sink_);
+    return true;
+  }
+
+  Parser parser_;
+  std::string_view text_;
+  std::size_t pos_ = 0;
+  bool finished_ = false;
+  ParseSink sink_;
+  std::deque<ResolvedBlock> kept_;
+  std::size_t first_ = 0;  // index of kept_.front() among the text's motion blocks
+};
 
 class CompensateStage final : public pipeline::Stage {
  public:
@@ -103,27 +172,16 @@ class CompensateStage final : public pipeline::Stage {
     po.strict = true;
     po.dialect = write_options_.dialect;
     po.decimal_point_increments = false;
-    Parser parser(po, machine_, "compensated.nc");
-    std::vector<ResolvedBlock> back;
-    const ParseSink sink{[&back](const ResolvedBlock& b) {
-                           if (b.motion != Motion::kNone) back.push_back(b);
-                           return true;
-                         },
-                         [](const Diagnostic& d) {
-                           if (d.severity == Severity::kError)
-                             throw std::runtime_error("compensated.nc does not read back: " + format(d));
-                           return true;
-                         }};
-    feed_text(parser, text, sink);
     const auto& nodes = compensation_.result->nodes;
-    if (back.size() + 1 != nodes.size())
-      throw std::runtime_error("compensated.nc does not read back as written (" + std::to_string(back.size()) +
-                               " motion blocks for " + std::to_string(nodes.size() - 1) + " points)");
-    written_nodes_ = back.size();
+    const std::size_t points = nodes.size() - 1;
+    ReadBack back(po, machine_, text);
+    const simulate::BlockSource blocks{points, [&](std::size_t i) -> const ResolvedBlock& { return back.at(i, points); }};
     const auto& run = simulated_->run;
     after_ = simulate::evaluate(
-        model_, *run.nominal, run.program, back, run.start,
+        model_, *run.nominal, run.program, blocks, run.start,
         [&nodes](std::uint32_t i) { return nodes[std::min<std::size_t>(i + 1, nodes.size() - 1)].block; }, {}, true);
+    if (back.count() != points) throw back.does_not_read_back(points);
+    written_nodes_ = points;
   }
 
   // The original slowed to the compensated program's cycle time: what a sceptic compares with.

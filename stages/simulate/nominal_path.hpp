@@ -1,7 +1,11 @@
-// Internal to stages/simulate: the nominal tool-tip polyline of a recorded run.
+// Internal to stages/simulate: the nominal tool-tip polyline of a recorded run, made as a run
+// reaches it (evaluate(), the planner's check of its reference).
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
+#include <deque>
+#include <stdexcept>
 #include <span>
 #include <vector>
 
@@ -9,14 +13,46 @@
 
 namespace gcpipe::simulate {
 
-/// The nominal tool-tip path as a polyline without repeated points, and the polyline index of
-/// every tick, so that the contour error can be searched near the previous match (a dwell or a
-/// stop adds many identical points that would otherwise stall the search).
-struct NominalPath {
-  std::vector<Vec3> pts;
-  std::vector<std::uint32_t> index_of_tick;
-};
+/// The nominal tool-tip polyline of a recorded run (the raw samples' tips, repeated points
+/// dropped), made as an evaluated run reaches it and pushed into a
+/// streaming ContourSearch, which keeps only its window: the whole polyline, 28 bytes a tick, is
+/// never held. The search gets the same points at the same calls as over a whole polyline.
+class NominalPolyline {
+ public:
+  NominalPolyline(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program, ContourSearch& search)
+      : model_(model), nom_(nom), program_(program), search_(search) {}
 
-NominalPath nominal_path(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program);
+  /// The polyline index of raw tick k (clamped to the last); k never decreases between calls.
+  std::size_t index_of_tick(std::size_t k) {
+    if (nom_.raw.empty()) return 0;
+    k = std::min(k, nom_.raw.size() - 1);
+    if (k < first_tick_) throw std::logic_error("NominalPolyline: raw ticks asked for out of order");
+    while (walked_ <= k) walk();
+    while (first_tick_ < k) index_.pop_front(), ++first_tick_;
+    return index_[k - first_tick_];
+  }
+
+  /// Makes points until the search holds `count` of them or the polyline ends.
+  void fill(std::size_t count) {
+    while (search_.size() < count && walked_ < nom_.raw.size()) walk();
+  }
+
+ private:
+  void walk() {
+    const std::size_t k = walked_++;
+    const Vec3 tip = forward_kinematics(model_.kin, nom_.raw[k], tool_length_of(model_, program_[nom_.block[k]])).tip;
+    if (search_.size() == 0 || dist3(last_, tip) > 1e-9) search_.push(tip), last_ = tip;
+    index_.push_back(static_cast<std::uint32_t>(search_.size() - 1));
+  }
+
+  const Model& model_;
+  const Nominal& nom_;
+  std::span<const ResolvedBlock> program_;
+  ContourSearch& search_;
+  std::size_t walked_ = 0;               // raw ticks turned into points so far
+  Vec3 last_{};                          // the newest point
+  std::deque<std::uint32_t> index_;      // polyline index of raw ticks first_tick_ .. walked_ - 1
+  std::size_t first_tick_ = 0;
+};
 
 }  // namespace gcpipe::simulate

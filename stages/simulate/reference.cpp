@@ -23,27 +23,36 @@ struct RawPath {
   /// neither stop the plan nor take time.
   std::vector<std::uint8_t> rest;
   std::vector<double> sigma;  //!< N cumulative sigma
-  std::vector<Axes> dir;    //!< N - 1 unit directions in the scaled joint space
+  // The unit directions of the steps are not kept (40 bytes a tick, the largest series of the
+  // plan): step_speed_limits, their only user, recomputes them with step_direction().
 };
 
 constexpr double kStill = 1e-12;  // a sigma step smaller than this does not move
+
+/// Raw step k (sample k to k + 1) in the scaled joint space: its unit direction (zero when it
+/// does not move) and its length, the sigma step.
+Axes step_direction(const Model& model, const Nominal& nom, std::size_t k, double& len) {
+  Axes d;
+  len = 0;
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    const double v = model.interp.max_velocity[i] > 0 ? model.interp.max_velocity[i] : 1.0;
+    d[i] = (nom.raw[k + 1][i] - nom.raw[k][i]) / v;
+    len += d[i] * d[i];
+  }
+  len = std::sqrt(len);
+  for (std::size_t i = 0; i < kNumAxes; ++i) d[i] = len > kStill ? d[i] / len : 0.0;
+  return d;
+}
 
 RawPath raw_path(const Model& model, std::span<const ResolvedBlock> program, const Nominal& nom) {
   RawPath p;
   const std::size_t N = nom.raw.size();
   p.sigma.assign(N, 0.0);
+  p.ds.reserve(N);
   for (std::size_t k = 0; k + 1 < N; ++k) {
-    Axes d;
     double len = 0;
-    for (std::size_t i = 0; i < kNumAxes; ++i) {
-      const double v = model.interp.max_velocity[i] > 0 ? model.interp.max_velocity[i] : 1.0;
-      d[i] = (nom.raw[k + 1][i] - nom.raw[k][i]) / v;
-      len += d[i] * d[i];
-    }
-    len = std::sqrt(len);
-    for (std::size_t i = 0; i < kNumAxes; ++i) d[i] = len > kStill ? d[i] / len : 0.0;
+    step_direction(model, nom, k, len);
     p.ds.push_back(len);
-    p.dir.push_back(d);
     p.sigma[k + 1] = p.sigma[k] + len;
   }
   const std::size_t S = p.ds.size();
@@ -74,22 +83,30 @@ double chord(const Axes& u, const Axes& v) {
 /// plan_reference then checks. (A jerk bound for corners, jump / (T1 T2) with the model
 /// inverse's Ts, was tried and dropped: it slowed every vertex of a polygonised arc nearly to a
 /// stop, the slot to 5.9x its cycle time; the compensation holds back where a limit is hit.)
-std::vector<double> step_speed_limits(const RawPath& p, double T, double T1, double a_sigma) {
+std::vector<double> step_speed_limits(const Model& model, const Nominal& nom, const RawPath& p, double T, double T1,
+                                      double a_sigma) {
   const std::size_t S = p.ds.size();
-  std::vector<double> jump(S + 1, 0.0);  // direction jump where a moving step begins
-  std::vector<std::size_t> next(S, S);   // the next moving step
-  for (std::size_t k = 0, prev = S; k < S; ++k) {
-    if (!(p.ds[k] > kStill)) continue;
-    if (prev < S) jump[k] = chord(p.dir[prev], p.dir[k]), next[prev] = k;
-    prev = k;
-  }
+  // One pass, moving step by moving step: the jump where step k begins is known at k, the jump
+  // where the next moving step begins only when that step is reached, so step k's limit is set
+  // then (the last moving step has no next jump).
   std::vector<double> w(S, 0.0);
-  for (std::size_t k = 0; k < S; ++k) {
-    if (!(p.ds[k] > kStill)) continue;
-    const double j = std::max(jump[k], next[k] < S ? jump[next[k]] : 0.0);
+  std::size_t prev = S;  // the previous moving step
+  Axes prev_dir{};
+  double prev_jump = 0;  // the jump where the previous moving step began
+  auto limit = [&](std::size_t k, double jump_begin, double jump_next) {
+    const double j = std::max(jump_begin, jump_next);
     w[k] = p.ds[k] / T;
     if (j > 1e-12) w[k] = std::min(w[k], a_sigma * T1 / j);
+  };
+  for (std::size_t k = 0; k < S; ++k) {
+    if (!(p.ds[k] > kStill)) continue;
+    double len = 0;
+    const Axes dir = step_direction(model, nom, k, len);
+    const double jump = prev < S ? chord(prev_dir, dir) : 0.0;
+    if (prev < S) limit(prev, prev_jump, jump);
+    prev = k, prev_dir = dir, prev_jump = jump;
   }
+  if (prev < S) limit(prev, prev_jump, 0.0);
   return w;
 }
 
@@ -148,27 +165,73 @@ std::vector<double> planned_sigma(const RawPath& p, const std::vector<double>& W
   return sig;
 }
 
-/// Causal moving average of length m, held at the first value before the start and at the last
-/// value m - 1 ticks past the end.
+/// Causal moving average of length m, fed one value at a time: held at the first value before
+/// the start; push the last value m - 1 more times to run m - 1 ticks past the end. Streaming, so
+/// that a chain of averages over a long series holds m values each, not the series between
+/// stages (the blend's joint series alone was 40 bytes a tick, twice).
 template <class V>
-std::vector<V> moving_average(const std::vector<V>& in, std::size_t m, V zero) {
-  std::vector<V> out;
-  out.reserve(in.size() + m - 1);
-  V sum = zero;
-  auto axpy = [](V& y, double a, const V& x) {
+class MovingAverage {
+ public:
+  explicit MovingAverage(std::size_t m) : m_(m), inv_m_(1.0 / static_cast<double>(m)) {}
+  V push(const V& x) {
+    if (ring_.empty()) {
+      ring_.assign(m_, x);  // before the start: the first value
+      sum_ = zero();
+      axpy(sum_, static_cast<double>(m_), x);
+    }
+    axpy(sum_, 1.0, x);
+    axpy(sum_, -1.0, ring_[next_]);
+    ring_[next_] = x;
+    next_ = (next_ + 1) % m_;
+    V v = zero();
+    axpy(v, inv_m_, sum_);
+    return v;
+  }
+
+ private:
+  static V zero() {
+    if constexpr (std::is_same_v<V, double>) return 0.0;
+    else return V{};
+  }
+  static void axpy(V& y, double a, const V& x) {
     if constexpr (std::is_same_v<V, double>) y += a * x;
     else for (std::size_t i = 0; i < kNumAxes; ++i) y[i] += a * x[i];
-  };
-  axpy(sum, static_cast<double>(m), in.front());
-  for (std::size_t j = 0; j < in.size() + m - 1; ++j) {
-    axpy(sum, 1.0, in[std::min(j, in.size() - 1)]);
-    axpy(sum, -1.0, in[j >= m ? std::min(j - m, in.size() - 1) : 0]);
-    V v = zero;
-    axpy(v, 1.0 / static_cast<double>(m), sum);
-    out.push_back(v);
   }
-  return out;
-}
+  std::size_t m_;
+  double inv_m_;
+  std::vector<V> ring_;  // the last m inputs; ring_[next_] is the oldest
+  std::size_t next_ = 0;
+  V sum_{};
+};
+
+/// Two moving averages in a row (lengths m1, m2) over a series that arrives value by value: each
+/// output of the first is fed to the second, and finish() runs both past the end (m1 - 1 and
+/// m2 - 1 ticks), as two whole-series averages of lengths in + m1 - 1 and that + m2 - 1 would.
+template <class V>
+class TwoAverages {
+ public:
+  TwoAverages(std::size_t m1, std::size_t m2) : a_(m1), b_(m2), m1_(m1), m2_(m2) {}
+  template <class Out>
+  void push(const V& x, Out&& out) {
+    last_in_ = x;
+    feed_second(a_.push(x), out);
+  }
+  template <class Out>
+  void finish(Out&& out) {
+    for (std::size_t j = 1; j < m1_; ++j) feed_second(a_.push(last_in_), out);
+    for (std::size_t j = 1; j < m2_; ++j) out(b_.push(last_mid_));
+  }
+
+ private:
+  template <class Out>
+  void feed_second(const V& mid, Out& out) {
+    last_mid_ = mid;
+    out(b_.push(mid));
+  }
+  MovingAverage<V> a_, b_;
+  std::size_t m1_, m2_;
+  V last_in_{}, last_mid_{};
+};
 
 /// Fractional raw index of a sigma value (the first index where several share it: a dwell's
 /// samples are one point); `k` carries the search from the previous, never smaller, value.
@@ -182,46 +245,62 @@ double index_of_sigma(const RawPath& p, double s, std::size_t& k) {
 /// The reference of one plan: sigma smoothed by two moving averages (ma, mb ticks: speed changes
 /// become jerk-limited, the path stays exact), the joints at that sigma, then blended by two short
 /// moving averages (m1, m2: corners are rounded within the tolerance, arcs shrink by
-/// v^2 (T1^2 + T2^2) / 24 R at most).
+/// v^2 (T1^2 + T2^2) / 24 R at most). Each stage streams into the next: only the reference and
+/// its progress are series.
 void blend(const RawPath& p, const std::vector<double>& sig, std::size_t ma, std::size_t mb, std::size_t m1,
            std::size_t m2, Nominal& nom) {
   const std::size_t N = nom.raw.size();
-  const std::vector<double> smooth = moving_average(moving_average(sig, ma, 0.0), mb, 0.0);
-  std::vector<Axes> q;
-  std::vector<double> prog;
-  q.reserve(smooth.size());
-  prog.reserve(smooth.size());
-  std::size_t k = 0;
-  double last = 0;
-  for (double s : smooth) {
-    last = std::max(last, index_of_sigma(p, std::max(s, 0.0), k));
-    const auto i0 = std::min(static_cast<std::size_t>(std::floor(last)), N - 1);
-    q.push_back(lerp(nom.raw[i0], nom.raw[std::min(i0 + 1, N - 1)], last - static_cast<double>(i0)));
-    prog.push_back(last);
-  }
-  q.back() = nom.raw.back();
-  prog.back() = static_cast<double>(N - 1);
-  nom.reference = moving_average(moving_average(q, m1, Axes{}), m2, Axes{});
-  nom.reference.front() = nom.raw.front();  // exactly at rest where the program starts
+  const std::size_t J = sig.size() + ma - 1 + mb - 1;  // samples of the smoothed sigma
   const std::size_t delay = (m1 - 1) / 2 + (m2 - 1) / 2;
-  nom.progress.resize(nom.reference.size());
-  for (std::size_t n = 0; n < nom.reference.size(); ++n)
-    nom.progress[n] = prog[std::min(n >= delay ? n - delay : 0, prog.size() - 1)];
+  // The previous plan's series go first: a long program's reference is tens of MB.
+  std::vector<Axes>().swap(nom.reference);
+  std::vector<double>().swap(nom.progress);
+  nom.reference.reserve(J + m1 - 1 + m2 - 1);
+  nom.progress.reserve(J + m1 - 1 + m2 - 1);
+  TwoAverages<Axes> joint_blend(m1, m2);
+  auto keep_reference = [&nom](const Axes& r) { nom.reference.push_back(r); };
+  std::size_t k = 0, j = 0;
+  double last = 0;
+  auto joints_at = [&](double s) {
+    last = std::max(last, index_of_sigma(p, std::max(s, 0.0), k));
+    Axes q;
+    double progress = last;
+    if (++j == J) {
+      q = nom.raw.back();  // exactly where the program ends
+      progress = static_cast<double>(N - 1);
+    } else {
+      const auto i0 = std::min(static_cast<std::size_t>(std::floor(last)), N - 1);
+      q = lerp(nom.raw[i0], nom.raw[std::min(i0 + 1, N - 1)], last - static_cast<double>(i0));
+    }
+    // progress[n] is the raw index of the joints the blend centres on at n: delay ticks back.
+    if (nom.progress.empty()) nom.progress.assign(delay, progress);
+    nom.progress.push_back(progress);
+    joint_blend.push(q, keep_reference);
+  };
+  TwoAverages<double> speed_smoothing(ma, mb);
+  for (double s : sig) speed_smoothing.push(s, joints_at);
+  speed_smoothing.finish(joints_at);
+  joint_blend.finish(keep_reference);
+  nom.progress.resize(nom.reference.size(), nom.progress.back());
+  nom.reference.front() = nom.raw.front();  // exactly at rest where the program starts
 }
 
 /// Ticks where the reference leaves the nominal tool-tip path by more than `tolerance`, and by
-/// how much, found with the contour metric itself.
+/// how much, found with the contour metric itself (the polyline made as the reference reaches it,
+/// not held whole: 28 bytes a tick at the planner's peak).
 std::vector<std::pair<std::size_t, double>> excursions(const Model& model, std::span<const ResolvedBlock> program,
-                                                       const Nominal& nom, const NominalPath& path, std::size_t h,
-                                                       double tolerance) {
+                                                       const Nominal& nom, std::size_t h, double tolerance) {
   std::vector<std::pair<std::size_t, double>> out;
-  ContourSearch search(path.pts);
+  ContourSearch search;
+  NominalPolyline path(model, nom, program, search);
   const std::size_t N = nom.raw.size();
   for (std::size_t n = 0; n < nom.reference.size(); ++n) {
     const auto k = std::min(static_cast<std::size_t>(nom.progress[n]), N - 1);
     const Vec3 tip = forward_kinematics(model.kin, nom.reference[n], tool_length_of(model, program[nom.block[k]])).tip;
+    const std::size_t limit = path.index_of_tick(k + h + 2);
+    path.fill(std::max<std::size_t>(limit, 1) + 1);  // as the search over a whole polyline takes them
     Vec3 c;
-    const double e = search.distance(tip, path.index_of_tick[std::min(k + h + 2, N - 1)], c);
+    const double e = search.distance(tip, limit, c);
     if (e > tolerance) out.emplace_back(k, e);
   }
   return out;
@@ -267,8 +346,7 @@ void plan_reference(const Model& model, std::span<const ResolvedBlock> program, 
   const double T1 = static_cast<double>(m1) * T;
   const std::size_t h = (m1 + m2) / 2 + 1, spread = (ma + mb) / 2 + h;
   const RawPath raw = raw_path(model, program, nom);
-  const NominalPath path = nominal_path(model, nom, program);
-  std::vector<double> w = step_speed_limits(raw, T, T1, a_sigma);
+  std::vector<double> w = step_speed_limits(model, nom, raw, T, T1, a_sigma);
   // Where the blend still leaves the path by more than the tolerance (a sharp corner taken fast,
   // a tight arc), the speed there is lowered and the plan made again: the deviation of a blended
   // corner grows with the speed, so a few rounds settle it.
@@ -281,7 +359,7 @@ void plan_reference(const Model& model, std::span<const ResolvedBlock> program, 
       return;
     }
     blend(raw, sig, ma, mb, m1, m2, nom);
-    const auto over = excursions(model, program, nom, path, spread, plan.tolerance);
+    const auto over = excursions(model, program, nom, spread, plan.tolerance);
     if (over.empty()) return;
     slow_down(raw, over, plan.tolerance, static_cast<double>(ma + mb) * T / 2, h, w);
   }

@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <deque>
 #include <limits>
+#include <stdexcept>
 
 #include "contour.hpp"
 #include "nominal_path.hpp"
@@ -13,17 +14,6 @@
 #include "gcpipe/config.hpp"
 
 namespace gcpipe::simulate {
-
-NominalPath nominal_path(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program) {
-  NominalPath p;
-  p.index_of_tick.reserve(nom.raw.size());
-  for (std::size_t n = 0; n < nom.raw.size(); ++n) {
-    const Vec3 tip = forward_kinematics(model.kin, nom.raw[n], tool_length_of(model, program[nom.block[n]])).tip;
-    if (p.pts.empty() || dist3(p.pts.back(), tip) > 1e-9) p.pts.push_back(tip);
-    p.index_of_tick.push_back(static_cast<std::uint32_t>(p.pts.size() - 1));
-  }
-  return p;
-}
 
 namespace {
 
@@ -131,7 +121,7 @@ double tool_length_of(const Model& model, const ResolvedBlock& b) {
   return b.tool_length_active ? b.tool_length : model.kin.tool_length;
 }
 
-RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, const Axes& start,
+RunStats run_program(const Model& model, const BlockSource& blocks, const Axes& start,
                      const std::function<void(const Tick&)>& on_tick, std::uint64_t max_ticks) {
   struct Sink final : interpolate::SampleSink {
     servo::ServoSimulator sim;
@@ -178,11 +168,11 @@ RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, 
   Sink sink(model, stats, on_tick);
   sink.max_ticks = max_ticks;
   interpolate::Interpolator interp(io, start);
-  while (sink.block + 1 < blocks.size() && blocks[sink.block].motion == Motion::kNone) ++sink.block;
+  while (sink.block + 1 < blocks.count && blocks.at(sink.block).motion == Motion::kNone) ++sink.block;
   sink.raw.emplace_back(start, sink.block);
   sink.emit(sink.sim.reset(start, 0.0));
-  for (std::size_t i = 0; i < blocks.size(); ++i) {
-    const ResolvedBlock& b = blocks[i];
+  for (std::size_t i = 0; i < blocks.count; ++i) {
+    const ResolvedBlock& b = blocks.at(i);
     // Samples belong to the block that moves (or dwells): a block without motion emits none,
     // and the settling after the last move belongs to that move.
     if (b.motion != Motion::kNone) sink.block = static_cast<std::uint32_t>(i);
@@ -274,6 +264,22 @@ std::uint64_t tick_bound(double max_ticks) {
 void add_tracking(AxisStats& axes, const Axes& reference, const Axes& actual) {
   for (std::size_t i = 0; i < kNumAxes; ++i)
     axes.max_tracking[i] = std::max(axes.max_tracking[i], std::abs(reference[i] - actual[i]));
+}
+
+/// The distance of the program's own actual joints from the planned reference, tick by tick. The
+/// reference is planned after the run, so the run is simulated once more for it (interpolator and
+/// drives only, the same ticks): cheaper than holding the actual joints of the whole run, 40 bytes
+/// a tick, through the planner, where the peak memory is.
+void add_tracking_against_reference(const Model& model, std::span<const ResolvedBlock> program, const Axes& start,
+                                    const Nominal& nom, std::uint64_t max_ticks, AxisStats& axes) {
+  const Axes& ref_end = nom.reference.empty() ? start : nom.reference.back();
+  run_program(
+      model, program, start,
+      [&](const Tick& t) {
+        const auto n = static_cast<std::size_t>(t.n);
+        add_tracking(axes, n < nom.reference.size() ? nom.reference[n] : ref_end, t.actual);
+      },
+      max_ticks);
 }
 
 /// What a tap sees of a tick: the tick with its tool tip and its contour error (0 off cutting moves).
@@ -410,11 +416,10 @@ class RunAccumulator {
 
 /// The program's own run, evaluated as it goes: each tick's raw sample is the nominal (pushed to
 /// the contour search), its actual is measured against the nominal path so far. With
-/// `nom.keep` the run is also recorded for the report and the compensation: raw samples,
-/// blocks, and the actual joints for the tracking error against the reference built after it.
+/// `record` the run is also recorded for the report and the compensation: raw samples and blocks
+/// (the tracking error against the reference built after it is add_tracking_against_reference's).
 struct OwnRun {
   Evaluation eval;
-  std::vector<Axes> actual;  //!< when recording
 };
 
 OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> program, const Axes& start, Nominal& nom,
@@ -438,7 +443,6 @@ OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> progra
     if (record) {
       nom.raw.push_back(t.raw);
       nom.block.push_back(t.block);
-      own.actual.push_back(t.actual);
     }
     hand_on(on_tick, t, cutting, e, tip);
   };
@@ -475,11 +479,11 @@ Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program
 }
 
 Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
-                    std::span<const ResolvedBlock> blocks, const Axes& start,
+                    const BlockSource& blocks, const Axes& start,
                     const std::function<std::uint32_t(std::uint32_t)>& source_block,
                     const std::function<void(const Tick&)>& also, bool on_reference_clock) {
-  const NominalPath path = nominal_path(model, nom, program);
-  ContourSearch contour(path.pts);
+  ContourSearch contour;
+  NominalPolyline path(model, nom, program, contour);
   RunAccumulator acc(model, nom.segments.size());
   const Axes& ref_end = nom.reference.empty() ? start : nom.reference.back();
   const RunStats stats = run_program(model, blocks, start, [&](const Tick& t) {
@@ -493,9 +497,10 @@ Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const Reso
     std::size_t raw_tick = n;
     if (on_reference_clock && !nom.progress.empty())
       raw_tick = static_cast<std::size_t>(nom.progress[std::min(n, nom.progress.size() - 1)]) + 300;
-    const std::uint32_t limit = path.index_of_tick.empty()
-                                    ? 0
-                                    : path.index_of_tick[std::min(raw_tick, path.index_of_tick.size() - 1)];
+    const std::size_t limit = path.index_of_tick(raw_tick);
+    // The points up to the segment that ends at `limit` (at least the first segment), as the
+    // search over a whole polyline takes them.
+    path.fill(std::max<std::size_t>(limit, 1) + 1);
     Vec3 nearest;
     const double e = contour.distance(tip, limit, nearest);
     const std::uint32_t seg = nom.segment_of_block.empty() ? 0 : nom.segment_of_block[std::min<std::size_t>(src, nom.segment_of_block.size() - 1)];
@@ -558,10 +563,7 @@ SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> pr
   if (bounds.record_nominal) {
     describe_segments(model, p, nom);
     plan_reference(model, p, bounds.plan, max_ticks, nom);
-    const Axes& ref_end = nom.reference.empty() ? run.start : nom.reference.back();
-    for (std::size_t n = 0; n < own.actual.size(); ++n) {
-      add_tracking(own.eval.axes, n < nom.reference.size() ? nom.reference[n] : ref_end, own.actual[n]);
-    }
+    add_tracking_against_reference(model, p, run.start, nom, tick_bound(max_ticks), own.eval.axes);
   }
   run.before = std::move(own.eval);
   return run;

@@ -68,12 +68,29 @@ struct RunStats {
   std::array<std::uint64_t, kNumAxes> saturated_ticks{};
 };
 
+/// A program handed to the simulation block by block: `count` blocks, `at(i)` block i, valid until
+/// the next call. A generated program (the compensation's node program, or compensated.nc read
+/// back) is made one block at a time this way instead of held whole (464 bytes a block, one block
+/// a node: on a long program the largest thing in memory).
+struct BlockSource {
+  std::size_t count = 0;
+  std::function<const ResolvedBlock&(std::size_t)> at;
+  /// The blocks of a program held in memory.
+  static BlockSource of(std::span<const ResolvedBlock> blocks) {
+    return {blocks.size(), [blocks](std::size_t i) -> const ResolvedBlock& { return blocks[i]; }};
+  }
+};
+
 /// Interpolates `blocks` (from rest at `start`) at the model's period, runs the five drives and
 /// calls `on_tick` for every tick, in order. Blocks without motion are skipped by the
 /// interpolator; a block it cannot run stops the run (RunStats::ok false).
 /// After `max_ticks` ticks the run stops with RunStats::ok false (a bound on memory and time).
-RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, const Axes& start,
+RunStats run_program(const Model& model, const BlockSource& blocks, const Axes& start,
                      const std::function<void(const Tick&)>& on_tick, std::uint64_t max_ticks = UINT64_MAX);
+inline RunStats run_program(const Model& model, std::span<const ResolvedBlock> blocks, const Axes& start,
+                            const std::function<void(const Tick&)>& on_tick, std::uint64_t max_ticks = UINT64_MAX) {
+  return run_program(model, BlockSource::of(blocks), start, on_tick, max_ticks);
+}
 
 /// The contour metric: the distance from the actual tool tip to the nominal tool-tip polyline
 /// among the points the nominal could have reached by now, looking back at most kLookBack points.
@@ -277,9 +294,15 @@ void plan_reference(const Model& model, std::span<const ResolvedBlock> program, 
 /// block that block i of `blocks` stands for (its tool length and segment); `also` sees every tick.
 /// `on_reference_clock`: `blocks` is a node program, timed like the re-timed reference.
 Evaluation evaluate(const Model& model, const Nominal& nominal, std::span<const ResolvedBlock> program,
-                    std::span<const ResolvedBlock> blocks, const Axes& start,
+                    const BlockSource& blocks, const Axes& start,
                     const std::function<std::uint32_t(std::uint32_t)>& source_block,
                     const std::function<void(const Tick&)>& also = {}, bool on_reference_clock = false);
+inline Evaluation evaluate(const Model& model, const Nominal& nominal, std::span<const ResolvedBlock> program,
+                           std::span<const ResolvedBlock> blocks, const Axes& start,
+                           const std::function<std::uint32_t(std::uint32_t)>& source_block,
+                           const std::function<void(const Tick&)>& also = {}, bool on_reference_clock = false) {
+  return evaluate(model, nominal, program, BlockSource::of(blocks), start, source_block, also, on_reference_clock);
+}
 
 }  // namespace gcpipe::simulate
 
