@@ -64,47 +64,73 @@ bool beyond(const double (&pq)[3], double reach, double best) {
 
 }  // namespace
 
-bool ContourSearch::Capsule::may_hold_closer(const Vec3& p, double best) const {
-  const double w[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
-  const double t = std::clamp((w[0] * d[0] + w[1] * d[1] + w[2] * d[2]) * inv_dd, 0.0, 1.0);
-  const double e[3] = {w[0] - t * d[0], w[1] - t * d[1], w[2] - t * d[2]};
-  return !beyond(e, radius, best);
+void ContourSearch::Capsules::open() {
+  for (int k = 0; k < 3; ++k) a[k].push_back(0), d[k].push_back(0);
+  inv_dd.push_back(0);
+  radius.push_back(std::numeric_limits<double>::infinity());
+}
+
+void ContourSearch::Capsules::drop_front(std::size_t n) {
+  const auto drop = [n](std::vector<double>& v) { v.erase(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(n)); };
+  for (int k = 0; k < 3; ++k) drop(a[k]), drop(d[k]);
+  drop(inv_dd), drop(radius);
+}
+
+// Branch-free over arrays, as Boxes::near: the compiler measures two or four capsules at once.
+void ContourSearch::Capsules::near(std::size_t i0, std::size_t i1, const Vec3& p, double best, std::uint8_t* hit) const {
+  const double *ax = a[0].data(), *ay = a[1].data(), *az = a[2].data();
+  const double *dx = d[0].data(), *dy = d[1].data(), *dz = d[2].data();
+  const double *inv = inv_dd.data(), *r = radius.data();
+  for (std::size_t i = i0; i < i1; ++i) {
+    const double w0 = p[0] - ax[i], w1 = p[1] - ay[i], w2 = p[2] - az[i];
+    const double t = std::clamp((w0 * dx[i] + w1 * dy[i] + w2 * dz[i]) * inv[i], 0.0, 1.0);
+    const double e0 = w0 - t * dx[i], e1 = w1 - t * dy[i], e2 = w2 - t * dz[i];
+    const double bound = r[i] + best + kSlack;
+    hit[i - i0] = static_cast<std::uint8_t>(!(e0 * e0 + e1 * e1 + e2 * e2 > bound * bound));
+  }
 }
 
 // The distance to the chord is convex along each segment, so the polyline's farthest point from
 // the chord is one of its vertices.
 void ContourSearch::close_group(std::size_t g) {
-  Capsule& c = capsules_[g - first_ / kGroup];
+  const std::size_t c = g - first_ / kGroup;
   const Vec3& a = point(g * kGroup);
   const Vec3& b = point((g + 1) * kGroup);
-  c.a = a;
-  c.d = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-  const double dd = c.d[0] * c.d[0] + c.d[1] * c.d[1] + c.d[2] * c.d[2];
-  c.inv_dd = dd > 0 ? 1 / dd : 0;
+  const Vec3 d{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+  for (int k = 0; k < 3; ++k) capsules_.a[k][c] = a[k], capsules_.d[k][c] = d[k];
+  const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  capsules_.inv_dd[c] = dd > 0 ? 1 / dd : 0;
   double radius_sq = 0, s = 0;
   for (std::size_t i = g * kGroup + 1; i < (g + 1) * kGroup; ++i)
     radius_sq = std::max(radius_sq, servo::segment_distance_sq(a, b, point(i), s));
-  c.radius = std::sqrt(radius_sq);
+  capsules_.radius[c] = std::sqrt(radius_sq);
 }
 
-// Group g holds segments [g kGroup, (g + 1) kGroup), so its box holds points g kGroup ..
+// Group g holds segments [g kGroup, (g + 1) kGroup), so its capsule holds points g kGroup ..
 // (g + 1) kGroup; a point that ends one group's last segment also starts the next group.
 void ContourSearch::push(const Vec3& p) {
   const std::size_t i = size();
   win_.push_back(p);
   for (int k = 0; k < 3; ++k) coord_[k].push_back(p[k]);
   if (i == 0) return;
+  add_step(point(i - 1), p);
   const std::size_t g = (i - 1) / kGroup;
-  if (g - first_ / kGroup == boxes_.size()) {  // the first segment of a new group
+  if (g - first_ / kGroup == capsules_.size()) {  // the first segment of a new group
     if (g % kGroupsPerSuper == 0) supers_.open(point(i - 1)), super_far_.push_back(kUnknown);
-    boxes_.open(point(i - 1));
-    capsules_.emplace_back();
+    capsules_.open();
   }
-  boxes_.grow(p);
   supers_.grow(p);
   super_far_.back() = kUnknown;
   if (i % kGroup == 0) close_group(g);
   drop_old_points();
+}
+
+// Segment a-b's vector and squared length, in servo::segment_distance_sq's arithmetic and order,
+// kept so that each measurement of the segment does not work them out again.
+void ContourSearch::add_step(const Vec3& a, const Vec3& b) {
+  const double d0 = b[0] - a[0], d1 = b[1] - a[1], d2 = b[2] - a[2];
+  step_[0].push_back(d0), step_[1].push_back(d1), step_[2].push_back(d2);
+  step_[3].push_back(d0 * d0 + d1 * d1 + d2 * d2);
 }
 
 // Keeps the last kLookBack points and a super-group of slack behind them; drops older ones in
@@ -117,8 +143,8 @@ void ContourSearch::drop_old_points() {
   const std::size_t drop = new_first - first_;
   win_.erase(win_.begin(), win_.begin() + static_cast<std::ptrdiff_t>(drop));
   for (auto& c : coord_) c.erase(c.begin(), c.begin() + static_cast<std::ptrdiff_t>(drop));
-  boxes_.drop_front(drop / kGroup);
-  capsules_.erase(capsules_.begin(), capsules_.begin() + static_cast<std::ptrdiff_t>(drop / kGroup));
+  for (auto& c : step_) c.erase(c.begin(), c.begin() + static_cast<std::ptrdiff_t>(drop));
+  capsules_.drop_front(drop / kGroup);
   supers_.drop_front(drop / kSuperSpan);
   super_far_.erase(super_far_.begin(), super_far_.begin() + static_cast<std::ptrdiff_t>(drop / kSuperSpan));
   first_ = new_first;
@@ -139,16 +165,27 @@ void ContourSearch::scan(std::size_t a, std::size_t b, const Vec3& p, Match& m) 
   }
 }
 
+// [a, b) less the segments [done.a, done.b) measured already (the warm start's): measured again
+// they would only give the same numbers.
+void ContourSearch::scan_except(std::size_t a, std::size_t b, const Range& done, const Vec3& p, Match& m) const {
+  if (done.b <= a || b <= done.a) return scan(a, b, p, m);
+  if (a < done.a) scan(a, done.a, p, m);
+  if (done.b < b) scan(done.b, b, p, m);
+}
+
 // Segments a .. a+n-1 (global index), servo::segment_distance_sq's arithmetic in its order on
 // each: the same doubles, computed two or four at a time from the arrays per axis.
 void ContourSearch::measure(std::size_t a, std::size_t n, const Vec3& p, double* sq, double* s) const {
   const double* x = coord_[0].data() + (a - first_);
   const double* y = coord_[1].data() + (a - first_);
   const double* z = coord_[2].data() + (a - first_);
+  const double* dx = step_[0].data() + (a - first_);
+  const double* dy = step_[1].data() + (a - first_);
+  const double* dz = step_[2].data() + (a - first_);
+  const double* ddv = step_[3].data() + (a - first_);
   for (std::size_t k = 0; k < n; ++k) {
-    const double d0 = x[k + 1] - x[k], d1 = y[k + 1] - y[k], d2 = z[k + 1] - z[k];
+    const double d0 = dx[k], d1 = dy[k], d2 = dz[k], dd = ddv[k];
     const double w0 = p[0] - x[k], w1 = p[1] - y[k], w2 = p[2] - z[k];
-    const double dd = d0 * d0 + d1 * d1 + d2 * d2;
     const double t = std::clamp(dd > 0 ? (w0 * d0 + w1 * d1 + w2 * d2) / dd : 0.0, 0.0, 1.0);
     const double e0 = w0 - t * d0, e1 = w1 - t * d1, e2 = w2 - t * d2;
     sq[k] = e0 * e0 + e1 * e1 + e2 * e2;
@@ -179,7 +216,8 @@ double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& clos
   Match m;
   // Start near the previous match: a tight bound makes the box test skip most groups. The match
   // moves about one segment per tick, as the nominal does.
-  if (j_ >= lo && j_ < hi) scan(j_ > lo + 2 ? j_ - 2 : lo, std::min(hi, j_ + 8), actual, m);
+  Range warm{0, 0};
+  if (j_ >= lo && j_ < hi) warm = {j_ > lo + 2 ? j_ - 2 : lo, std::min(hi, j_ + 8)}, scan(warm.a, warm.b, actual, m);
   // Two levels of boxes: a group of 8 segments, a super-group of 64; a box farther than the best
   // match so far cannot hold a closer segment. A super-group whose earlier distance, less the
   // motion since, still exceeds the best match is passed over; the others are measured again.
@@ -189,7 +227,7 @@ double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& clos
     if (super_far_[k] - motion_ > m.dist + kSlack) continue;
     const double sq = supers_.distance_sq(k, actual);
     super_far_[k] = std::sqrt(sq) + motion_;
-    if (sq < m.sq) scan_super(k + s0, lo, hi, actual, m);
+    if (sq < m.sq) scan_super(k + s0, lo, hi, warm, actual, m);
   }
   return finish(m, closest);
 }
@@ -202,17 +240,18 @@ double ContourSearch::finish(const Match& m, Vec3& closest) {
   return m.dist;
 }
 
-// The groups of super-group `sg` (global index) within the window [lo, hi), in order.
-void ContourSearch::scan_super(std::size_t sg, std::size_t lo, std::size_t hi, const Vec3& p, Match& m) const {
+// The groups of super-group `sg` (global index) within the window [lo, hi), in order: those whose
+// capsule may hold a segment nearer than the best match when the super-group is reached.
+void ContourSearch::scan_super(std::size_t sg, std::size_t lo, std::size_t hi, const Range& warm, const Vec3& p,
+                               Match& m) const {
   const std::size_t g0 = first_ / kGroup;
   const std::size_t ga = std::max(sg * kGroupsPerSuper, lo / kGroup);
-  const std::size_t gb = std::min({(sg + 1) * kGroupsPerSuper, (hi + kGroup - 1) / kGroup, g0 + boxes_.size()});
+  const std::size_t gb = std::min({(sg + 1) * kGroupsPerSuper, (hi + kGroup - 1) / kGroup, g0 + capsules_.size()});
   std::uint8_t hit[kGroupsPerSuper];
   if (ga >= gb) return;
-  boxes_.near(ga - g0, gb - g0, p, m.dist, hit);
+  capsules_.near(ga - g0, gb - g0, p, m.dist, hit);
   for (std::size_t g = ga; g < gb; ++g)
-    if (hit[g - ga] && boxes_.distance_sq(g - g0, p) < m.sq && capsules_[g - g0].may_hold_closer(p, m.dist))
-      scan(std::max(lo, g * kGroup), std::min(hi, (g + 1) * kGroup), p, m);
+    if (hit[g - ga]) scan_except(std::max(lo, g * kGroup), std::min(hi, (g + 1) * kGroup), warm, p, m);
 }
 
 }  // namespace gcpipe::simulate
