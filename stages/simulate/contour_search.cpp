@@ -33,7 +33,8 @@ double ContourSearch::Boxes::distance_sq(std::size_t i, const Vec3& p) const {
 }
 
 // Bitwise & of the six comparisons, no early exit: the loop has no branch to mispredict.
-void ContourSearch::Boxes::near(std::size_t a, std::size_t b, const Vec3& p, double best, std::uint8_t* hit) const {
+void ContourSearch::Boxes::near(std::size_t a, std::size_t b, const Vec3& p, double best,
+                               std::uint8_t* __restrict__ hit) const {
   const double* lx = lo[0].data(); const double* ly = lo[1].data(); const double* lz = lo[2].data();
   const double* hx = hi[0].data(); const double* hy = hi[1].data(); const double* hz = hi[2].data();
   const double x0 = p[0] + best, x1 = p[0] - best, y0 = p[1] + best, y1 = p[1] - best;
@@ -56,38 +57,30 @@ constexpr double kUnknown = -std::numeric_limits<double>::infinity();  // a boun
 // rounding stays far below kSlack.
 constexpr double kRebase = 1000;
 
-// |p - q|^2 > (reach + best + kSlack)^2: p is farther than best from every point within reach of q.
-bool beyond(const double (&pq)[3], double reach, double best) {
-  const double bound = reach + best + kSlack;
-  return pq[0] * pq[0] + pq[1] * pq[1] + pq[2] * pq[2] > bound * bound;
-}
-
 }  // namespace
 
+// Capsules come in whole super-groups, the groups not opened yet infinitely wide.
 void ContourSearch::Capsules::open() {
-  for (int k = 0; k < 3; ++k) a[k].push_back(0), d[k].push_back(0);
-  inv_dd.push_back(0);
-  radius.push_back(std::numeric_limits<double>::infinity());
+  if (groups++ % kGroupsPerSuper != 0) return;
+  for (int k = 0; k < 3; ++k) a[k].resize(a[k].size() + kGroupsPerSuper), d[k].resize(d[k].size() + kGroupsPerSuper);
+  inv_dd.resize(inv_dd.size() + kGroupsPerSuper);
+  radius.resize(radius.size() + kGroupsPerSuper, std::numeric_limits<double>::infinity());
+  far.resize(far.size() + kGroupsPerSuper, kUnknown);
 }
 
 void ContourSearch::Capsules::drop_front(std::size_t n) {
   const auto drop = [n](std::vector<double>& v) { v.erase(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(n)); };
   for (int k = 0; k < 3; ++k) drop(a[k]), drop(d[k]);
-  drop(inv_dd), drop(radius);
+  drop(inv_dd), drop(radius), drop(far);
+  groups -= n;
 }
 
-// Branch-free over arrays, as Boxes::near: the compiler measures two or four capsules at once.
-void ContourSearch::Capsules::near(std::size_t i0, std::size_t i1, const Vec3& p, double best, std::uint8_t* hit) const {
-  const double *ax = a[0].data(), *ay = a[1].data(), *az = a[2].data();
-  const double *dx = d[0].data(), *dy = d[1].data(), *dz = d[2].data();
-  const double *inv = inv_dd.data(), *r = radius.data();
-  for (std::size_t i = i0; i < i1; ++i) {
-    const double w0 = p[0] - ax[i], w1 = p[1] - ay[i], w2 = p[2] - az[i];
-    const double t = std::clamp((w0 * dx[i] + w1 * dy[i] + w2 * dz[i]) * inv[i], 0.0, 1.0);
-    const double e0 = w0 - t * dx[i], e1 = w1 - t * dy[i], e2 = w2 - t * dz[i];
-    const double bound = r[i] + best + kSlack;
-    hit[i - i0] = static_cast<std::uint8_t>(!(e0 * e0 + e1 * e1 + e2 * e2 > bound * bound));
-  }
+// Distance from p to the chord less the radius: no point of the group is nearer.
+double ContourSearch::Capsules::lower_bound(std::size_t i, const Vec3& p) const {
+  const double w0 = p[0] - a[0][i], w1 = p[1] - a[1][i], w2 = p[2] - a[2][i];
+  const double t = std::clamp((w0 * d[0][i] + w1 * d[1][i] + w2 * d[2][i]) * inv_dd[i], 0.0, 1.0);
+  const double e0 = w0 - t * d[0][i], e1 = w1 - t * d[1][i], e2 = w2 - t * d[2][i];
+  return std::sqrt(e0 * e0 + e1 * e1 + e2 * e2) - radius[i];
 }
 
 // The distance to the chord is convex along each segment, so the polyline's farthest point from
@@ -104,6 +97,7 @@ void ContourSearch::close_group(std::size_t g) {
   for (std::size_t i = g * kGroup + 1; i < (g + 1) * kGroup; ++i)
     radius_sq = std::max(radius_sq, servo::segment_distance_sq(a, b, point(i), s));
   capsules_.radius[c] = std::sqrt(radius_sq);
+  capsules_.far[c] = kUnknown;
 }
 
 // Group g holds segments [g kGroup, (g + 1) kGroup), so its capsule holds points g kGroup ..
@@ -115,7 +109,7 @@ void ContourSearch::push(const Vec3& p) {
   if (i == 0) return;
   add_step(point(i - 1), p);
   const std::size_t g = (i - 1) / kGroup;
-  if (g - first_ / kGroup == capsules_.size()) {  // the first segment of a new group
+  if (g - first_ / kGroup == capsules_.groups) {  // the first segment of a new group
     if (g % kGroupsPerSuper == 0) supers_.open(point(i - 1)), super_far_.push_back(kUnknown);
     capsules_.open();
   }
@@ -175,7 +169,8 @@ void ContourSearch::scan_except(std::size_t a, std::size_t b, const Range& done,
 
 // Segments a .. a+n-1 (global index), servo::segment_distance_sq's arithmetic in its order on
 // each: the same doubles, computed two or four at a time from the arrays per axis.
-void ContourSearch::measure(std::size_t a, std::size_t n, const Vec3& p, double* sq, double* s) const {
+void ContourSearch::measure(std::size_t a, std::size_t n, const Vec3& p, double* __restrict__ sq,
+                            double* __restrict__ s) const {
   const double* x = coord_[0].data() + (a - first_);
   const double* y = coord_[1].data() + (a - first_);
   const double* z = coord_[2].data() + (a - first_);
@@ -201,6 +196,7 @@ void ContourSearch::add_motion(const Vec3& actual) {
   if (motion_ <= kRebase) return;
   motion_ = 0;
   std::fill(super_far_.begin(), super_far_.end(), kUnknown);
+  std::fill(capsules_.far.begin(), capsules_.far.end(), kUnknown);
 }
 
 double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& closest) {
@@ -214,12 +210,12 @@ double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& clos
   const std::size_t lo = std::max(first_, hi > kLookBack ? hi - kLookBack : 0);
   add_motion(actual);
   Match m;
-  // Start near the previous match: a tight bound makes the box test skip most groups. The match
+  // Start near the previous match: a tight bound makes the tests below skip most groups. The match
   // moves about one segment per tick, as the nominal does.
   Range warm{0, 0};
   if (j_ >= lo && j_ < hi) warm = {j_ > lo + 2 ? j_ - 2 : lo, std::min(hi, j_ + 8)}, scan(warm.a, warm.b, actual, m);
-  // Two levels of boxes: a group of 8 segments, a super-group of 64; a box farther than the best
-  // match so far cannot hold a closer segment. A super-group whose earlier distance, less the
+  // Two levels: a super-group of 64 segments (its box), a group of 8 (its capsule); one farther
+  // than the best match so far cannot hold a closer segment. One whose earlier distance, less the
   // motion since, still exceeds the best match is passed over; the others are measured again.
   const std::size_t s0 = first_ / kSuperSpan;
   const std::size_t sa = lo / kSuperSpan - s0, sb = std::min(supers_.size(), (hi + kSuperSpan - 1) / kSuperSpan - s0);
@@ -241,17 +237,22 @@ double ContourSearch::finish(const Match& m, Vec3& closest) {
 }
 
 // The groups of super-group `sg` (global index) within the window [lo, hi), in order: those whose
-// capsule may hold a segment nearer than the best match when the super-group is reached.
+// capsule may hold a segment nearer than the best match. A group's capsule bound is kept as the
+// super-groups' are (plus the motion then, less the motion since): the groups beside a turn's
+// nearest one are passed over for several ticks with one comparison.
 void ContourSearch::scan_super(std::size_t sg, std::size_t lo, std::size_t hi, const Range& warm, const Vec3& p,
-                               Match& m) const {
-  const std::size_t g0 = first_ / kGroup;
-  const std::size_t ga = std::max(sg * kGroupsPerSuper, lo / kGroup);
-  const std::size_t gb = std::min({(sg + 1) * kGroupsPerSuper, (hi + kGroup - 1) / kGroup, g0 + capsules_.size()});
-  std::uint8_t hit[kGroupsPerSuper];
-  if (ga >= gb) return;
-  capsules_.near(ga - g0, gb - g0, p, m.dist, hit);
-  for (std::size_t g = ga; g < gb; ++g)
-    if (hit[g - ga]) scan_except(std::max(lo, g * kGroup), std::min(hi, (g + 1) * kGroup), warm, p, m);
+                               Match& m) {
+  const std::size_t g0 = first_ / kGroup, first_group = sg * kGroupsPerSuper;
+  const std::size_t ga = std::max(first_group, lo / kGroup);
+  const std::size_t gb = std::min({first_group + kGroupsPerSuper, (hi + kGroup - 1) / kGroup, g0 + capsules_.groups});
+  for (std::size_t g = ga; g < gb; ++g) {
+    double& far = capsules_.far[g - g0];
+    if (far - motion_ > m.dist + kSlack) continue;
+    const double bound = capsules_.lower_bound(g - g0, p);
+    far = bound + motion_;
+    if (bound > m.dist + kSlack) continue;
+    scan_except(std::max(lo, g * kGroup), std::min(hi, (g + 1) * kGroup), warm, p, m);
+  }
 }
 
 }  // namespace gcpipe::simulate

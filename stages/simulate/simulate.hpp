@@ -135,12 +135,13 @@ class ContourSearch {
     std::array<std::vector<double>, 3> a, d;
     std::vector<double> inv_dd;  //!< 1 / |d|^2, 0 when d is 0
     std::vector<double> radius;  //!< [mm]
-    std::size_t size() const { return radius.size(); }
-    void open();  //!< a new, incomplete group
-    void drop_front(std::size_t n);
-    /// hit[i - i0] = capsule i may hold a point nearer to p than `best` (plus kSlack), for
-    /// capsules [i0, i1).
-    void near(std::size_t i0, std::size_t i1, const Vec3& p, double best, std::uint8_t* hit) const;
+    /// Kept lower bound as super_far_: lower_bound() when last worked out plus the motion then.
+    std::vector<double> far;
+    std::size_t groups = 0;      //!< opened; the arrays hold whole super-groups
+    void open();                 //!< a new, incomplete group
+    void drop_front(std::size_t n);  //!< n: whole super-groups of groups
+    /// No point of group i is nearer to p than this [mm] (-inf for an incomplete group).
+    double lower_bound(std::size_t i, const Vec3& p) const;
   };
   struct Match {
     double sq = 1e300, dist = 1e300;  //!< squared distance and distance [mm^2, mm]
@@ -160,7 +161,7 @@ class ContourSearch {
   void scan_except(std::size_t a, std::size_t b, const Range& done, const Vec3& p, Match& m) const;
   void measure(std::size_t a, std::size_t n, const Vec3& p, double* sq, double* s) const;
   double finish(const Match& m, Vec3& closest);  //!< remembers the match, returns its distance
-  void scan_super(std::size_t sg, std::size_t lo, std::size_t hi, const Range& warm, const Vec3& p, Match& m) const;
+  void scan_super(std::size_t sg, std::size_t lo, std::size_t hi, const Range& warm, const Vec3& p, Match& m);
 
   const std::vector<Vec3>* source_ = nullptr;
   std::vector<Vec3> win_;          //!< points first_ .. size()-1
