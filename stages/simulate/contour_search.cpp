@@ -219,11 +219,14 @@ double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& clos
   // motion since, still exceeds the best match is passed over; the others are measured again.
   const std::size_t s0 = first_ / kSuperSpan;
   const std::size_t sa = lo / kSuperSpan - s0, sb = std::min(supers_.size(), (hi + kSuperSpan - 1) / kSuperSpan - s0);
+  // far - motion_ > best + kSlack as far > reach: one comparison per super-group passed over (the
+  // slack covers the different rounding).
+  double reach = m.dist + kSlack + motion_;
   for (std::size_t k = sa; k < sb; ++k) {
-    if (super_far_[k] - motion_ > m.dist + kSlack) continue;
+    if (super_far_[k] > reach) continue;
     const double sq = supers_.distance_sq(k, actual);
     super_far_[k] = std::sqrt(sq) + motion_;
-    if (sq < m.sq) scan_super(k + s0, lo, hi, warm, actual, m);
+    if (sq < m.sq) scan_super(k + s0, lo, hi, warm, actual, m), reach = m.dist + kSlack + motion_;
   }
   return finish(m, closest);
 }
@@ -247,7 +250,7 @@ void ContourSearch::scan_super(std::size_t sg, std::size_t lo, std::size_t hi, c
   const std::size_t gb = std::min({first_group + kGroupsPerSuper, (hi + kGroup - 1) / kGroup, g0 + capsules_.groups});
   for (std::size_t g = ga; g < gb; ++g) {
     double& far = capsules_.far[g - g0];
-    if (far - motion_ > m.dist + kSlack) continue;
+    if (far > m.dist + kSlack + motion_) continue;
     const double bound = capsules_.lower_bound(g - g0, p);
     far = bound + motion_;
     if (bound > m.dist + kSlack) continue;
