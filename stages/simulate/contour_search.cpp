@@ -154,8 +154,14 @@ void ContourSearch::scan(std::size_t a, std::size_t b, const Vec3& p, Match& m) 
   for (std::size_t from = a; from < b; from += kBatch) {
     const std::size_t n = std::min(kBatch, b - from);
     measure(from, n, p, sq, s);
-    for (std::size_t k = 0; k < n; ++k)
-      if (sq[k] < m.sq) m.sq = sq[k], m.s = s[k], m.segment = from + k, m.dist = std::sqrt(sq[k]);
+    // The batch's least first (no branch per segment), then its first occurrence: the match a
+    // scan one by one would end with.
+    double least = std::numeric_limits<double>::infinity();
+    for (std::size_t k = 0; k < n; ++k) least = sq[k] < least ? sq[k] : least;
+    if (!(least < m.sq)) continue;
+    std::size_t k = 0;
+    while (sq[k] != least) ++k;
+    m.sq = least, m.s = s[k], m.segment = from + k, m.dist = std::sqrt(least);
   }
 }
 
