@@ -227,8 +227,15 @@ double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& clos
   const std::size_t sa = lo / kSuperSpan - s0, sb = std::min(supers_.size(), (hi + kSuperSpan - 1) / kSuperSpan - s0);
   // far - motion_ > best + kSlack as far > reach: one comparison per super-group passed over (the
   // slack covers the different rounding).
+  // The candidates are picked first in a loop with no call (a branch-free append), then tested
+  // again with the reach of the moment, which only shrinks.
   double reach = m.dist + kSlack + motion_;
-  for (std::size_t k = sa; k < sb; ++k) {
+  constexpr std::size_t kMaxSupers = 64;
+  static_assert(kLookBack / kSuperSpan + 2 <= kMaxSupers, "the window's super-groups fit");
+  std::size_t candidates[kMaxSupers], n = 0;
+  for (std::size_t k = sa; k < sb; ++k) candidates[n] = k, n += super_far_[k] <= reach;
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t k = candidates[i];
     if (super_far_[k] > reach) continue;
     const double sq = supers_.distance_sq(k, actual);
     super_far_[k] = std::sqrt(sq) + motion_;
@@ -254,13 +261,15 @@ void ContourSearch::scan_super(std::size_t sg, std::size_t lo, std::size_t hi, c
   const std::size_t g0 = first_ / kGroup, first_group = sg * kGroupsPerSuper;
   const std::size_t ga = std::max(first_group, lo / kGroup);
   const std::size_t gb = std::min({first_group + kGroupsPerSuper, (hi + kGroup - 1) / kGroup, g0 + capsules_.groups});
+  double reach = m.dist + kSlack + motion_;
   for (std::size_t g = ga; g < gb; ++g) {
     double& far = capsules_.far[g - g0];
-    if (far > m.dist + kSlack + motion_) continue;
+    if (far > reach) continue;
     const double bound = capsules_.lower_bound(g - g0, p);
     far = bound + motion_;
     if (bound > m.dist + kSlack) continue;
     scan_except(std::max(lo, g * kGroup), std::min(hi, (g + 1) * kGroup), warm, p, m);
+    reach = m.dist + kSlack + motion_;
   }
 }
 
