@@ -142,45 +142,59 @@ void write_digits(char* out, std::uint64_t d, int n) {
   if (n == 1) p[-1] = static_cast<char>('0' + r % 10);
 }
 
-char* write_zeros(char* out, int n) {
-  for (int i = 0; i < n; ++i) out[i] = '0';
-  return out + n;
+// The 17 digits of d < 10^17, zero-padded, into out[0 .. 17): three pieces of fixed size, no
+// loop whose count depends on d (a mispredicted branch per number).
+void write_17_digits(char* out, std::uint64_t d) {
+  const std::uint64_t high = d / 100000000;
+  out[0] = static_cast<char>('0' + high / 100000000);
+  write_8_digits(out + 1, static_cast<std::uint32_t>(high % 100000000));
+  write_8_digits(out + 9, static_cast<std::uint32_t>(d % 100000000));
 }
 
 // std::to_chars's plain form: fixed unless scientific is shorter (fixed wins a tie); scientific
-// as printf's %e, the exponent with a sign and at least two digits. The digits are written once,
-// where they go; a point among them is made room for by moving the few digits before it.
-char* write_decimal(char* out, Decimal d) {
+// as printf's %e, the exponent with a sign and at least two digits. The text is put together in
+// a scratch buffer by copies of fixed size (a copy that goes too far is overwritten by the next,
+// or lies beyond the end), then copied out whole: no copy or loop of a length known only at run
+// time.
+char* write_decimal(char* out, bool negative, Decimal d) {
+  char digits[48];  // the 17 digits, then room for copies of 17 from any digit
+  write_17_digits(digits, d.digits);
   const int n = digit_count(d.digits);
+  const char* f = digits + 17 - n;  // the first significant digit
   const int e = d.exponent, sci_exp = e + n - 1, whole = n + e;  // whole: digits before the point
   const int abs_exp = sci_exp < 0 ? -sci_exp : sci_exp;
   const int sci_len = n + (n > 1) + 2 + (abs_exp >= 100 ? 3 : 2);
   const int fixed_len = e >= 0 ? n + e : whole > 0 ? n + 1 : 2 - e;
+  char text[64];
+  text[0] = '-';
+  char* p = text + negative;
   if (fixed_len <= sci_len) {
-    if (e >= 0) {  // an integer: the digits, then zeros
-      write_digits(out, d.digits, n);
-      return write_zeros(out + n, e);
+    if (e >= 0) {  // an integer: the digits, then zeros (fewer than 6, or scientific is shorter)
+      std::memcpy(p, f, 17);
+      std::memset(p + n, '0', 8);
+      p += n + e;
+    } else if (whole > 0) {  // the point among the digits
+      std::memcpy(p, f, 17);
+      p[whole] = '.';
+      std::memcpy(p + whole + 1, f + whole, 17);
+      p += n + 1;
+    } else {  // "0.", up to 3 zeros (or scientific is shorter), the digits
+      std::memcpy(p, "0.0000", 6);
+      std::memcpy(p + 2 - whole, f, 17);
+      p += 2 - e;
     }
-    if (whole > 0) {
-      write_digits(out + 1, d.digits, n);
-      for (int i = 0; i < whole; ++i) out[i] = out[i + 1];
-      out[whole] = '.';
-      return out + n + 1;
-    }
-    out[0] = '0', out[1] = '.';
-    out = write_zeros(out + 2, -whole);
-    write_digits(out, d.digits, n);
-    return out + n;
+  } else {
+    p[0] = f[0], p[1] = '.';
+    std::memcpy(p + 2, f + 1, 16);
+    p += n > 1 ? n + 1 : 1;
+    *p++ = 'e';
+    *p++ = sci_exp < 0 ? '-' : '+';
+    if (abs_exp >= 100) *p++ = static_cast<char>('0' + abs_exp / 100);
+    write_pair(p, static_cast<std::uint32_t>(abs_exp % 100));
+    p += 2;
   }
-  write_digits(out + 1, d.digits, n);
-  out[0] = out[1];
-  if (n > 1) out[1] = '.', out += n + 1;
-  else out += 1;
-  *out++ = 'e';
-  *out++ = sci_exp < 0 ? '-' : '+';
-  if (abs_exp >= 100) *out++ = static_cast<char>('0' + abs_exp / 100);
-  write_pair(out, static_cast<std::uint32_t>(abs_exp % 100));
-  return out + 2;
+  std::memcpy(out, text, kShortestDoubleChars);
+  return out + (p - text);
 }
 
 }  // namespace
@@ -191,12 +205,12 @@ char* write_shortest(char* first, double v) {
   const int biased = static_cast<int>((bits >> 52) & 0x7ff);
   const int q = biased - 1075;
   if (biased == 0 || q < kMinQ || q > kMaxQ) return std::to_chars(first, first + kShortestDoubleChars, v).ptr;
-  if (bits >> 63) *first++ = '-';
+  const bool negative = bits >> 63;
   const std::uint64_t c = fraction | (std::uint64_t{1} << 52);
   if (q > -53 && (c & ((std::uint64_t{1} << -q) - 1)) == 0)  // an integer: its digits are exact
-    return write_decimal(first, without_trailing_zeros({c >> -q, 0}));
+    return write_decimal(first, negative, without_trailing_zeros({c >> -q, 0}));
   const bool lower_closer = fraction == 0 && biased > 1;  // a power of 2: the neighbour below is nearer
-  return write_decimal(first, without_trailing_zeros(shortest_decimal(c, q, lower_closer)));
+  return write_decimal(first, negative, without_trailing_zeros(shortest_decimal(c, q, lower_closer)));
 }
 
 // |v| 10^decimals = c 10^decimals 2^q exactly, in 128 bits (c 10^9 < 2^83), shifted right by -q

@@ -9,8 +9,9 @@ namespace gcpipe {
 /// Room write_shortest needs: "-2.2250738585072014e-308" is the longest text (24 characters).
 inline constexpr std::size_t kShortestDoubleChars = 24;
 
-/// Writes exactly what `std::to_chars(first, first + kShortestDoubleChars, v)` writes (the
-/// shortest text that reads back to v; fixed unless scientific is shorter) and returns the end.
+/// Writes the text `std::to_chars(first, first + kShortestDoubleChars, v)` writes (the shortest
+/// that reads back to v; fixed unless scientific is shorter) and returns its end. Like
+/// std::to_chars it may also write anything after the text, within kShortestDoubleChars.
 /// Doubles of magnitude 2^-70 .. 2^53 (every coordinate of a trace) take a Schubfach-style
 /// shortest search (R. Giulietti, "The Schubfach way to render doubles", 2020) with exact 128-bit
 /// powers of ten, about a third of std::to_chars's instructions; all others (0, subnormals, huge,
