@@ -32,18 +32,6 @@ double ContourSearch::Boxes::distance_sq(std::size_t i, const Vec3& p) const {
   return dd;
 }
 
-// Bitwise & of the six comparisons, no early exit: the loop has no branch to mispredict.
-void ContourSearch::Boxes::near(std::size_t a, std::size_t b, const Vec3& p, double best,
-                               std::uint8_t* __restrict__ hit) const {
-  const double* lx = lo[0].data(); const double* ly = lo[1].data(); const double* lz = lo[2].data();
-  const double* hx = hi[0].data(); const double* hy = hi[1].data(); const double* hz = hi[2].data();
-  const double x0 = p[0] + best, x1 = p[0] - best, y0 = p[1] + best, y1 = p[1] - best;
-  const double z0 = p[2] + best, z1 = p[2] - best;
-  for (std::size_t i = a; i < b; ++i)
-    hit[i - a] = static_cast<std::uint8_t>((lx[i] <= x0) & (hx[i] >= x1) & (ly[i] <= y0) & (hy[i] >= y1) &
-                                           (lz[i] <= z0) & (hz[i] >= z1));
-}
-
 namespace {
 
 // A lower bound puts a group or a segment beyond the best match only when it exceeds it by this

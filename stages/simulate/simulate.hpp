@@ -115,9 +115,7 @@ class ContourSearch {
   double distance(const Vec3& actual, Vec3& closest) { return distance(actual, size() == 0 ? 0 : size() - 1, closest); }
 
  private:
-  /// The bounding boxes of one level (groups or super-groups), structure of arrays: the test of
-  /// a whole window of boxes against a point is then one branch-free loop the compiler vectorises
-  /// (a per-box early exit mispredicts on a looping path, where the boxes hit change each tick).
+  /// The bounding boxes of the super-groups, structure of arrays.
   struct Boxes {
     std::array<std::vector<double>, 3> lo, hi;
     std::size_t size() const { return lo[0].size(); }
@@ -125,10 +123,8 @@ class ContourSearch {
     void grow(const Vec3& p);  //!< the newest box grows to hold p
     void drop_front(std::size_t n);
     double distance_sq(std::size_t i, const Vec3& p) const;
-    /// hit[i - a] = box i lies within `best` of p along every axis, for boxes [a, b).
-    void near(std::size_t a, std::size_t b, const Vec3& p, double best, std::uint8_t* hit) const;
   };
-  /// Per group, structure of arrays as Boxes: the points of a complete group lie within
+  /// Per group, structure of arrays: the points of a complete group lie within
   /// `radius` of the chord a..a+d. An incomplete group (the newest) has an infinite radius: it is
   /// always measured.
   struct Capsules {
