@@ -4,23 +4,22 @@
 #include <bit>
 #include <charconv>
 #include <cmath>
+#include <cstring>
+
+#include "gcpipe/double_chars.hpp"
 
 namespace gcpipe {
 
 namespace {
 
 void append_number(std::string& s, double v) {
-  char buf[64];
-  auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
-  (void)ec;
-  s.append(buf, end);
+  char buf[kShortestDoubleChars];
+  s.append(buf, write_shortest(buf, v));
 }
 
 void append_time(std::string& s, double v) {
   char buf[64];
-  auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed, 6);
-  (void)ec;
-  s.append(buf, end);
+  s.append(buf, write_fixed(buf, buf + sizeof buf, v, 6));
 }
 
 constexpr const char* kColumns[11] = {"t", "X_cmd", "Y_cmd", "Z_cmd", "A_cmd", "C_cmd",
@@ -46,20 +45,23 @@ void append_trace_row(std::string& s, const TraceRow& r) {
   }
 }
 
+// The row is built in one buffer with room for every column at full width, so that a column's
+// text is copied whole (a fixed size: two moves, no call) and the end advanced by its length.
 void TraceRowFormatter::append(std::string& s, const TraceRow& r) {
-  append_time(s, r.t);
-  char row[2 * kNumAxes * (1 + sizeof Column::text)];
-  char* p = row;
+  constexpr std::size_t kTimeRoom = 64;
+  char row[kTimeRoom + 2 * kNumAxes * (1 + sizeof Column::text)];
+  char* p = write_fixed(row, row + kTimeRoom, r.t, 6);
   for (std::size_t i = 0; i < 2 * kNumAxes; ++i) {
     const double v = i < kNumAxes ? r.command[i] : r.actual[i - kNumAxes];
     Column& c = columns_[i];
     const auto bits = std::bit_cast<std::uint64_t>(v);
     if (c.size == 0 || c.bits != bits) {
       c.bits = bits;
-      c.size = static_cast<std::uint8_t>(std::to_chars(c.text, c.text + sizeof c.text, v).ptr - c.text);
+      c.size = static_cast<std::uint8_t>(write_shortest(c.text, v) - c.text);
     }
     *p++ = ',';
-    p = std::copy_n(c.text, c.size, p);
+    std::memcpy(p, c.text, sizeof c.text);
+    p += c.size;
   }
   s.append(row, static_cast<std::size_t>(p - row));
 }

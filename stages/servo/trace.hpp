@@ -13,6 +13,7 @@
 
 #include "gcpipe/block.hpp"
 #include "gcpipe/diagnostic.hpp"
+#include "gcpipe/double_chars.hpp"
 
 namespace gcpipe {
 
@@ -56,7 +57,7 @@ class TraceRowFormatter {
  private:
   struct Column {
     std::uint64_t bits = 0;  //!< of the value formatted last
-    char text[32];           //!< its text (a shortest round-trip double takes at most 24)
+    char text[kShortestDoubleChars] = {};  //!< its text
     std::uint8_t size = 0;   //!< 0: nothing formatted yet
   };
   Column columns_[2 * kNumAxes];

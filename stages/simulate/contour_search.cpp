@@ -32,17 +32,6 @@ double ContourSearch::Boxes::distance_sq(std::size_t i, const Vec3& p) const {
   return dd;
 }
 
-// Bitwise & of the six comparisons, no early exit: the loop has no branch to mispredict.
-void ContourSearch::Boxes::near(std::size_t a, std::size_t b, const Vec3& p, double best, std::uint8_t* hit) const {
-  const double* lx = lo[0].data(); const double* ly = lo[1].data(); const double* lz = lo[2].data();
-  const double* hx = hi[0].data(); const double* hy = hi[1].data(); const double* hz = hi[2].data();
-  const double x0 = p[0] + best, x1 = p[0] - best, y0 = p[1] + best, y1 = p[1] - best;
-  const double z0 = p[2] + best, z1 = p[2] - best;
-  for (std::size_t i = a; i < b; ++i)
-    hit[i - a] = static_cast<std::uint8_t>((lx[i] <= x0) & (hx[i] >= x1) & (ly[i] <= y0) & (hy[i] >= y1) &
-                                           (lz[i] <= z0) & (hz[i] >= z1));
-}
-
 namespace {
 
 // A lower bound puts a group or a segment beyond the best match only when it exceeds it by this
@@ -56,55 +45,74 @@ constexpr double kUnknown = -std::numeric_limits<double>::infinity();  // a boun
 // rounding stays far below kSlack.
 constexpr double kRebase = 1000;
 
-// |p - q|^2 > (reach + best + kSlack)^2: p is farther than best from every point within reach of q.
-bool beyond(const double (&pq)[3], double reach, double best) {
-  const double bound = reach + best + kSlack;
-  return pq[0] * pq[0] + pq[1] * pq[1] + pq[2] * pq[2] > bound * bound;
-}
-
 }  // namespace
 
-bool ContourSearch::Capsule::may_hold_closer(const Vec3& p, double best) const {
-  const double w[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
-  const double t = std::clamp((w[0] * d[0] + w[1] * d[1] + w[2] * d[2]) * inv_dd, 0.0, 1.0);
-  const double e[3] = {w[0] - t * d[0], w[1] - t * d[1], w[2] - t * d[2]};
-  return !beyond(e, radius, best);
+// Capsules come in whole super-groups, the groups not opened yet infinitely wide.
+void ContourSearch::Capsules::open() {
+  if (groups++ % kGroupsPerSuper != 0) return;
+  for (int k = 0; k < 3; ++k) a[k].resize(a[k].size() + kGroupsPerSuper), d[k].resize(d[k].size() + kGroupsPerSuper);
+  inv_dd.resize(inv_dd.size() + kGroupsPerSuper);
+  radius.resize(radius.size() + kGroupsPerSuper, std::numeric_limits<double>::infinity());
+  far.resize(far.size() + kGroupsPerSuper, kUnknown);
+}
+
+void ContourSearch::Capsules::drop_front(std::size_t n) {
+  const auto drop = [n](std::vector<double>& v) { v.erase(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(n)); };
+  for (int k = 0; k < 3; ++k) drop(a[k]), drop(d[k]);
+  drop(inv_dd), drop(radius), drop(far);
+  groups -= n;
+}
+
+// Distance from p to the chord less the radius: no point of the group is nearer.
+double ContourSearch::Capsules::lower_bound(std::size_t i, const Vec3& p) const {
+  const double w0 = p[0] - a[0][i], w1 = p[1] - a[1][i], w2 = p[2] - a[2][i];
+  const double t = std::clamp((w0 * d[0][i] + w1 * d[1][i] + w2 * d[2][i]) * inv_dd[i], 0.0, 1.0);
+  const double e0 = w0 - t * d[0][i], e1 = w1 - t * d[1][i], e2 = w2 - t * d[2][i];
+  return std::sqrt(e0 * e0 + e1 * e1 + e2 * e2) - radius[i];
 }
 
 // The distance to the chord is convex along each segment, so the polyline's farthest point from
 // the chord is one of its vertices.
 void ContourSearch::close_group(std::size_t g) {
-  Capsule& c = capsules_[g - first_ / kGroup];
+  const std::size_t c = g - first_ / kGroup;
   const Vec3& a = point(g * kGroup);
   const Vec3& b = point((g + 1) * kGroup);
-  c.a = a;
-  c.d = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-  const double dd = c.d[0] * c.d[0] + c.d[1] * c.d[1] + c.d[2] * c.d[2];
-  c.inv_dd = dd > 0 ? 1 / dd : 0;
+  const Vec3 d{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+  for (int k = 0; k < 3; ++k) capsules_.a[k][c] = a[k], capsules_.d[k][c] = d[k];
+  const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  capsules_.inv_dd[c] = dd > 0 ? 1 / dd : 0;
   double radius_sq = 0, s = 0;
   for (std::size_t i = g * kGroup + 1; i < (g + 1) * kGroup; ++i)
     radius_sq = std::max(radius_sq, servo::segment_distance_sq(a, b, point(i), s));
-  c.radius = std::sqrt(radius_sq);
+  capsules_.radius[c] = std::sqrt(radius_sq);
+  capsules_.far[c] = kUnknown;
 }
 
-// Group g holds segments [g kGroup, (g + 1) kGroup), so its box holds points g kGroup ..
+// Group g holds segments [g kGroup, (g + 1) kGroup), so its capsule holds points g kGroup ..
 // (g + 1) kGroup; a point that ends one group's last segment also starts the next group.
 void ContourSearch::push(const Vec3& p) {
   const std::size_t i = size();
   win_.push_back(p);
   for (int k = 0; k < 3; ++k) coord_[k].push_back(p[k]);
   if (i == 0) return;
+  add_step(point(i - 1), p);
   const std::size_t g = (i - 1) / kGroup;
-  if (g - first_ / kGroup == boxes_.size()) {  // the first segment of a new group
+  if (g - first_ / kGroup == capsules_.groups) {  // the first segment of a new group
     if (g % kGroupsPerSuper == 0) supers_.open(point(i - 1)), super_far_.push_back(kUnknown);
-    boxes_.open(point(i - 1));
-    capsules_.emplace_back();
+    capsules_.open();
   }
-  boxes_.grow(p);
   supers_.grow(p);
   super_far_.back() = kUnknown;
   if (i % kGroup == 0) close_group(g);
   drop_old_points();
+}
+
+// Segment a-b's vector and squared length, in servo::segment_distance_sq's arithmetic and order,
+// kept so that each measurement of the segment does not work them out again.
+void ContourSearch::add_step(const Vec3& a, const Vec3& b) {
+  const double d0 = b[0] - a[0], d1 = b[1] - a[1], d2 = b[2] - a[2];
+  step_[0].push_back(d0), step_[1].push_back(d1), step_[2].push_back(d2);
+  step_[3].push_back(d0 * d0 + d1 * d1 + d2 * d2);
 }
 
 // Keeps the last kLookBack points and a super-group of slack behind them; drops older ones in
@@ -117,8 +125,8 @@ void ContourSearch::drop_old_points() {
   const std::size_t drop = new_first - first_;
   win_.erase(win_.begin(), win_.begin() + static_cast<std::ptrdiff_t>(drop));
   for (auto& c : coord_) c.erase(c.begin(), c.begin() + static_cast<std::ptrdiff_t>(drop));
-  boxes_.drop_front(drop / kGroup);
-  capsules_.erase(capsules_.begin(), capsules_.begin() + static_cast<std::ptrdiff_t>(drop / kGroup));
+  for (auto& c : step_) c.erase(c.begin(), c.begin() + static_cast<std::ptrdiff_t>(drop));
+  capsules_.drop_front(drop / kGroup);
   supers_.drop_front(drop / kSuperSpan);
   super_far_.erase(super_far_.begin(), super_far_.begin() + static_cast<std::ptrdiff_t>(drop / kSuperSpan));
   first_ = new_first;
@@ -134,21 +142,39 @@ void ContourSearch::scan(std::size_t a, std::size_t b, const Vec3& p, Match& m) 
   for (std::size_t from = a; from < b; from += kBatch) {
     const std::size_t n = std::min(kBatch, b - from);
     measure(from, n, p, sq, s);
-    for (std::size_t k = 0; k < n; ++k)
-      if (sq[k] < m.sq) m.sq = sq[k], m.s = s[k], m.segment = from + k, m.dist = std::sqrt(sq[k]);
+    // The batch's least first (no branch per segment), then its first occurrence: the match a
+    // scan one by one would end with.
+    double least = std::numeric_limits<double>::infinity();
+    for (std::size_t k = 0; k < n; ++k) least = sq[k] < least ? sq[k] : least;
+    if (!(least < m.sq)) continue;
+    std::size_t k = 0;
+    while (sq[k] != least) ++k;
+    m.sq = least, m.s = s[k], m.segment = from + k, m.dist = std::sqrt(least);
   }
+}
+
+// [a, b) less the segments [done.a, done.b) measured already (the warm start's): measured again
+// they would only give the same numbers.
+void ContourSearch::scan_except(std::size_t a, std::size_t b, const Range& done, const Vec3& p, Match& m) const {
+  if (done.b <= a || b <= done.a) return scan(a, b, p, m);
+  if (a < done.a) scan(a, done.a, p, m);
+  if (done.b < b) scan(done.b, b, p, m);
 }
 
 // Segments a .. a+n-1 (global index), servo::segment_distance_sq's arithmetic in its order on
 // each: the same doubles, computed two or four at a time from the arrays per axis.
-void ContourSearch::measure(std::size_t a, std::size_t n, const Vec3& p, double* sq, double* s) const {
+void ContourSearch::measure(std::size_t a, std::size_t n, const Vec3& p, double* __restrict__ sq,
+                            double* __restrict__ s) const {
   const double* x = coord_[0].data() + (a - first_);
   const double* y = coord_[1].data() + (a - first_);
   const double* z = coord_[2].data() + (a - first_);
+  const double* dx = step_[0].data() + (a - first_);
+  const double* dy = step_[1].data() + (a - first_);
+  const double* dz = step_[2].data() + (a - first_);
+  const double* ddv = step_[3].data() + (a - first_);
   for (std::size_t k = 0; k < n; ++k) {
-    const double d0 = x[k + 1] - x[k], d1 = y[k + 1] - y[k], d2 = z[k + 1] - z[k];
+    const double d0 = dx[k], d1 = dy[k], d2 = dz[k], dd = ddv[k];
     const double w0 = p[0] - x[k], w1 = p[1] - y[k], w2 = p[2] - z[k];
-    const double dd = d0 * d0 + d1 * d1 + d2 * d2;
     const double t = std::clamp(dd > 0 ? (w0 * d0 + w1 * d1 + w2 * d2) / dd : 0.0, 0.0, 1.0);
     const double e0 = w0 - t * d0, e1 = w1 - t * d1, e2 = w2 - t * d2;
     sq[k] = e0 * e0 + e1 * e1 + e2 * e2;
@@ -164,6 +190,7 @@ void ContourSearch::add_motion(const Vec3& actual) {
   if (motion_ <= kRebase) return;
   motion_ = 0;
   std::fill(super_far_.begin(), super_far_.end(), kUnknown);
+  std::fill(capsules_.far.begin(), capsules_.far.end(), kUnknown);
 }
 
 double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& closest) {
@@ -177,19 +204,30 @@ double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& clos
   const std::size_t lo = std::max(first_, hi > kLookBack ? hi - kLookBack : 0);
   add_motion(actual);
   Match m;
-  // Start near the previous match: a tight bound makes the box test skip most groups. The match
+  // Start near the previous match: a tight bound makes the tests below skip most groups. The match
   // moves about one segment per tick, as the nominal does.
-  if (j_ >= lo && j_ < hi) scan(j_ > lo + 2 ? j_ - 2 : lo, std::min(hi, j_ + 8), actual, m);
-  // Two levels of boxes: a group of 8 segments, a super-group of 64; a box farther than the best
-  // match so far cannot hold a closer segment. A super-group whose earlier distance, less the
+  Range warm{0, 0};
+  if (j_ >= lo && j_ < hi) warm = {j_ > lo + 2 ? j_ - 2 : lo, std::min(hi, j_ + 8)}, scan(warm.a, warm.b, actual, m);
+  // Two levels: a super-group of 64 segments (its box), a group of 8 (its capsule); one farther
+  // than the best match so far cannot hold a closer segment. One whose earlier distance, less the
   // motion since, still exceeds the best match is passed over; the others are measured again.
   const std::size_t s0 = first_ / kSuperSpan;
   const std::size_t sa = lo / kSuperSpan - s0, sb = std::min(supers_.size(), (hi + kSuperSpan - 1) / kSuperSpan - s0);
-  for (std::size_t k = sa; k < sb; ++k) {
-    if (super_far_[k] - motion_ > m.dist + kSlack) continue;
+  // far - motion_ > best + kSlack as far > reach: one comparison per super-group passed over (the
+  // slack covers the different rounding).
+  // The candidates are picked first in a loop with no call (a branch-free append), then tested
+  // again with the reach of the moment, which only shrinks.
+  double reach = m.dist + kSlack + motion_;
+  constexpr std::size_t kMaxSupers = 64;
+  static_assert(kLookBack / kSuperSpan + 2 <= kMaxSupers, "the window's super-groups fit");
+  std::size_t candidates[kMaxSupers], n = 0;
+  for (std::size_t k = sa; k < sb; ++k) candidates[n] = k, n += super_far_[k] <= reach;
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t k = candidates[i];
+    if (super_far_[k] > reach) continue;
     const double sq = supers_.distance_sq(k, actual);
     super_far_[k] = std::sqrt(sq) + motion_;
-    if (sq < m.sq) scan_super(k + s0, lo, hi, actual, m);
+    if (sq < m.sq) scan_super(k + s0, lo, hi, warm, actual, m), reach = m.dist + kSlack + motion_;
   }
   return finish(m, closest);
 }
@@ -202,17 +240,25 @@ double ContourSearch::finish(const Match& m, Vec3& closest) {
   return m.dist;
 }
 
-// The groups of super-group `sg` (global index) within the window [lo, hi), in order.
-void ContourSearch::scan_super(std::size_t sg, std::size_t lo, std::size_t hi, const Vec3& p, Match& m) const {
-  const std::size_t g0 = first_ / kGroup;
-  const std::size_t ga = std::max(sg * kGroupsPerSuper, lo / kGroup);
-  const std::size_t gb = std::min({(sg + 1) * kGroupsPerSuper, (hi + kGroup - 1) / kGroup, g0 + boxes_.size()});
-  std::uint8_t hit[kGroupsPerSuper];
-  if (ga >= gb) return;
-  boxes_.near(ga - g0, gb - g0, p, m.dist, hit);
-  for (std::size_t g = ga; g < gb; ++g)
-    if (hit[g - ga] && boxes_.distance_sq(g - g0, p) < m.sq && capsules_[g - g0].may_hold_closer(p, m.dist))
-      scan(std::max(lo, g * kGroup), std::min(hi, (g + 1) * kGroup), p, m);
+// The groups of super-group `sg` (global index) within the window [lo, hi), in order: those whose
+// capsule may hold a segment nearer than the best match. A group's capsule bound is kept as the
+// super-groups' are (plus the motion then, less the motion since): the groups beside a turn's
+// nearest one are passed over for several ticks with one comparison.
+void ContourSearch::scan_super(std::size_t sg, std::size_t lo, std::size_t hi, const Range& warm, const Vec3& p,
+                               Match& m) {
+  const std::size_t g0 = first_ / kGroup, first_group = sg * kGroupsPerSuper;
+  const std::size_t ga = std::max(first_group, lo / kGroup);
+  const std::size_t gb = std::min({first_group + kGroupsPerSuper, (hi + kGroup - 1) / kGroup, g0 + capsules_.groups});
+  double reach = m.dist + kSlack + motion_;
+  for (std::size_t g = ga; g < gb; ++g) {
+    double& far = capsules_.far[g - g0];
+    if (far > reach) continue;
+    const double bound = capsules_.lower_bound(g - g0, p);
+    far = bound + motion_;
+    if (bound > m.dist + kSlack) continue;
+    scan_except(std::max(lo, g * kGroup), std::min(hi, (g + 1) * kGroup), warm, p, m);
+    reach = m.dist + kSlack + motion_;
+  }
 }
 
 }  // namespace gcpipe::simulate

@@ -428,15 +428,20 @@ OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> progra
   RunAccumulator acc(model, nom.segments.size(), record);
   ContourSearch contour;
   Vec3 last_nominal{};
-  // Everything but the interpolator and the drives, on a second thread (on `gcpipe simulate`'s
-  // benchmark the two take about 0.3 and 1.2 G instructions): it alone touches acc, contour, own
-  // and nom's samples until finish().
-  auto evaluate_tick = [&](const Tick& t) {
+  // Everything but the interpolator, the drives and the kinematics, on a second thread (on
+  // `gcpipe simulate`'s benchmark the two take about 0.3 and 0.9 G instructions): it alone
+  // touches acc, contour, own and nom's samples until finish(). The tool tips are worked out on
+  // the simulation's thread, the lighter one.
+  struct Tips {
+    Tick t;
+    Vec3 nominal, actual;
+  };
+  auto evaluate_tick = [&](const Tips& tips) {
+    const Tick& t = tips.t;
     const ResolvedBlock& b = program[t.block];
-    const double tool = tool_length_of(model, b);
-    const Vec3 nominal = forward_kinematics(model.kin, t.raw, tool).tip;
+    const Vec3& nominal = tips.nominal;
     if (contour.size() == 0 || dist3(last_nominal, nominal) > 1e-9) contour.push(nominal), last_nominal = nominal;
-    const Vec3 tip = forward_kinematics(model.kin, t.actual, tool).tip;
+    const Vec3& tip = tips.actual;
     Vec3 nearest;
     const double e = contour.distance(tip, nearest);
     const bool cutting = acc.add(t, b, nom.segment_of_block[t.block], e, tip, nearest);
@@ -446,10 +451,16 @@ OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> progra
     }
     hand_on(on_tick, t, cutting, e, tip);
   };
-  ChunkedWorker<Tick> evaluation(256, 8, [&](const std::vector<Tick>& ticks) {
-    for (const Tick& t : ticks) evaluate_tick(t);
+  ChunkedWorker<Tips> evaluation(256, 8, [&](const std::vector<Tips>& ticks) {
+    for (const Tips& t : ticks) evaluate_tick(t);
   });
-  nom.stats = run_program(model, program, start, [&](const Tick& t) { evaluation.push(t); }, max_ticks);
+  nom.stats = run_program(
+      model, program, start,
+      [&](const Tick& t) {
+        const double tool = tool_length_of(model, program[t.block]);
+        evaluation.push({t, forward_kinematics(model.kin, t.raw, tool).tip, forward_kinematics(model.kin, t.actual, tool).tip});
+      },
+      max_ticks);
   evaluation.finish();
   own.eval = acc.finish(nom.stats);
   return own;

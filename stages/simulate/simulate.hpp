@@ -132,9 +132,7 @@ class ContourSearch {
   double distance(const Vec3& actual, Vec3& closest) { return distance(actual, size() == 0 ? 0 : size() - 1, closest); }
 
  private:
-  /// The bounding boxes of one level (groups or super-groups), structure of arrays: the test of
-  /// a whole window of boxes against a point is then one branch-free loop the compiler vectorises
-  /// (a per-box early exit mispredicts on a looping path, where the boxes hit change each tick).
+  /// The bounding boxes of the super-groups, structure of arrays.
   struct Boxes {
     std::array<std::vector<double>, 3> lo, hi;
     std::size_t size() const { return lo[0].size(); }
@@ -142,38 +140,49 @@ class ContourSearch {
     void grow(const Vec3& p);  //!< the newest box grows to hold p
     void drop_front(std::size_t n);
     double distance_sq(std::size_t i, const Vec3& p) const;
-    /// hit[i - a] = box i lies within `best` of p along every axis, for boxes [a, b).
-    void near(std::size_t a, std::size_t b, const Vec3& p, double best, std::uint8_t* hit) const;
   };
-  /// The points of a complete group lie within `radius` of the chord a..a+d. An incomplete group
-  /// (the newest) has an infinite radius: it is always measured.
-  struct Capsule {
-    Vec3 a{}, d{};
-    double inv_dd = 0;  //!< 1 / |d|^2, 0 when d is 0
-    double radius = std::numeric_limits<double>::infinity();  //!< [mm]
-    bool may_hold_closer(const Vec3& p, double best) const;
+  /// Per group, structure of arrays: the points of a complete group lie within
+  /// `radius` of the chord a..a+d. An incomplete group (the newest) has an infinite radius: it is
+  /// always measured.
+  struct Capsules {
+    std::array<std::vector<double>, 3> a, d;
+    std::vector<double> inv_dd;  //!< 1 / |d|^2, 0 when d is 0
+    std::vector<double> radius;  //!< [mm]
+    /// Kept lower bound as super_far_: lower_bound() when last worked out plus the motion then.
+    std::vector<double> far;
+    std::size_t groups = 0;      //!< opened; the arrays hold whole super-groups
+    void open();                 //!< a new, incomplete group
+    void drop_front(std::size_t n);  //!< n: whole super-groups of groups
+    /// No point of group i is nearer to p than this [mm] (-inf for an incomplete group).
+    double lower_bound(std::size_t i, const Vec3& p) const;
   };
   struct Match {
     double sq = 1e300, dist = 1e300;  //!< squared distance and distance [mm^2, mm]
     double s = 0;                     //!< along the segment, 0..1
     std::size_t segment = 0;          //!< global index
   };
+  struct Range {
+    std::size_t a, b;  //!< segments [a, b) (global indices)
+  };
   static constexpr std::size_t kSuperSpan = kGroup * kGroupsPerSuper;
   const Vec3& point(std::size_t i) const { return win_[i - first_]; }
   void drop_old_points();
   void add_motion(const Vec3& actual);
   void close_group(std::size_t g);  //!< group g (global index) got its last point: its capsule
+  void add_step(const Vec3& a, const Vec3& b);
   void scan(std::size_t a, std::size_t b, const Vec3& p, Match& m) const;
+  void scan_except(std::size_t a, std::size_t b, const Range& done, const Vec3& p, Match& m) const;
   void measure(std::size_t a, std::size_t n, const Vec3& p, double* sq, double* s) const;
   double finish(const Match& m, Vec3& closest);  //!< remembers the match, returns its distance
-  void scan_super(std::size_t sg, std::size_t lo, std::size_t hi, const Vec3& p, Match& m) const;
+  void scan_super(std::size_t sg, std::size_t lo, std::size_t hi, const Range& warm, const Vec3& p, Match& m);
 
   const std::vector<Vec3>* source_ = nullptr;
   std::vector<Vec3> win_;          //!< points first_ .. size()-1
   std::size_t first_ = 0;          //!< global index of win_[0]; a multiple of kSuperSpan
   std::array<std::vector<double>, 3> coord_;  //!< the points again, one array per axis (scan)
-  Boxes boxes_, supers_;           //!< from group first_ / kGroup, super-group first_ / kSuperSpan
-  std::vector<Capsule> capsules_;  //!< per group, as boxes_
+  std::array<std::vector<double>, 4> step_;   //!< per segment from first_: its vector, squared length
+  Boxes supers_;                   //!< from super-group first_ / kSuperSpan
+  Capsules capsules_;              //!< from group first_ / kGroup
   /// Per super-group, as supers_: its box's distance from the actual when last measured plus
   /// motion_ then (-inf: not measured since the box grew). Less the motion since, still a lower
   /// bound (the triangle inequality): a far super-group is passed over with one comparison until
