@@ -385,7 +385,7 @@ TEST_F(DdsPipeline, WriteNodeReadsTheParserDirectlyAndTopicsCanBeRenamed) {
   Process write("write", dds_args({"node", "write", "--config", kConfig, "--in", "t_blocks",
                                    "--out", "t_gcode"}), dir_);
   Process parse("parse", dds_args({"node", "parse", "--config", kConfig, "--in", "t_program",
-                                   "--out", "t_blocks", "--forever"}), dir_);
+                                   "--out", "t_blocks", "--forever", "--monitor-history", "60"}), dir_);
   Process feed("feed", dds_args({"feed", input.string(), "--config", kConfig, "--out",
                                  "t_program"}), dir_);
   EXPECT_EQ(feed.wait(), 0);
@@ -505,7 +505,9 @@ TEST_F(DdsPipeline, LateMonitorStillSeesTheEndMarker) {
   const BatchResult batch = run_batch(input);
   std::unique_ptr<Process> parse, trochoid;
   PipelineArgs extra;
-  extra.parse = extra.trochoid = {"--forever"};
+  // The copies for monitors keep a minute here (default 5 s): the monitors below start after the
+  // program is through, and a loaded CI machine must not make that "too late".
+  extra.parse = extra.trochoid = {"--forever", "--monitor-history", "60"};
   extra.keep_parse = &parse;
   extra.keep_trochoid = &trochoid;
   const PipelineResult pipe = run_pipeline(input, extra);

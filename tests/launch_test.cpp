@@ -325,6 +325,9 @@ TEST(Launch, PipelineFileErrorsNameTheKey) {
   Outcome identity = run_with("[parse]", "  identity: no_such_folder\n");
   EXPECT_NE(identity.err.find("identity"), std::string::npos) << identity.err;
   EXPECT_NE(identity.err.find("no such folder"), std::string::npos) << identity.err;
+  Outcome history = run_with("[parse]", "  monitor_history: -1\n");
+  EXPECT_EQ(history.status, 1);
+  EXPECT_NE(history.err.find("monitor_history"), std::string::npos) << history.err;
   Outcome network = run_with("[parse]", "  network: no_such_file.xml\n");
   EXPECT_NE(network.err.find("network"), std::string::npos) << network.err;
   Outcome stranger = run_with("[parse, trochoid]", "groups: [parse+write]\n");

@@ -29,6 +29,7 @@ dds::DdsOptions dds_options(const DdsArgs& a) {
   o.subscribers = a.subscribers;
   o.match_timeout = o.write_timeout = o.ack_timeout = a.timeout;
   o.idle_timeout = a.idle_timeout;
+  o.monitor_history = a.monitor_history;
   o.replay = a.replay;
   if (!a.profiles.empty()) o.profiles = a.profiles;
   o.network = a.network;

@@ -101,6 +101,7 @@ struct DdsArgs {
   int subscribers = 1;
   double timeout = 30;
   double idle_timeout = 0;
+  double monitor_history = 5;  //!< [s] --monitor-history: what a late monitor still gets
   bool replay = false;
 };
 struct FeedArgs : DdsArgs {

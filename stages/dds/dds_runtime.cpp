@@ -324,8 +324,21 @@ RawWriter::RawWriter(Participant& participant, MessageType type, const std::stri
       subscribers_(participant.options().subscribers) {
   impl_->owner = &participant.impl();
   const char* profile = profile_name ? profile_name : monitor ? kMonitorWriterProfile : kWriterProfile;
-  impl_->writer = impl_->owner->publisher->create_datawriter_with_profile(
-      impl_->owner->topic(type, topic), profile, &impl_->listener, fdds::StatusMask::publication_matched());
+  fdds::Topic* dds_topic = impl_->owner->topic(type, topic);
+  const auto mask = fdds::StatusMask::publication_matched();
+  if (monitor && profile_name == nullptr && participant.options().monitor_history > 0) {
+    // The one QoS taken from an option, not the XML: how long a monitor copy keeps a sample for
+    // late monitors (pipeline.monitor_history), so a pipeline file can set it without its own
+    // copy of dds_profiles.xml. The rest stays the profile's.
+    fdds::DataWriterQos qos;
+    if (!ok(impl_->owner->publisher->get_datawriter_qos_from_profile(profile, qos)))
+      throw std::runtime_error(std::string("no data_writer profile '") + profile + "' in '" +
+                               impl_->owner->options.profiles.string() + "'");
+    qos.lifespan().duration = duration(participant.options().monitor_history);
+    impl_->writer = impl_->owner->publisher->create_datawriter(dds_topic, qos, &impl_->listener, mask);
+  } else {
+    impl_->writer = impl_->owner->publisher->create_datawriter_with_profile(dds_topic, profile, &impl_->listener, mask);
+  }
   // Inconsistent resource limits in the XML make this return null without an exception.
   if (impl_->writer == nullptr)
     throw std::runtime_error("cannot create a writer of " + topic + " from profile '" + profile + "' of '" +

@@ -87,6 +87,10 @@ struct DdsOptions {
   /// program per process: a reader can only leave mid-program by dying). Off for --forever nodes,
   /// whose readers (sinks) come and go between programs.
   bool fail_on_lost_reader = true;
+  /// [s] What a late monitor still gets: every monitor copy (EDGE_monitor, telemetry) keeps each
+  /// sample this long (DDS lifespan), within its profile's depth (gcpipe_monitor_writer: 1024
+  /// batches). 0 = no time limit: the depth alone (the last 1024 batches, however old).
+  double monitor_history = 5;
 };
 
 /// pipeline_configs/dds_profiles.xml beside the default pipeline config; GCPIPE_DDS_PROFILES

@@ -143,7 +143,7 @@ LaunchPlan load_launch_plan(const std::filesystem::path& file) {
   root.reject_unknown({"pipeline", "nodes", "groups"});
   const Config p = root.section("pipeline");
   p.reject_unknown({"name", "domain", "config", "profiles", "network", "identity", "on_crash", "max_restarts", "ready_timeout", "stop_timeout",
-                    "timeout"});
+                    "timeout", "monitor_history"});
   LaunchPlan plan;
   plan.name = p.string("name", file.stem().string());
   plan.domain = static_cast<int>(p.integer("domain", 0, 0, 232));
@@ -157,6 +157,7 @@ LaunchPlan load_launch_plan(const std::filesystem::path& file) {
   plan.ready_timeout = p.number("ready_timeout", 30, "s", 0.1, 3600);
   plan.stop_timeout = p.number("stop_timeout", 5, "s", 0.1, 600);
   plan.timeout = p.number("timeout", 30, "s", 0.1, 1e6);
+  plan.monitor_history = p.number("monitor_history", 5, "s", 0, 1e6);
   plan.nodes = root.strings("nodes", stages_with_nodes());
   std::set<std::string> seen;
   for (const auto& n : plan.nodes)
@@ -170,6 +171,7 @@ std::vector<std::string> plan_dds_args(const LaunchPlan& plan) {
   if (!plan.profiles.empty()) a.insert(a.end(), {"--profiles", plan.profiles.string()});
   if (!plan.network.empty()) a.insert(a.end(), {"--network", plan.network.string()});
   if (!plan.identity.empty()) a.insert(a.end(), {"--identity", plan.identity.string()});
+  a.insert(a.end(), {"--monitor-history", std::to_string(plan.monitor_history)});
   return a;
 }
 

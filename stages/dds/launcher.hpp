@@ -32,6 +32,7 @@ struct LaunchPlan {
   double stop_timeout = 5;          //!< [s] after SIGTERM, then SIGKILL
   double timeout = 30;              //!< [s] the nodes' --timeout: longest wait for readers, a blocked
                                     //!< write, acknowledgements (then the node stops, loudly)
+  double monitor_history = 5;       //!< [s] what a late monitor still gets (--monitor-history)
   std::vector<std::string> nodes;   //!< registered stages with a DDS node, in chain order
   /// Stages run together in one process (`groups: [parse+trochoid+write]`), each group in
   /// chain order; a stage of no group runs in a process of its own.

@@ -1,0 +1,79 @@
+// What a late monitor still gets from a monitor copy (issue 11: "a late monitor sees at least the
+// last N seconds, configurable"): the samples published within DdsOptions::monitor_history, within
+// the profile's depth; with 0, the depth alone.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <thread>
+#include <vector>
+
+#include "dds_runtime.hpp"
+#include "gcpipe.h"
+
+namespace gcpipe::dds {
+namespace {
+
+// Its own domain: no other test of the suite uses 150 (dds_pipeline_test takes 20-99).
+constexpr int kDomain = 150;
+
+DdsOptions options(double monitor_history) {
+  DdsOptions o;
+  o.domain = kDomain;
+  o.profiles = std::filesystem::path(GCPIPE_SOURCE_DIR) / "pipeline_configs" / "dds_profiles.xml";
+  o.monitor_history = monitor_history;
+  return o;
+}
+
+void publish(Writer<msg::GcodeChunk>& writer, std::uint64_t first, std::uint64_t count) {
+  for (std::uint64_t k = first; k < first + count; ++k) {
+    msg::GcodeChunk chunk;
+    chunk.program_id(7);
+    chunk.sequence_number(k);
+    chunk.text("G1 X" + std::to_string(k) + "\n");
+    writer.publish(chunk);
+  }
+}
+
+// The sequence numbers a monitor reader that matches now receives, until nothing came for 1.5 s.
+std::vector<std::uint64_t> late_monitor_receives(Participant& participant, const std::string& topic) {
+  Reader<msg::GcodeChunk> reader(participant, topic, /*monitor=*/true);
+  std::vector<std::uint64_t> seen;
+  msg::GcodeChunk chunk;
+  while (reader.take(chunk, 1.5)) seen.push_back(chunk.sequence_number());
+  return seen;
+}
+
+std::vector<std::uint64_t> range(std::uint64_t first, std::uint64_t count) {
+  std::vector<std::uint64_t> v;
+  for (std::uint64_t k = first; k < first + count; ++k) v.push_back(k);
+  return v;
+}
+
+TEST(DdsMonitorHistory, ALateMonitorGetsWhatWasPublishedWithinTheHistoryAndNothingOlder) {
+  Participant participant(options(/*monitor_history=*/1.0));
+  Writer<msg::GcodeChunk> copy(participant, "gcpipe_test_history_1s", /*monitor=*/true);
+  publish(copy, 0, 5);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1600));  // batches 0-4 are now 1.6 s old
+  publish(copy, 5, 5);
+  EXPECT_EQ(late_monitor_receives(participant, "gcpipe_test_history_1s"), range(5, 5));
+}
+
+TEST(DdsMonitorHistory, WithinTheHistoryALateMonitorGetsEverythingInOrder) {
+  Participant participant(options(/*monitor_history=*/30.0));
+  Writer<msg::GcodeChunk> copy(participant, "gcpipe_test_history_30s", /*monitor=*/true);
+  publish(copy, 0, 5);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1600));
+  publish(copy, 5, 5);
+  EXPECT_EQ(late_monitor_receives(participant, "gcpipe_test_history_30s"), range(0, 10));
+}
+
+TEST(DdsMonitorHistory, TheDepthBoundsWhatIsKeptHoweverRecent) {
+  // 0: no time limit; and 1100 batches published at once are more than the profile's 1024.
+  Participant participant(options(/*monitor_history=*/0.0));
+  Writer<msg::GcodeChunk> copy(participant, "gcpipe_test_history_depth", /*monitor=*/true);
+  publish(copy, 0, 1100);
+  EXPECT_EQ(late_monitor_receives(participant, "gcpipe_test_history_depth"), range(76, 1024));
+}
+
+}  // namespace
+}  // namespace gcpipe::dds
