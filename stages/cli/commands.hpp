@@ -106,7 +106,7 @@ struct DdsArgs {
 };
 struct FeedArgs : DdsArgs {
   std::string input, config, topic;
-  std::size_t chunk_bytes = 32 * 1024;
+  std::size_t chunk_bytes = 128 * 1024;
   std::uint64_t program_id = 0;
 };
 int run_feed(const FeedArgs& args);
@@ -116,7 +116,7 @@ struct NodeArgs : DdsArgs {
   std::vector<std::string> stages, in, out;
   std::vector<int> readers;  //!< --readers: readers of each stage's output (default --subscribers)
   std::string config;
-  std::size_t batch_bytes = 32 * 1024;
+  std::size_t batch_bytes = 128 * 1024;
   bool forever = false, strict = false;
   std::vector<std::string> pipeline_stages;  //!< --pipeline-stages
   std::string report_dir;                    //!< --report-dir

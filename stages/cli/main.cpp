@@ -180,8 +180,8 @@ void add_dds_options(CLI::App& s, DdsArgs& a) {
   s.add_option("--idle-timeout", a.idle_timeout, "a consumer gives up after this long without a sample; 0 = never [s]")
       ->check(CLI::NonNegativeNumber);
   s.add_option("--monitor-history", a.monitor_history,
-               "a late monitor still gets what was published this long ago, within the last 1024 batches "
-               "of each topic; 0 = those 1024 however old [s]")
+               "a late monitor still gets what was published this long ago, within the last 256 batches "
+               "of each topic; 0 = those 256 however old [s]")
       ->check(CLI::NonNegativeNumber);
   s.add_flag("--replay", a.replay, "also take programs published before this process started");
 }

@@ -88,8 +88,8 @@ struct DdsOptions {
   /// whose readers (sinks) come and go between programs.
   bool fail_on_lost_reader = true;
   /// [s] What a late monitor still gets: every monitor copy (EDGE_monitor, telemetry) keeps each
-  /// sample this long (DDS lifespan), within its profile's depth (gcpipe_monitor_writer: 1024
-  /// batches). 0 = no time limit: the depth alone (the last 1024 batches, however old).
+  /// sample this long (DDS lifespan), within its profile's depth (gcpipe_monitor_writer: 256
+  /// batches). 0 = no time limit: the depth alone (the last 256 batches, however old).
   double monitor_history = 5;
 };
 

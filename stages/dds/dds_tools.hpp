@@ -18,7 +18,7 @@ struct FeedOptions {
   std::filesystem::path input;       //!< program file to publish; "-" = standard input
   /// Lines are cut at this length as batch mode's reader cuts them (parse.max_line_length) [bytes]
   std::size_t max_line_length = 256;
-  std::size_t chunk_bytes = 32 * 1024;  //!< publish a chunk once it holds this much text [bytes]
+  std::size_t chunk_bytes = 128 * 1024;  //!< publish a chunk once it holds this much text [bytes]
   std::uint64_t program_id = 0;      //!< 0 = pick a random one
   std::string topic = kProgramTopicName;  //!< ProgramChunk topic written (--out)
 };

@@ -196,7 +196,7 @@ class TopicWatch final : public Watch {
   void announce_match(std::ostream& out) override {
     if (matched_ || reader_.matched_writers() == 0) return;
     // From here on nothing the writer publishes is missed, nor what its copy still holds (the
-    // last monitor_history seconds, at most 1024 batches).
+    // last monitor_history seconds, at most 256 batches).
     out << "gcpipe monitor: the writer of " << topic_ << " matched" << std::endl;
     matched_ = true;
   }
@@ -219,7 +219,7 @@ class TopicWatch final : public Watch {
     if (first_seq_ != 0)
       o << "  (joined late, at batch " << first_seq_ << ": missed batches 0-" << (first_seq_ - 1)
         << ", gone from the writer's copy for monitors, which keeps pipeline.monitor_history seconds, at most "
-           "1024 batches)";
+           "256 batches)";
     else if (samples_ != end_sequence_ + 1) o << "  (" << (end_sequence_ + 1 - samples_) << " batches MISSING)";
   }
 

@@ -29,7 +29,7 @@ class Participant;
 
 struct StageNodeOptions {
   std::string stage;                    //!< a registered stage with a node (dds::edges)
-  std::size_t batch_bytes = 32 * 1024;  //!< publish a batch or chunk once it holds this much [bytes]
+  std::size_t batch_bytes = 128 * 1024;  //!< publish a batch or chunk once it holds this much [bytes]
   bool forever = false;                 //!< serve programs until SIGINT/SIGTERM
   bool strict = false;                  //!< stop each program at its first rejected line or cycle
   std::string input_topic, output_topic;
