@@ -16,6 +16,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <regex>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -333,6 +334,19 @@ TEST_F(DdsPipeline, GeneratedProgramWithBadLinesMatchesBatchByteForByte) {
   // The program must really exercise rejection and block delete, or the test proves less.
   EXPECT_GT(summary.at("lines_rejected").get<int>(), 0) << summary.dump();
   EXPECT_GT(summary.at("lines_deleted").get<int>(), 0) << summary.dump();
+}
+
+// A paced feed (a DNC drip feed's --rate) sends no faster than its rate and changes no byte.
+TEST_F(DdsPipeline, PacedFeedKeepsItsRateAndChangesNoByte) {
+  const fs::path input = generate_program(dir_, 4000);
+  const double bytes = static_cast<double>(fs::file_size(input));
+  const double rate = bytes / 1.5;  // the whole program due after 1.5 s
+  expect_same_as_batch(input, {}, {"--chunk-bytes", "4096", "--rate", std::to_string(rate)});
+  const std::string log = slurp(dir_ / "feed.log");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(log, m, std::regex(" bytes in ([0-9]+) chunks, ([0-9.]+) s;"))) << log;
+  EXPECT_GT(std::stoi(m[1]), 10) << log;            // paced chunk by chunk, not in one go
+  EXPECT_GE(std::stod(m[2]), 1.5 - 1e-3) << log;   // the last chunk was not sent before it was due
 }
 
 TEST_F(DdsPipeline, RejectedCycleDiagnosticAndSkipMovesMatchBatchByteForByte) {

@@ -99,6 +99,7 @@ int run_feed(const FeedArgs& a) {
   dds::FeedOptions f;
   f.input = a.input;
   f.chunk_bytes = a.chunk_bytes;
+  f.bytes_per_second = a.rate;
   f.program_id = a.program_id;
   f.topic = a.topic.empty() ? dds::kProgramTopicName : a.topic;
   // Cut lines exactly where batch mode's reader cuts them, so the parser sees the same text.

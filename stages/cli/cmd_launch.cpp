@@ -102,6 +102,7 @@ int run_stream(const StreamArgs& a) {
   dds::LaunchProcess feed;
   feed.name = "feed";
   feed.args = {"feed", a.input, "--config", plan.config.string()};
+  if (a.feed_rate > 0) feed.args.insert(feed.args.end(), {"--rate", std::to_string(a.feed_rate)});
   const auto dds_args = dds::plan_dds_args(plan);
   feed.args.insert(feed.args.end(), dds_args.begin(), dds_args.end());
   feed.one_shot = true;

@@ -107,6 +107,7 @@ struct DdsArgs {
 struct FeedArgs : DdsArgs {
   std::string input, config, topic;
   std::size_t chunk_bytes = 128 * 1024;
+  double rate = 0;  //!< --rate [bytes/s]; 0 = unpaced
   std::uint64_t program_id = 0;
 };
 int run_feed(const FeedArgs& args);
@@ -146,6 +147,7 @@ struct LaunchArgs {
 int run_launch(const LaunchArgs& args);
 struct StreamArgs : LaunchArgs {
   std::string input, output;
+  double feed_rate = 0;  //!< --feed-rate: the feed's --rate [bytes/s]; 0 = unpaced
 };
 int run_stream(const StreamArgs& args);
 

@@ -192,6 +192,8 @@ void add_feed(CLI::App& app, FeedArgs& a) {
   s->add_option("--config", a.config, "pipeline config (its parse.max_line_length cuts lines as batch does)")
       ->check(CLI::ExistingFile);
   s->add_option("--chunk-bytes", a.chunk_bytes, "publish a chunk once it holds this much text")->check(CLI::Range(1024, 1048576));
+  s->add_option("--rate", a.rate, "send at most this many bytes of the program a second, as a drip feed; 0 = as fast as it is taken [bytes/s]")
+      ->check(CLI::NonNegativeNumber);
   s->add_option("--program-id", a.program_id, "program id (default: time-based)");
   s->add_option("--out", a.topic, "topic (default gcpipe_program)");
   add_dds_options(*s, a);
@@ -280,6 +282,8 @@ void add_stream(CLI::App& app, StreamArgs& a) {
   s->add_option("-o,--output", a.output, "output folder: output.nc and, with the compensate node, compensated.nc")
       ->required()->check(kNonEmpty);
   s->add_option("--pipeline", a.pipeline, "the pipeline file (default pipeline_configs/pipelines/streaming.yaml)")->check(CLI::ExistingFile);
+  s->add_option("--feed-rate", a.feed_rate, "the feed sends at most this many bytes of the program a second; 0 = unpaced [bytes/s]")
+      ->check(CLI::NonNegativeNumber);
   add_launch_options(*s, a);
   s->footer("Launches the file's nodes, a feed and one sink per written program, and stops when the program is "
             "through. output.nc and compensated.nc are byte-identical to gcpipe batch's with the same config. "

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <thread>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -61,6 +62,14 @@ bool take_or_idle(Reader<T>& reader, T& sample, double idle_timeout, bool& idle,
   return false;
 }
 
+// Sleeps until `bytes` are due at `rate` [bytes/s] since `start` (a paced feed), or a stop.
+void wait_for_pace(Clock::time_point start, std::uint64_t bytes, double rate) {
+  const auto due = start + std::chrono::duration_cast<Clock::duration>(
+                               std::chrono::duration<double>(static_cast<double>(bytes) / rate));
+  while (Clock::now() < due && !stop_requested())
+    std::this_thread::sleep_for(std::min<Clock::duration>(due - Clock::now(), std::chrono::milliseconds(100)));
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -96,6 +105,7 @@ int run_feed(Participant& participant, const FeedOptions& o, std::ostream& log) 
   bool overlong = false;
   std::size_t full_length = 0;
   auto publish = [&]() {
+    if (o.bytes_per_second > 0) wait_for_pace(t0, reader.bytes_read(), o.bytes_per_second);
     chunk.sequence_number(chunks++);
     if (!writer.publish(chunk)) return false;
     monitor_copy.publish(chunk);

@@ -19,6 +19,10 @@ struct FeedOptions {
   /// Lines are cut at this length as batch mode's reader cuts them (parse.max_line_length) [bytes]
   std::size_t max_line_length = 256;
   std::size_t chunk_bytes = 128 * 1024;  //!< publish a chunk once it holds this much text [bytes]
+  /// At most this many bytes of the program a second, as a DNC drip feed sends a program at the
+  /// control's pace (and as a latency measurement needs a stream below the pipeline's capacity);
+  /// 0 = as fast as the readers take it [bytes/s].
+  double bytes_per_second = 0;
   std::uint64_t program_id = 0;      //!< 0 = pick a random one
   std::string topic = kProgramTopicName;  //!< ProgramChunk topic written (--out)
 };

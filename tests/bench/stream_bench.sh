@@ -3,9 +3,11 @@
 # --no-simulate` on a generated 20 MB program, runs alternating within this one benchmark run,
 # and the median ratio; then the DDS latency of every hop (reception minus source timestamp of
 # each sample: p50, p99, max), as the nodes and the sink print it. A benchmark, not a test: it
-# prints figures and fails only when the two outputs differ.
+# prints figures and fails only when the two outputs differ. Last, one paced run (the feed sends
+# RATE bytes/s, below the pipeline's capacity) gives the hop latencies of the transport without
+# the queues a throughput-bound run builds.
 #
-#   bash tests/bench/stream_bench.sh [GCPIPE] [MEGABYTES] [RUNS] [NODES] [DOMAIN]
+#   bash tests/bench/stream_bench.sh [GCPIPE] [MEGABYTES] [RUNS] [NODES] [DOMAIN] [RATE]
 #
 # NODES: the streamed stages, comma-separated (default parse,trochoid,write: the stages that make
 # output.nc; batch --no-simulate runs those and the IK beside them). A `+` groups stages into one
@@ -16,6 +18,7 @@ megabytes="${2:-20}"
 runs="${3:-5}"
 nodes="${4:-parse,trochoid,write}"
 domain="${5:-231}"
+rate="${6:-5000000}"
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 work="$(mktemp -d /tmp/gcpipe_stream_bench.XXXXXX)"
 trap 'rm -rf "$work"' EXIT
@@ -57,3 +60,8 @@ median=$(printf '%s\n' "${ratios[@]}" | sort -g | awk '{ v[NR] = $1 } END { prin
 echo "median stream / batch: ${median}x over $runs alternating runs (target <= 1.3x)"
 echo "hop latencies (one line per reader and run; target p99 < 1 ms):"
 cat "$work"/hops.*
+"$gcpipe" stream "$work/in.nc" -o "$work/paced" --pipeline "$work/pipeline.yaml" --feed-rate "$rate" -v \
+  > "$work/paced.log" 2>&1 || { echo "the paced run failed"; tail -30 "$work/paced.log"; exit 1; }
+cmp -s "$work/batch/output.nc" "$work/paced/output.nc" || { echo "paced run: output.nc DIFFERS"; exit 1; }
+echo "paced run (the feed sends $rate bytes/s; output.nc identical), hop latencies:"
+grep -o "hop latency from .*" "$work/paced.log" | sed "s/^/  /"
