@@ -642,9 +642,12 @@ TEST_F(DdsPipeline, ASecondWriterOnAnEdgeIsNamedAsTheCause) {
   Process sink("sink", dds_args({"sink", "-o", out.string()}), dir_);
   wait_until_ready(sink);
   Process write("write", dds_args({"node", "write", "--config", kConfig}), dir_);
-  Process first("trochoid_1", dds_args({"node", "trochoid", "--config", kConfig}), dir_);
-  Process second("trochoid_2", dds_args({"node", "trochoid", "--config", kConfig}), dir_);
-  Process parse("parse", dds_args({"node", "parse", "--config", kConfig, "--subscribers", "2"}), dir_);
+  // 8 KB batches: hundreds of them, so that the two writers' batches of the program interleave at
+  // the write node (with the default 128 KB the program is a dozen batches, and the first writer
+  // can be through before the second one's first batch arrives).
+  Process first("trochoid_1", dds_args({"node", "trochoid", "--config", kConfig, "--batch-bytes", "8192"}), dir_);
+  Process second("trochoid_2", dds_args({"node", "trochoid", "--config", kConfig, "--batch-bytes", "8192"}), dir_);
+  Process parse("parse", dds_args({"node", "parse", "--config", kConfig, "--subscribers", "2", "--batch-bytes", "8192"}), dir_);
   Process feed("feed", dds_args({"feed", input.string(), "--config", kConfig}), dir_);
   EXPECT_EQ(write.wait(60), 1) << slurp(write.log);
   EXPECT_EQ(sink.wait(60), 1) << slurp(sink.log);

@@ -133,6 +133,41 @@ TEST(Stream, WritesBatchModesBytesOnTheSamples) {
   EXPECT_TRUE(shm_of_domain(225).empty());
 }
 
+// The shipped monitoring pipeline: output.nc as batch writes it, and nothing compensated; its ik
+// and simulate nodes are there for monitors only, so the simulate node's edge has no reader and
+// it must not wait for one. A monitor of the pipeline, up first, sees all seven topics end the
+// program, and the contour error batch reports.
+TEST(Stream, TheMonitoringPipelineWritesTheProgramAndShowsItsTelemetry) {
+  const fs::path dir = tmpdir("stream_monitoring");
+  const fs::path in = kSource / "samples" / "five_axis_demo.nc";
+  const Outcome batch = gcpipe({"batch", in.string(), "-o", (dir / "batch").string(), "--quiet"});
+  ASSERT_EQ(batch.status, 0) << batch.err;
+  const fs::path watched = dir / "monitor.txt";
+  const pid_t monitor = spawn_gcpipe({"monitor", "--pipeline", "monitoring", "--domain", "227", "--period", "5",
+                                      "--idle-timeout", "120"}, watched, dir / "monitor.err");
+  ASSERT_TRUE(wait_for(watched, "gcpipe monitor: pipeline monitoring", 30)) << slurp(dir / "monitor.err");
+  const Outcome s = gcpipe({"stream", in.string(), "-o", (dir / "stream").string(), "--pipeline",
+                            (kSource / "pipeline_configs" / "pipelines" / "monitoring.yaml").string(), "--domain", "227"});
+  ASSERT_EQ(s.status, 0) << s.err;
+  EXPECT_TRUE(slurp(dir / "stream" / "output.nc") == slurp(dir / "batch" / "output.nc"));
+  EXPECT_FALSE(fs::exists(dir / "stream" / "compensated.nc"));
+  EXPECT_EQ(wait_exit(monitor, 60), 0) << slurp(watched) << slurp(dir / "monitor.err");
+  const std::string seen = slurp(watched);
+  std::size_t ends = 0;
+  for (std::size_t at = seen.find("end of program"); at != std::string::npos; at = seen.find("end of program", at + 1)) ++ends;
+  EXPECT_EQ(ends, 7u) << seen;  // five edges and the two telemetry topics
+  EXPECT_EQ(seen.find("MISSING"), std::string::npos) << seen;
+  // The last status line of the simulated ticks holds the program's whole maximum.
+  const std::regex status("contour um: now [0-9.]+ max ([0-9.]+)");
+  std::string last_max;
+  for (auto it = std::sregex_iterator(seen.begin(), seen.end(), status); it != std::sregex_iterator(); ++it)
+    last_max = (*it)[1];
+  ASSERT_FALSE(last_max.empty()) << seen;
+  const double max_mm = nlohmann::json::parse(slurp(dir / "batch" / "report.json"))["simulation"]["contour_error_before"]["cutting"]["max_mm"];
+  EXPECT_NEAR(std::stod(last_max) * 1e-3, max_mm, 1e-6) << seen;
+  EXPECT_TRUE(shm_of_domain(227).empty());
+}
+
 // Two pipelines at once, each on the domain its file names: neither sees the other's programs
 // and both write batch's bytes.
 TEST(Stream, TwoPipelinesOnOneHostStayApart) {

@@ -61,7 +61,7 @@ dds::StageNodeOptions stage_node_options(const NodeArgs& a, std::size_t k) {
   dds::check_topic_name(o.output_topic);
   if (o.input_topic == o.output_topic)
     throw std::invalid_argument("--in and --out name the same topic '" + o.input_topic + "'");
-  o.subscribers = a.readers.empty() ? 0 : a.readers[k];
+  o.subscribers = a.readers.empty() ? -1 : a.readers[k];
   o.batch_bytes = a.batch_bytes;
   o.forever = a.forever;
   o.strict = a.strict;

@@ -212,8 +212,9 @@ void add_node(CLI::App& app, NodeArgs& a) {
   s->add_option("--batch-bytes", a.batch_bytes, "publish a batch once it holds this much")->check(CLI::Range(1024, 1048576));
   s->add_option("--in", a.in, "input topic (default: the stage's edge); one per stage, comma-separated")->delimiter(',');
   s->add_option("--out", a.out, "output topic (default: the stage's edge); one per stage, comma-separated")->delimiter(',');
-  s->add_option("--readers", a.readers, "readers of each stage's output, comma-separated (default: --subscribers)")
-      ->delimiter(',')->check(CLI::Range(1, 100));
+  s->add_option("--readers", a.readers,
+                "readers of each stage's output, comma-separated; 0: nobody reads it, publish at once (default: --subscribers)")
+      ->delimiter(',')->check(CLI::Range(0, 100));
   s->add_flag("--forever", a.forever, "serve programs until SIGINT/SIGTERM");
   s->add_flag("--strict", a.strict, "stop each program at its first rejected line (parse, trochoid)");
   s->add_option("--pipeline-stages", a.pipeline_stages,

@@ -410,12 +410,13 @@ bool RawWriter::publish(const void* sample) {
   return true;
 }
 
-bool RawWriter::wait_acknowledged() {
-  const auto& o = impl_->owner->options;
+bool RawWriter::wait_acknowledged() { return wait_acknowledged(impl_->owner->options.ack_timeout); }
+
+bool RawWriter::wait_acknowledged(double limit) {
   const auto t0 = Clock::now();
   for (;;) {
-    if (ok(impl_->writer->wait_for_acknowledgments(duration(kPollPeriod)))) return true;
-    if (stop_requested() || seconds_since(t0) > o.ack_timeout) return false;
+    if (ok(impl_->writer->wait_for_acknowledgments(duration(std::min(limit, kPollPeriod))))) return true;
+    if (stop_requested() || seconds_since(t0) > limit) return false;
   }
 }
 

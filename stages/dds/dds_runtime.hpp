@@ -149,6 +149,8 @@ class RawWriter {
   bool publish(const void* sample);
   /// True when every matched reader acknowledged every sample within ack_timeout.
   bool wait_acknowledged();
+  /// The same within `limit` [s] instead of ack_timeout.
+  bool wait_acknowledged(double limit);
   const std::string& topic() const { return topic_; }
   /// How often write() returned false (history full, a reader behind) and was retried.
   std::uint64_t blocked_writes() const { return blocked_writes_; }

@@ -130,6 +130,16 @@ std::vector<std::vector<std::string>> process_units(const LaunchPlan& plan) {
   return units;
 }
 
+// The readers a stage's node waits for: the nodes (and sinks) of the file that read its topic. A
+// written program (G-code: write, compensate) has at least one, the sink a user starts by hand
+// for `gcpipe launch`; any other edge nobody in the file reads has none (the last stage of a
+// monitoring pipeline, whose telemetry is for monitors), and its node does not wait.
+int readers_of(const pipeline::StageInfo& stage, const std::map<std::string, int>& readers) {
+  const auto it = readers.find(stage.topic);
+  const int n = it == readers.end() ? 0 : it->second;
+  return stage.output == pipeline::Port::kGcode ? std::max(1, n) : n;
+}
+
 std::string joined(const std::vector<std::string>& parts, char separator) {
   std::string out;
   for (const auto& p : parts) out += (out.empty() ? "" : std::string(1, separator)) + p;
@@ -184,7 +194,7 @@ std::vector<LaunchProcess> node_processes(const LaunchPlan& plan, bool forever,
     std::vector<std::string> inputs, counts;
     for (const auto& n : unit) {
       inputs.push_back(plan_input_topic(plan.nodes, n));
-      counts.push_back(std::to_string(std::max(1, readers[pipeline::find_stage(n).topic])));
+      counts.push_back(std::to_string(readers_of(pipeline::find_stage(n), readers)));
     }
     LaunchProcess p;
     p.name = joined(unit, '+');

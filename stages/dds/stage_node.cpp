@@ -205,7 +205,7 @@ struct StageNode::Impl {
         config_strict(load_parse_options(c.root.section("parse")).strict) {
     reader = std::make_unique<RawReader>(p, wire_type(info.input), options.input_topic);
     writer = std::make_unique<RawWriter>(p, wire_type(info.output), options.output_topic);
-    if (options.subscribers > 0) writer->set_subscribers(options.subscribers);
+    if (options.subscribers >= 0) writer->set_subscribers(options.subscribers);
     monitor_writer = std::make_unique<RawWriter>(p, wire_type(info.output), monitor_topic(options.output_topic), true);
     if (info.telemetry != pipeline::Telemetry::kNone) {
       telemetry_writer = std::make_unique<RawWriter>(p, telemetry_type(info.telemetry), monitor_topic(info.telemetry_topic), true);
@@ -498,7 +498,7 @@ StageNode::~StageNode() = default;
 
 int StageNode::run() {
   Impl& m = *impl_;
-  return run_stage_node(
+  const int status = run_stage_node(
       m.options.stage, m.participant, *m.writer, m.options.forever,
       [&m](double timeout) {
         const bool took = m.info.input == Port::kProgram ? m.take_chunk(timeout) : m.take_batch(timeout);
@@ -506,6 +506,13 @@ int StageNode::run() {
         return m.ended ? Taken::kProgramEnd : Taken::kHandled;
       },
       m.status);
+  // Before the copies for monitors go with the process, the monitors matched now may take what
+  // they hold, for a second at most: a stage whose edge nobody reads (the last of a monitoring
+  // pipeline) leaves as soon as it has published, and a copy deleted that early loses its end
+  // marker on the way. A frozen monitor delays the exit by that second, never the program.
+  m.monitor_writer->wait_acknowledged(1.0);
+  if (m.telemetry_writer) m.telemetry_writer->wait_acknowledged(1.0);
+  return status;
 }
 
 }  // namespace gcpipe::dds

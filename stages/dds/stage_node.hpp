@@ -33,9 +33,10 @@ struct StageNodeOptions {
   bool forever = false;                 //!< serve programs until SIGINT/SIGTERM
   bool strict = false;                  //!< stop each program at its first rejected line or cycle
   std::string input_topic, output_topic;
-  /// Readers of the output to wait for and keep; 0: the participant's (--subscribers). The
-  /// stages of a group share a participant, each with its own count.
-  int subscribers = 0;
+  /// Readers of the output to wait for and keep; -1: the participant's (--subscribers); 0: none
+  /// (nobody in the pipeline reads this edge: publish at once). The stages of a group share a
+  /// participant, each with its own count.
+  int subscribers = -1;
   /// The whole pipeline's stages (the launcher's file), so that a stage knows what later nodes
   /// report (StageContext::pipeline_stages); empty: this stage alone.
   std::vector<std::string> pipeline_stages;
