@@ -53,6 +53,12 @@ int wait_exit(pid_t pid, double limit_s, double* took = nullptr) {
   return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
 }
 
+std::size_t occurrences(const std::string& text, const std::string& part) {
+  std::size_t n = 0;
+  for (std::size_t at = text.find(part); at != std::string::npos; at = text.find(part, at + 1)) ++n;
+  return n;
+}
+
 // The pid of the node process `stage` that the launcher started for `domain`.
 pid_t node_pid(const fs::path& log, const std::string& stage) {
   const std::regex re("  " + stage + ": started \\(pid ([0-9]+)\\)");
@@ -104,9 +110,7 @@ TEST(Stream, WritesBatchModesBytesOnTheSamples) {
     if (watch) {
       EXPECT_EQ(wait_exit(monitor, 60), 0) << slurp(watched) << slurp(dir / "monitor.err");
       const std::string seen = slurp(watched);
-      std::size_t ends = 0;
-      for (std::size_t at = seen.find("end of program"); at != std::string::npos; at = seen.find("end of program", at + 1)) ++ends;
-      EXPECT_EQ(ends, 9u) << seen;  // seven edges and the two telemetry topics
+      EXPECT_EQ(occurrences(seen, "end of program"), 9u) << seen;  // seven edges and the two telemetry topics
       EXPECT_EQ(seen.find("MISSING"), std::string::npos) << seen;
       EXPECT_EQ(seen.find("joined late"), std::string::npos) << seen;
     }
@@ -153,9 +157,7 @@ TEST(Stream, TheMonitoringPipelineWritesTheProgramAndShowsItsTelemetry) {
   EXPECT_FALSE(fs::exists(dir / "stream" / "compensated.nc"));
   EXPECT_EQ(wait_exit(monitor, 60), 0) << slurp(watched) << slurp(dir / "monitor.err");
   const std::string seen = slurp(watched);
-  std::size_t ends = 0;
-  for (std::size_t at = seen.find("end of program"); at != std::string::npos; at = seen.find("end of program", at + 1)) ++ends;
-  EXPECT_EQ(ends, 7u) << seen;  // five edges and the two telemetry topics
+  EXPECT_EQ(occurrences(seen, "end of program"), 7u) << seen;  // five edges and the two telemetry topics
   EXPECT_EQ(seen.find("MISSING"), std::string::npos) << seen;
   // The last status line of the simulated ticks holds the program's whole maximum.
   const std::regex status("contour um: now [0-9.]+ max ([0-9.]+)");
