@@ -337,6 +337,294 @@ class InverseStart {
   Axes joints_{};  // node next_ - 1
 };
 
+// What one window's part of a node-program run did: the limits it met and its contour error.
+struct WindowLimits {
+  std::array<std::uint64_t, kNumAxes> saturated{};
+  Axes peak_acceleration{};
+  double max_contour = 0;
+  std::size_t segment = 0;  // of the window's first tick, for the original's demand there
+  bool seen = false;
+};
+
+// The learning of compensate(), local in time: the program is cut into windows of about a
+// second, and an iterate that breaks a limit or does worse in one window is dropped there only
+// (its nodes keep their best values, its gain is halved) while the other windows keep learning.
+// Each iteration runs the node program (measure), judges every window (judge_windows), keeps
+// what improved blended over window boundaries (blend_into_best), and takes a learning step on
+// each window's best error (learning_step).
+class WindowedLearning {
+ public:
+  WindowedLearning(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program, const Axes& start,
+                   const Evaluation& before, const CompensateOptions& opt, Result& res)
+      : model_(model), nom_(nom), program_(program), start_(start), opt_(opt), res_(res), T_(nom.period),
+        E_(nom.reference.size()), clock_{model, nom, program},
+        grid_(linearised_grid(clock_, static_cast<std::uint64_t>(std::max(1L, std::lround(opt.node_period / T_))),
+                              opt.linearisation_tolerance, res)),
+        L_(learning_operator(model)),
+        // Derivatives by central differences over +-10 ms: wide enough that the corners of a
+        // finely chorded path (G275 loops: a chord every 4 ms) do not become steps in the commands.
+        h_(static_cast<std::int64_t>(std::max<long>(1, std::lround(0.010 / T_)))),
+        vbound_(interpolate::speed_bound(model.interp)), Wt_(static_cast<std::uint64_t>(std::max(1L, std::lround(1.0 / T_)))),
+        nwin_(static_cast<std::size_t>((E_ + 4 * Wt_) / Wt_) + 1), nseg_(std::max<std::size_t>(1, nom.segments.size())),
+        R_(static_cast<std::uint64_t>(std::lround(0.1 / T_))), base_(before.demand),
+        inverse_(nom, grid_, start, L_, h_, vbound_), win_best_(nwin_, std::numeric_limits<double>::infinity()),
+        win_gain_(nwin_, opt.gain), win_stalls_(nwin_, 0), win_learned_(nwin_, false) {
+    measure_source_joint_linear_deviation(model, program, opt.linearisation_tolerance, res);
+    nodes_ = model_inverse_nodes(clock_, grid_, start, L_, h_);
+    project_speed(nodes_, vbound_, T_);
+    best_error_.reserve(E_ + Wt_);  // the run settles a little past the reference's end
+    best_ = nodes_;
+    window_err_.reserve(Wt_);
+  }
+
+  void run(const Progress& progress) {
+    // The node program is made block by block as it is simulated, from nodes_ as they are then.
+    const simulate::BlockSource blocks = node_program(program_, nodes_, start_, T_);
+    auto node_source = [this](std::uint32_t i) { return nodes_[std::min<std::size_t>(i + 1, nodes_.size() - 1)].block; };
+    for (int it = 0; it <= opt_.max_iterations; ++it) {
+      if (progress) progress("compensating (learning iterations)", static_cast<std::uint64_t>(it), static_cast<std::uint64_t>(opt_.max_iterations));
+      std::vector<WindowLimits> lim;
+      std::uint64_t ticks = 0;
+      const Evaluation ev = measure(blocks, node_source, lim, ticks);
+      Iteration rec;
+      rec.index = it;
+      rec.max_contour = ev.contour.max;
+      rec.rms_contour = ev.contour.rms;
+      rec.gain = *std::max_element(win_gain_.begin(), win_gain_.end());
+      if (!ev.stats.ok || ev.stats.interp.velocity_limited_blocks > 0) {
+        rec.accepted = false;
+        rec.rejected_because = ev.stats.ok ? "points slowed by the interpolator's speed bound" : ev.stats.message;
+        res_.iterations.push_back(rec);
+        last_rejection_ = rec.rejected_because;
+        break;
+      }
+      // The error series is as long as the longest run learned from (apply_learning holds its end).
+      if (best_error_.size() < ticks) best_error_.resize(ticks, Axes{});
+      std::vector<bool> improved(nwin_, false);
+      const std::string why_iteration = judge_windows(lim, improved);
+      rec.accepted = why_iteration.empty();
+      rec.rejected_because = why_iteration;
+      res_.iterations.push_back(rec);
+      blend_into_best(improved);
+      if (all_stalled(lim) || it == opt_.max_iterations) break;
+      nodes_ = best_;
+      project_speed(nodes_, vbound_, T_);
+      learning_step();
+      project_speed(nodes_, vbound_, T_);
+    }
+    finish();
+  }
+
+ private:
+  std::size_t window_of(std::uint64_t tick) const {
+    return std::min<std::size_t>(static_cast<std::size_t>(tick / Wt_), nwin_ - 1);
+  }
+  std::size_t segment_of_block(std::uint32_t b) const {
+    return nom_.segment_of_block.empty() ? 0 : std::min<std::size_t>(nom_.segment_of_block[b], nseg_ - 1);
+  }
+
+  // Which limit a window's run broke, or empty: the torque-limited ticks and the smoothed
+  // command's acceleration, against the original's own demand in the window's segment.
+  std::string limit_broken(const WindowLimits& lw) const {
+    const SegmentDemand& allowed = base_[std::min(lw.segment, base_.size() - 1)];
+    std::string why;
+    for (std::size_t i = 0; i < kNumAxes && why.empty(); ++i) {
+      char msg[160];
+      // The acceleration bound: the machine's limit, or the uncompensated program's own peak
+      // in that segment where the control's acc/dec already reaches beyond it, plus 1 % of the
+      // limit for the second difference of 1 ms samples (a sampling figure, not a motion).
+      const double alim = std::max(model_.kin.max_acceleration[i], allowed.peak_acceleration[i]) +
+                          0.01 * model_.kin.max_acceleration[i];
+      if (lw.saturated[i] > allowed.saturated_ticks[i]) {
+        std::snprintf(msg, sizeof msg, "axis %c torque-limited in %llu ticks (uncompensated segment: %llu)", kAxisLetters[i],
+                      static_cast<unsigned long long>(lw.saturated[i]), static_cast<unsigned long long>(allowed.saturated_ticks[i]));
+        why = msg;
+      } else if (model_.kin.max_acceleration[i] > 0 && lw.peak_acceleration[i] > alim) {
+        std::snprintf(msg, sizeof msg, "axis %c acceleration %.0f > limit %.0f", kAxisLetters[i], lw.peak_acceleration[i], alim);
+        why = msg;
+      }
+    }
+    return why;
+  }
+
+  // A window that does better within the limits hands its error r - y to the learning. That is
+  // known when its last tick has run, so the run keeps only the error of its current window (1 s)
+  // and copies it to best_error_ there, instead of a whole-program series per iteration.
+  void keep_if_improved(std::size_t w, const WindowLimits& lw) {
+    if (!lw.seen || !limit_broken(lw).empty() || !(lw.max_contour < win_best_[w])) return;
+    const std::size_t n0 = w * Wt_, n1 = n0 + window_err_.size();
+    if (best_error_.size() < n1) best_error_.resize(n1, Axes{});
+    std::copy(window_err_.begin(), window_err_.end(), best_error_.begin() + static_cast<std::ptrdiff_t>(n0));
+  }
+
+  // Torque saturation, smoothed-command acceleration and contour error of one node-program run
+  // per window; each window's error r - y per tick goes to keep_if_improved as the window ends.
+  // Returns the run's evaluation and, in `ticks`, how many ticks it ran.
+  Evaluation measure(const simulate::BlockSource& blocks, const std::function<std::uint32_t(std::uint32_t)>& source,
+                     std::vector<WindowLimits>& lim, std::uint64_t& ticks) {
+    lim.assign(nwin_, WindowLimits{});
+    Axes c1{}, c2{};
+    std::uint64_t seen = 0;
+    std::size_t current = 0;  // the window being run
+    window_err_.clear();
+    Evaluation ev = evaluate(
+        model_, nom_, program_, blocks, start_, source,
+        [&](const Tick& t) {
+          const std::size_t w = window_of(t.n);
+          if (w != current) {
+            keep_if_improved(current, lim[current]);
+            window_err_.clear();
+            current = w;
+          }
+          WindowLimits& L0 = lim[w];
+          if (!L0.seen) L0.segment = segment_of_block(source(t.block)), L0.seen = true;
+          L0.max_contour = std::max(L0.max_contour, t.contour);
+          for (std::size_t i = 0; i < kNumAxes; ++i) {
+            if (t.saturated & (1u << i)) ++L0.saturated[i];
+            if (seen >= 2) {
+              const double acc = std::abs(t.command[i] - 2 * c1[i] + c2[i]) / (T_ * T_);
+              L0.peak_acceleration[i] = std::max(L0.peak_acceleration[i], acc);
+            }
+          }
+          c2 = c1;
+          c1 = t.command;
+          ++seen;
+          const std::size_t n = static_cast<std::size_t>(t.n);
+          if (n >= (w + 1) * Wt_) return;  // past the last window's second: not learned from
+          const Axes& r = n < nom_.reference.size() ? nom_.reference[n] : nom_.reference.back();
+          Axes e;
+          for (std::size_t i = 0; i < kNumAxes; ++i) e[i] = r[i] - t.actual[i];
+          window_err_.push_back(e);
+        },
+        true);
+    keep_if_improved(current, lim[current]);
+    ticks = seen;
+    return ev;
+  }
+
+  // Every window's verdict on the run just measured: improved within the limits (its error is
+  // in best_error_ already, from measure), or its gain halved; a stall count per window. Returns
+  // the first limit broken in this iteration, or empty.
+  std::string judge_windows(const std::vector<WindowLimits>& lim, std::vector<bool>& improved) {
+    std::string why_iteration;
+    for (std::size_t w = 0; w < nwin_; ++w) {
+      if (!lim[w].seen) continue;
+      const std::string why = limit_broken(lim[w]);
+      const double emax = lim[w].max_contour;
+      const double previous = win_best_[w];
+      if (why.empty() && emax < previous) {
+        win_best_[w] = emax;
+        improved[w] = true;
+        win_learned_[w] = true;
+      } else {
+        win_gain_[w] *= 0.5;
+      }
+      if (!why.empty()) {
+        char when[80];
+        std::snprintf(when, sizeof when, " at t %.0f-%.0f s", static_cast<double>(w * Wt_) * T_, static_cast<double>((w + 1) * Wt_) * T_);
+        last_rejection_ = why + when;
+        if (why_iteration.empty()) why_iteration = last_rejection_;
+      }
+      win_stalls_[w] = why.empty() && emax < 0.99 * previous ? 0 : win_stalls_[w] + 1;
+    }
+    return why_iteration;
+  }
+
+  // A per-window value at every node, moving-averaged over +-0.1 s of nodes, node by node in
+  // order (WindowAverage): four of these per iteration were a double a node each.
+  WindowAverage over_nodes(const std::vector<Node>& nd, std::function<double(std::size_t)> value) const {
+    return WindowAverage(nd, R_, [value = std::move(value), this](std::uint64_t tick) { return value(window_of(tick)); });
+  }
+
+  // Accepting some windows and not others must not leave a step in the commands at a window
+  // boundary (the step itself would break the acceleration limit there): the per-window
+  // decisions are blended over about 0.1 s of nodes on either side of each boundary.
+  void blend_into_best(const std::vector<bool>& improved) {
+    WindowAverage take = over_nodes(nodes_, [&](std::size_t w) { return improved[w] ? 1.0 : 0.0; });
+    WindowAverage learned = over_nodes(nodes_, [&](std::size_t w) { return win_learned_[w] ? 1.0 : 0.0; });
+    WindowAverage blend = over_nodes(nodes_, [&](std::size_t w) { return win_gain_[w]; });
+    inverse_.restart();
+    for (std::size_t k = 1; k < nodes_.size(); ++k) {
+      // Where nothing was accepted yet: the model-inverse start blended back towards the
+      // reference (the uncompensated motion, gentler than the program's own) by the gain.
+      const Axes& r = nom_.reference[nodes_[k].tick];
+      const Axes& u0 = inverse_.at(k);
+      const double take_k = take.at(k), learned_k = learned.at(k), blend_k = blend.at(k);
+      for (std::size_t i = 0; i < kNumAxes; ++i) {
+        const double fallback = r[i] + std::min(1.0, blend_k) * (u0[i] - r[i]);
+        const double kept = learned_k * best_[k].joints[i] + (1 - learned_k) * fallback;
+        best_[k].joints[i] = take_k * nodes_[k].joints[i] + (1 - take_k) * kept;
+      }
+    }
+  }
+
+  bool all_stalled(const std::vector<WindowLimits>& lim) const {
+    bool stalled = true;
+    for (std::size_t w = 0; w < nwin_; ++w) stalled = stalled && (!lim[w].seen || win_stalls_[w] >= 3);
+    return stalled;
+  }
+
+  // Learning update on each window's best error, zero-phase smoothed over nodes ([1 2 1]/4
+  // twice) so that the derivative term does not feed tick-scale roughness back.
+  void learning_step() {
+    WindowAverage gain_at = over_nodes(nodes_, [&](std::size_t w) { return win_learned_[w] ? win_gain_[w] : 0.0; });
+    const std::size_t n = nodes_.size();
+    InOrder raw_update([&](std::size_t k) {
+      Axes du{};
+      const double gain_k = k == 0 ? 0.0 : gain_at.at(k);
+      if (gain_k > 0)
+        for (std::size_t i = 0; i < kNumAxes; ++i)
+          du[i] = gain_k * apply_learning(best_error_, static_cast<std::int64_t>(nodes_[k].tick), i, L_, T_, h_);
+      return du;
+    });
+    InOrder once([&](std::size_t k) { return smoothed_121(raw_update, k, n); });
+    InOrder twice([&](std::size_t k) { return smoothed_121(once, k, n); });
+    for (std::size_t k = 1; k + 1 < n; ++k) {
+      const Axes du = twice.at(k);
+      for (std::size_t i = 0; i < kNumAxes; ++i) {
+        const auto& tr = model_.kin.travel[i];
+        nodes_[k].joints[i] = std::clamp(nodes_[k].joints[i] + du[i], tr.min, tr.max);
+      }
+    }
+  }
+
+  void finish() {
+    bool any = false;
+    for (std::size_t w = 0; w < nwin_; ++w) any = any || win_learned_[w];
+    res_.nodes = std::move(best_);
+    res_.compensated = any;
+    if (!res_.compensated) res_.note = "no iterate stayed within the axis limits: " + last_rejection_;
+    else if (!last_rejection_.empty()) res_.note = "learning held back where it would exceed a limit: " + last_rejection_;
+  }
+
+  const Model& model_;
+  const Nominal& nom_;
+  std::span<const ResolvedBlock> program_;
+  Axes start_;
+  const CompensateOptions& opt_;
+  Result& res_;
+  double T_;
+  std::uint64_t E_;
+  ReferenceClock clock_;
+  std::vector<std::uint64_t> grid_;
+  Learning L_;
+  std::int64_t h_;
+  Axes vbound_;
+  std::uint64_t Wt_;    // ticks in a window (1 s)
+  std::size_t nwin_;
+  std::size_t nseg_;
+  std::uint64_t R_;     // ticks of the decisions' blend (0.1 s)
+  const std::vector<SegmentDemand>& base_;
+  InverseStart inverse_;  // the model-inverse start, node by node
+  std::vector<double> win_best_, win_gain_;
+  std::vector<int> win_stalls_;
+  std::vector<bool> win_learned_;
+  std::vector<Node> nodes_, best_;
+  std::vector<Axes> best_error_;  // r - y per tick, each window from its best run
+  std::vector<Axes> window_err_;  // the current window's r - y, while a run is measured
+  std::string last_rejection_;
+};
+
 }  // namespace
 
 Result compensate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
@@ -351,8 +639,7 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
     res.note = "nothing moves: no compensation needed";
     return res;
   }
-  const double T = nom.period;
-  const double duration = static_cast<double>(nom.reference.size()) * T;
+  const double duration = static_cast<double>(nom.reference.size()) * nom.period;
   if (duration > opt.max_machine_time) {
     char msg[200];
     std::snprintf(msg, sizeof msg, "not compensated: the program runs %.0f s, compensate.max_machine_time is %.0f s", duration,
@@ -360,235 +647,7 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
     res.note = msg;
     return res;
   }
-  const auto m = static_cast<std::uint64_t>(std::max(1L, std::lround(opt.node_period / T)));
-  const std::uint64_t E = nom.reference.size();
-  const ReferenceClock clock{model, nom, program};
-  const std::vector<std::uint64_t> grid = linearised_grid(clock, m, opt.linearisation_tolerance, res);
-  measure_source_joint_linear_deviation(model, program, opt.linearisation_tolerance, res);
-  const Learning L = learning_operator(model);
-  // Derivatives by central differences over +-10 ms: wide enough that the corners of a finely
-  // chorded path (G275 loops: a chord every 4 ms) do not become steps in the commands.
-  const auto h = static_cast<std::int64_t>(std::max<long>(1, std::lround(0.010 / T)));
-  std::vector<Node> nodes = model_inverse_nodes(clock, grid, start, L, h);
-  const Axes vbound = interpolate::speed_bound(model.interp);
-  project_speed(nodes, vbound, T);
-
-  // The learning is local in time: the program is cut into windows of about a second, and an
-  // iterate that breaks a limit or does worse in one window is dropped there only (its nodes
-  // keep their best values, its gain is halved) while the other windows keep learning.
-  const auto Wt = static_cast<std::uint64_t>(std::max(1L, std::lround(1.0 / T)));
-  const std::size_t nwin = static_cast<std::size_t>((E + 4 * Wt) / Wt) + 1;
-  auto window_of = [&](std::uint64_t tick) { return std::min<std::size_t>(static_cast<std::size_t>(tick / Wt), nwin - 1); };
-  const std::size_t nseg = std::max<std::size_t>(1, nom.segments.size());
-  auto seg_of_block = [&](std::uint32_t b) -> std::size_t {
-    return nom.segment_of_block.empty() ? 0 : std::min<std::size_t>(nom.segment_of_block[b], nseg - 1);
-  };
-  struct Limits {
-    std::array<std::uint64_t, kNumAxes> saturated{};
-    Axes peak_acceleration{};
-    double max_contour = 0;
-    std::size_t segment = 0;  // of the window's first tick, for the original's demand there
-    bool seen = false;
-  };
-  const std::vector<SegmentDemand>& base = before.demand;
-  // Which limit a window's run broke, or empty: the torque-limited ticks and the smoothed
-  // command's acceleration, against the original's own demand in the window's segment.
-  auto limit_broken = [&](const Limits& lw) {
-    const SegmentDemand& allowed = base[std::min(lw.segment, base.size() - 1)];
-    std::string why;
-    for (std::size_t i = 0; i < kNumAxes && why.empty(); ++i) {
-      char msg[160];
-      // The acceleration bound: the machine's limit, or the uncompensated program's own peak
-      // in that segment where the control's acc/dec already reaches beyond it, plus 1 % of the
-      // limit for the second difference of 1 ms samples (a sampling figure, not a motion).
-      const double alim = std::max(model.kin.max_acceleration[i], allowed.peak_acceleration[i]) +
-                          0.01 * model.kin.max_acceleration[i];
-      if (lw.saturated[i] > allowed.saturated_ticks[i]) {
-        std::snprintf(msg, sizeof msg, "axis %c torque-limited in %llu ticks (uncompensated segment: %llu)", kAxisLetters[i],
-                      static_cast<unsigned long long>(lw.saturated[i]), static_cast<unsigned long long>(allowed.saturated_ticks[i]));
-        why = msg;
-      } else if (model.kin.max_acceleration[i] > 0 && lw.peak_acceleration[i] > alim) {
-        std::snprintf(msg, sizeof msg, "axis %c acceleration %.0f > limit %.0f", kAxisLetters[i], lw.peak_acceleration[i], alim);
-        why = msg;
-      }
-    }
-    return why;
-  };
-
-  std::vector<Axes> best_error;             // r - y per tick, each window from its best run
-  best_error.reserve(E + Wt);               // the run settles a little past the reference's end
-  std::vector<Node> best = nodes;
-  InverseStart inverse(nom, grid, start, L, h, vbound);  // the model-inverse start, node by node
-  std::vector<double> win_best(nwin, std::numeric_limits<double>::infinity());
-  std::vector<double> win_gain(nwin, opt.gain);
-  std::vector<int> win_stalls(nwin, 0);
-  std::vector<bool> win_learned(nwin, false);
-  std::string last_rejection;
-  // A window that does better within the limits hands its error r - y to the learning. That is
-  // known when its last tick has run, so the run keeps only the error of its current window (1 s)
-  // and copies it to best_error there, instead of a whole-program series per iteration.
-  auto keep_if_improved = [&](std::size_t w, const Limits& lw, const std::vector<Axes>& window_err) {
-    if (!lw.seen || !limit_broken(lw).empty() || !(lw.max_contour < win_best[w])) return;
-    const std::size_t n0 = w * Wt, n1 = n0 + window_err.size();
-    if (best_error.size() < n1) best_error.resize(n1, Axes{});
-    std::copy(window_err.begin(), window_err.end(), best_error.begin() + static_cast<std::ptrdiff_t>(n0));
-  };
-  // Torque saturation, smoothed-command acceleration and contour error of one node-program run
-  // per window; each window's error r - y per tick goes to keep_if_improved as the window ends.
-  // Returns the run's evaluation and, in `ticks`, how many ticks it ran.
-  std::vector<Axes> window_err;
-  window_err.reserve(Wt);
-  auto measure = [&](const simulate::BlockSource& blocks, const std::function<std::uint32_t(std::uint32_t)>& source,
-                     std::vector<Limits>& lim, std::uint64_t& ticks) {
-    lim.assign(nwin, Limits{});
-    Axes c1{}, c2{};
-    std::uint64_t seen = 0;
-    std::size_t current = 0;  // the window being run
-    window_err.clear();
-    Evaluation ev = evaluate(
-        model, nom, program, blocks, start, source,
-        [&](const Tick& t) {
-          const std::size_t w = window_of(t.n);
-          if (w != current) {
-            keep_if_improved(current, lim[current], window_err);
-            window_err.clear();
-            current = w;
-          }
-          Limits& L0 = lim[w];
-          if (!L0.seen) L0.segment = seg_of_block(source(t.block)), L0.seen = true;
-          L0.max_contour = std::max(L0.max_contour, t.contour);
-          for (std::size_t i = 0; i < kNumAxes; ++i) {
-            if (t.saturated & (1u << i)) ++L0.saturated[i];
-            if (seen >= 2) {
-              const double acc = std::abs(t.command[i] - 2 * c1[i] + c2[i]) / (T * T);
-              L0.peak_acceleration[i] = std::max(L0.peak_acceleration[i], acc);
-            }
-          }
-          c2 = c1;
-          c1 = t.command;
-          ++seen;
-          const std::size_t n = static_cast<std::size_t>(t.n);
-          if (n >= (w + 1) * Wt) return;  // past the last window's second: not learned from
-          const Axes& r = n < nom.reference.size() ? nom.reference[n] : nom.reference.back();
-          Axes e;
-          for (std::size_t i = 0; i < kNumAxes; ++i) e[i] = r[i] - t.actual[i];
-          window_err.push_back(e);
-        },
-        true);
-    keep_if_improved(current, lim[current], window_err);
-    ticks = seen;
-    return ev;
-  };
-  // A per-window value at every node, moving-averaged over +-0.1 s of nodes, node by node in
-  // order (WindowAverage): four of these per iteration were a double a node each.
-  const auto R = static_cast<std::uint64_t>(std::lround(0.1 / T));
-  auto over_nodes = [&](const std::vector<Node>& nd, std::function<double(std::size_t)> value) {
-    return WindowAverage(nd, R, [value = std::move(value), &window_of](std::uint64_t tick) { return value(window_of(tick)); });
-  };
-  auto node_source = [&nodes](std::uint32_t i) { return nodes[std::min<std::size_t>(i + 1, nodes.size() - 1)].block; };
-  // The error series is refilled every iteration in the same buffer: a fresh allocation of a
-  // long program's series cost more in page faults than the simulation that fills it (measured
-  // on a 566 s CAM-like program). The node program is made block by block as it is simulated.
-  const simulate::BlockSource blocks = node_program(program, nodes, start, T);
-  for (int it = 0; it <= opt.max_iterations; ++it) {
-    if (progress) progress("compensating (learning iterations)", static_cast<std::uint64_t>(it), static_cast<std::uint64_t>(opt.max_iterations));
-    std::vector<Limits> lim;
-    std::uint64_t ticks = 0;
-    const Evaluation ev = measure(blocks, node_source, lim, ticks);
-    Iteration rec;
-    rec.index = it;
-    rec.max_contour = ev.contour.max;
-    rec.rms_contour = ev.contour.rms;
-    rec.gain = *std::max_element(win_gain.begin(), win_gain.end());
-    if (!ev.stats.ok || ev.stats.interp.velocity_limited_blocks > 0) {
-      rec.accepted = false;
-      rec.rejected_because = ev.stats.ok ? "points slowed by the interpolator's speed bound" : ev.stats.message;
-      res.iterations.push_back(rec);
-      last_rejection = rec.rejected_because;
-      break;
-    }
-    // The error series is as long as the longest run learned from (apply_learning holds its end).
-    if (best_error.size() < ticks) best_error.resize(ticks, Axes{});
-    std::vector<bool> improved(nwin, false);
-    std::string why_iteration;
-    for (std::size_t w = 0; w < nwin; ++w) {
-      if (!lim[w].seen) continue;
-      const std::string why = limit_broken(lim[w]);
-      const double emax = lim[w].max_contour;
-      const double previous = win_best[w];
-      if (why.empty() && emax < previous) {  // its error is in best_error already (measure)
-        win_best[w] = emax;
-        improved[w] = true;
-        win_learned[w] = true;
-      } else {
-        win_gain[w] *= 0.5;
-      }
-      if (!why.empty()) {
-        char when[80];
-        std::snprintf(when, sizeof when, " at t %.0f-%.0f s", static_cast<double>(w * Wt) * T, static_cast<double>((w + 1) * Wt) * T);
-        last_rejection = why + when;
-        if (why_iteration.empty()) why_iteration = last_rejection;
-      }
-      win_stalls[w] = why.empty() && emax < 0.99 * previous ? 0 : win_stalls[w] + 1;
-    }
-    rec.accepted = why_iteration.empty();
-    rec.rejected_because = why_iteration;
-    res.iterations.push_back(rec);
-    // Accepting some windows and not others must not leave a step in the commands at a window
-    // boundary (the step itself would break the acceleration limit there): the per-window
-    // decisions are blended over about 0.1 s of nodes on either side of each boundary.
-    WindowAverage take = over_nodes(nodes, [&](std::size_t w) { return improved[w] ? 1.0 : 0.0; });
-    WindowAverage learned = over_nodes(nodes, [&](std::size_t w) { return win_learned[w] ? 1.0 : 0.0; });
-    WindowAverage blend = over_nodes(nodes, [&](std::size_t w) { return win_gain[w]; });
-    inverse.restart();
-    for (std::size_t k = 1; k < nodes.size(); ++k) {
-      // Where nothing was accepted yet: the model-inverse start blended back towards the
-      // reference (the uncompensated motion, gentler than the program's own) by the gain.
-      const Axes& r = nom.reference[nodes[k].tick];
-      const Axes& u0 = inverse.at(k);
-      const double take_k = take.at(k), learned_k = learned.at(k), blend_k = blend.at(k);
-      for (std::size_t i = 0; i < kNumAxes; ++i) {
-        const double fallback = r[i] + std::min(1.0, blend_k) * (u0[i] - r[i]);
-        const double kept = learned_k * best[k].joints[i] + (1 - learned_k) * fallback;
-        best[k].joints[i] = take_k * nodes[k].joints[i] + (1 - take_k) * kept;
-      }
-    }
-    bool all_stalled = true;
-    for (std::size_t w = 0; w < nwin; ++w) all_stalled = all_stalled && (!lim[w].seen || win_stalls[w] >= 3);
-    if (all_stalled || it == opt.max_iterations) break;
-    nodes = best;
-    project_speed(nodes, vbound, T);
-    // Learning update on each window's best error, zero-phase smoothed over nodes ([1 2 1]/4
-    // twice) so that the derivative term does not feed tick-scale roughness back.
-    WindowAverage gain_at = over_nodes(nodes, [&](std::size_t w) { return win_learned[w] ? win_gain[w] : 0.0; });
-    const std::size_t n = nodes.size();
-    InOrder raw_update([&](std::size_t k) {
-      Axes du{};
-      const double gain_k = k == 0 ? 0.0 : gain_at.at(k);
-      if (gain_k > 0)
-        for (std::size_t i = 0; i < kNumAxes; ++i)
-          du[i] = gain_k * apply_learning(best_error, static_cast<std::int64_t>(nodes[k].tick), i, L, T, h);
-      return du;
-    });
-    InOrder once([&](std::size_t k) { return smoothed_121(raw_update, k, n); });
-    InOrder twice([&](std::size_t k) { return smoothed_121(once, k, n); });
-    for (std::size_t k = 1; k + 1 < n; ++k) {
-      const Axes du = twice.at(k);
-      for (std::size_t i = 0; i < kNumAxes; ++i) {
-        const auto& tr = model.kin.travel[i];
-        nodes[k].joints[i] = std::clamp(nodes[k].joints[i] + du[i], tr.min, tr.max);
-      }
-    }
-    project_speed(nodes, vbound, T);
-  }
-  double best_max = 0;
-  bool any = false;
-  for (std::size_t w = 0; w < nwin; ++w)
-    if (win_learned[w]) any = true, best_max = std::max(best_max, win_best[w]);
-  res.nodes = std::move(best);
-  res.compensated = any;
-  if (!res.compensated) res.note = "no iterate stayed within the axis limits: " + last_rejection;
-  else if (!last_rejection.empty()) res.note = "learning held back where it would exceed a limit: " + last_rejection;
+  WindowedLearning(model, nom, program, start, before, opt, res).run(progress);
   return res;
 }
 
