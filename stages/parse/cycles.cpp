@@ -17,12 +17,7 @@ namespace gcpipe {
 
 using namespace parse_detail;
 
-namespace {
-
-// LinuxCNC's G73 chip-break retract and G83 re-approach clearance: 0.010 inch (its
-// G83_RAPID_DELTA); Fanuc's parameter d, taken at the same value.
-constexpr double kPeckDelta = 0.010 * kInch;  // [mm]
-
+namespace parse_detail {
 // The resolved numbers of one cycle block.
 struct CycleGeometry {
   PlaneAxes pa;
@@ -34,6 +29,14 @@ struct CycleGeometry {
   bool incremental;
   long repeats;
 };
+}  // namespace parse_detail
+
+namespace {
+
+// LinuxCNC's G73 chip-break retract and G83 re-approach clearance: 0.010 inch (its
+// G83_RAPID_DELTA); Fanuc's parameter d, taken at the same value.
+constexpr double kPeckDelta = 0.010 * kInch;  // [mm]
+
 
 // Builds the moves of one hole; `pos` is where the tool stands, updated.
 class HoleWriter {
@@ -204,18 +207,32 @@ std::string cycle_levels(CycleGeometry& g, const ModalState& ns, double start_n,
 
 }  // namespace
 
-// A block in a canned-cycle mode with axis words: one or more holes.
+// A block in a canned-cycle mode with axis words: one or more holes. The checks come in the
+// control's order: rotary words, the levels (R and the depth, sticky), the cycle's own words,
+// the feed; then the holes.
 bool Parser::Impl::cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, std::uint8_t mask) {
-  const Scan& s = sc;
   const std::string name = code_text('G', ns.cycle);
   const std::uint32_t col = c.motion_col ? c.motion_col : 1;
   CycleGeometry g{};
   g.pa = plane_axes(ns.plane);
   g.code = ns.cycle;
   g.incremental = ns.incremental;
-  const int n = g.pa.n;
   for (char L : {'A', 'C'})
-    if (s.has(L)) return fail(s.w(L).col, name + " with " + L + ": rotary axes cannot move in a canned cycle");
+    if (sc.has(L)) return fail(sc.w(L).col, name + " with " + L + ": rotary axes cannot move in a canned cycle");
+  if (!cycle_levels_of(ns, g, name, col) || !cycle_words(ns, g, name, col)) return false;
+  const Motion saved = ns.motion;
+  ns.motion = Motion::kLinear;
+  const bool feed_ok = check_feed(c, ns);
+  ns.motion = saved;
+  if (!feed_ok) return false;
+  drill_holes(b, ns, g, mask);
+  return true;
+}
+
+// R and the depth word (sticky across cycle blocks) to the levels along the drilling axis.
+bool Parser::Impl::cycle_levels_of(ModalState& ns, CycleGeometry& g, const std::string& name, std::uint32_t col) {
+  const Scan& s = sc;
+  const int n = g.pa.n;
   const char depth_letter = kAxisLetters[n];
   if (s.has('R')) ns.cycle_r = s.w('R');
   if (s.has(depth_letter)) ns.cycle_z = s.w(depth_letter);
@@ -232,6 +249,13 @@ bool Parser::Impl::cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, 
   if (ns.cycle == 870 && ns.cycle_to_r) return fail(col, "G87 (back boring) returns to the initial level: use G98, not G99");
   if (const std::string why = cycle_levels(g, ns, start_n, opt.dialect); !why.empty())
     return fail(s.has(depth_letter) ? s.w(depth_letter).col : col, why);
+  return true;
+}
+
+// The cycle's own words: the boring shift or peck depth Q, the dwell P, the repeats L (Fanuc K),
+// and the spindle direction a tapping cycle needs.
+bool Parser::Impl::cycle_words(ModalState& ns, CycleGeometry& g, const std::string& name, std::uint32_t col) {
+  const Scan& s = sc;
   if (ns.cycle == 760 || ns.cycle == 870) {
     const double q = ns.cycle_q.col ? linear_value(ns.cycle_q, ns.units) : 0;
     if (!(q > 0)) return fail(ns.cycle_q.col ? ns.cycle_q.col : col, name + " needs a positive shift Q (the tool moves off the wall by Q at the bottom)");
@@ -258,12 +282,13 @@ bool Parser::Impl::cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, 
     return fail(col, "G84 (right-hand tapping) needs the spindle turning clockwise (M3) before the cycle");
   if (ns.cycle == 740 && ns.spindle != Spindle::kCCW)
     return fail(col, "G74 (left-hand tapping) needs the spindle turning counter-clockwise (M4) before the cycle");
-  const Motion saved = ns.motion;
-  ns.motion = Motion::kLinear;
-  const bool feed_ok = check_feed(c, ns);
-  ns.motion = saved;
-  if (!feed_ok) return false;
-  // In-plane target: G90 the block's words (or where the tool is); G91 a step per repeat.
+  return true;
+}
+
+// The holes' moves, repeat by repeat. In-plane target: G90 the block's words (or where the tool
+// is); G91 a step per repeat.
+void Parser::Impl::drill_holes(ResolvedBlock& b, ModalState& ns, CycleGeometry& g, std::uint8_t mask) {
+  const Scan& s = sc;
   Axes target = ns.position;
   const int u = g.pa.u, v = g.pa.v;
   for (int a : {u, v})
@@ -271,8 +296,8 @@ bool Parser::Impl::cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, 
   g.du = (mask & (1u << u)) && g.incremental ? linear_value(s.w(kAxisLetters[u]), ns.units) : 0;
   g.dv = (mask & (1u << v)) && g.incremental ? linear_value(s.w(kAxisLetters[v]), ns.units) : 0;
   Axes pos = ns.position;
-  HoleWriter h(moves, pos, n);
-  if (pos[n] < g.r && g.code != 870) h.rapid_to(g.r);  // preliminary move, once
+  HoleWriter h(moves, pos, g.pa.n);
+  if (pos[g.pa.n] < g.r && g.code != 870) h.rapid_to(g.r);  // preliminary move, once
   for (long i = 0; i < g.repeats; ++i) {
     const double pu = g.incremental ? pos[u] + g.du : target[u];
     const double pv = g.incremental ? pos[v] + g.dv : target[v];
@@ -287,7 +312,6 @@ bool Parser::Impl::cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, 
   b.motion = moves.empty() ? Motion::kNone : moves.back().motion;
   b.target = pos;
   ns.position = pos;
-  return true;
 }
 
 }  // namespace gcpipe

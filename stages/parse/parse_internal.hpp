@@ -20,6 +20,7 @@
 namespace gcpipe {
 
 namespace parse_detail {
+struct CycleGeometry;  // cycles.cpp: the resolved numbers of one canned-cycle block
 
 constexpr double kMaxLinear = 1e5;   // [mm] |value| beyond any machine: surely a typo or overflow
 constexpr double kMaxAngle = 1e5;    // [deg] allows many turns of C, rejects overflow
@@ -391,6 +392,9 @@ struct Parser::Impl {
 
   // -- cycles.cpp
   bool cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, std::uint8_t mask);
+  bool cycle_levels_of(ModalState& ns, parse_detail::CycleGeometry& g, const std::string& name, std::uint32_t col);
+  bool cycle_words(ModalState& ns, parse_detail::CycleGeometry& g, const std::string& name, std::uint32_t col);
+  void drill_holes(ResolvedBlock& b, ModalState& ns, parse_detail::CycleGeometry& g, std::uint8_t mask);
 
   // -- flow.cpp
   bool feed(std::string_view line, std::size_t overlong);
