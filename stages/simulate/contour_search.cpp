@@ -47,37 +47,9 @@ constexpr double kUnknown = -std::numeric_limits<double>::infinity();  // a boun
 // rounding stays far below kSlack.
 constexpr double kRebase = 1000;
 
-// Where the CPU has AVX2, the segments are measured four at a time instead of two (the same
-// IEEE operations, one by one, on wider registers: the same doubles; no FMA, which would round
-// differently, is enabled). Chosen once at load time (an ifunc), so x86-64 Linux only.
-#if defined(__x86_64__) && defined(__linux__) && defined(__clang__)
-#define GCPIPE_MEASURE_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define GCPIPE_MEASURE_CLONES
-#endif
-
-struct SegmentArrays {
-  const double *x, *y, *z;      // segment starts
-  const double *dx, *dy, *dz;   // segment vectors
-  const double* dd;             // their squared lengths
-};
-
-GCPIPE_MEASURE_CLONES
-void measure_segments(SegmentArrays g, std::size_t n, const Vec3& p, double* __restrict__ sq, double* __restrict__ s) {
-  for (std::size_t k = 0; k < n; ++k) {
-    const double d0 = g.dx[k], d1 = g.dy[k], d2 = g.dz[k], dd = g.dd[k];
-    const double w0 = p[0] - g.x[k], w1 = p[1] - g.y[k], w2 = p[2] - g.z[k];
-    const double t = std::clamp(dd > 0 ? (w0 * d0 + w1 * d1 + w2 * d2) / dd : 0.0, 0.0, 1.0);
-    const double e0 = w0 - t * d0, e1 = w1 - t * d1, e2 = w2 - t * d2;
-    sq[k] = e0 * e0 + e1 * e1 + e2 * e2;
-    s[k] = t;
-  }
-}
-
 // Bit k set when far[k] <= reach (n <= 64): the super-groups whose kept bound does not pass them
-// over, compared side by side (four at a time with AVX2). For the 8 groups of a super-group the
-// call costs more than it saves (measured), so they keep their loop.
-GCPIPE_MEASURE_CLONES
+// over, compared side by side. For the 8 groups of a super-group the same cost more instructions
+// than it saved (measured), so they keep their loop.
 std::uint64_t within_reach(const double* far, std::size_t n, double reach) {
   std::uint64_t near = 0;
   for (std::size_t k = 0; k < n; ++k) near |= static_cast<std::uint64_t>(far[k] <= reach) << k;
@@ -203,13 +175,27 @@ void ContourSearch::scan_except(std::size_t a, std::size_t b, const Range& done,
 }
 
 // Segments a .. a+n-1 (global index), servo::segment_distance_sq's arithmetic in its order on
-// each: the same doubles, computed side by side from the arrays per axis.
+// each: the same doubles, computed two at a time from the arrays per axis. (An AVX2 clone of this
+// loop, four at a time behind an ifunc, took 7 % fewer instructions of the whole run but made the
+// search 14 % slower: 294 -> 338 ns a tick on the bench's geometry; the call is no longer inlined
+// and the batches are short.)
 void ContourSearch::measure(std::size_t a, std::size_t n, const Vec3& p, double* __restrict__ sq,
                             double* __restrict__ s) const {
-  const std::size_t i = a - first_;
-  measure_segments({coord_[0].data() + i, coord_[1].data() + i, coord_[2].data() + i, step_[0].data() + i,
-                    step_[1].data() + i, step_[2].data() + i, step_[3].data() + i},
-                   n, p, sq, s);
+  const double* x = coord_[0].data() + (a - first_);
+  const double* y = coord_[1].data() + (a - first_);
+  const double* z = coord_[2].data() + (a - first_);
+  const double* dx = step_[0].data() + (a - first_);
+  const double* dy = step_[1].data() + (a - first_);
+  const double* dz = step_[2].data() + (a - first_);
+  const double* ddv = step_[3].data() + (a - first_);
+  for (std::size_t k = 0; k < n; ++k) {
+    const double d0 = dx[k], d1 = dy[k], d2 = dz[k], dd = ddv[k];
+    const double w0 = p[0] - x[k], w1 = p[1] - y[k], w2 = p[2] - z[k];
+    const double t = std::clamp(dd > 0 ? (w0 * d0 + w1 * d1 + w2 * d2) / dd : 0.0, 0.0, 1.0);
+    const double e0 = w0 - t * d0, e1 = w1 - t * d1, e2 = w2 - t * d2;
+    sq[k] = e0 * e0 + e1 * e1 + e2 * e2;
+    s[k] = t;
+  }
 }
 
 // Each step is rounded up (relative and absolute) so that the sum never falls short of the path
