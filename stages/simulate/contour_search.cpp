@@ -127,11 +127,9 @@ void ContourSearch::add_step(const Vec3& a, const Vec3& b) {
 }
 
 // Keeps the last kLookBack points and a super-group of slack behind them; drops older ones in
-// whole super-groups, so that the boxes of the points kept stay as they were. Dropping moves the
-// points kept to the front of every array: it waits until the window has grown to four times what
-// it needs (about 0.5 MB), so that each point is moved a third as often as at twice.
+// whole super-groups, so that the boxes of the points kept stay as they were.
 void ContourSearch::drop_old_points() {
-  constexpr std::size_t kKeep = 4 * (kLookBack + kSuperSpan);
+  constexpr std::size_t kKeep = 2 * (kLookBack + kSuperSpan);
   if (win_.size() < kKeep) return;
   const std::size_t newest = size() - 1;
   const std::size_t new_first = (newest - kLookBack - kSuperSpan) / kSuperSpan * kSuperSpan;

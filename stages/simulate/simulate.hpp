@@ -108,7 +108,7 @@ inline RunStats run_program(const Model& model, std::span<const ResolvedBlock> b
 /// The distance is to the path, not to the time-matched point: an axis that trails in time on the
 /// path has no contour error.
 ///
-/// The search holds only a sliding window of the polyline (2 to 4 kLookBack points), so a
+/// The search holds only a sliding window of the polyline (about 2 kLookBack points), so a
 /// streaming simulation needs memory for the window, not for the program: points are pushed as
 /// the nominal reaches them, or taken from a whole polyline as `limit` advances.
 class ContourSearch {
