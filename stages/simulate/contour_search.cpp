@@ -61,25 +61,24 @@ std::uint64_t within_reach(const double* far, std::size_t n, double reach) {
 // Capsules come in whole super-groups, the groups not opened yet infinitely wide.
 void ContourSearch::Capsules::open() {
   if (groups++ % kGroupsPerSuper != 0) return;
-  for (int k = 0; k < 3; ++k) a[k].resize(a[k].size() + kGroupsPerSuper), d[k].resize(d[k].size() + kGroupsPerSuper);
-  inv_dd.resize(inv_dd.size() + kGroupsPerSuper);
-  radius.resize(radius.size() + kGroupsPerSuper, std::numeric_limits<double>::infinity());
+  shape.resize(shape.size() + kGroupsPerSuper);
   far.resize(far.size() + kGroupsPerSuper, kUnknown);
 }
 
 void ContourSearch::Capsules::drop_front(std::size_t n) {
   const auto drop = [n](std::vector<double>& v) { v.erase(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(n)); };
-  for (int k = 0; k < 3; ++k) drop(a[k]), drop(d[k]);
-  drop(inv_dd), drop(radius), drop(far);
+  shape.erase(shape.begin(), shape.begin() + static_cast<std::ptrdiff_t>(n));
+  drop(far);
   groups -= n;
 }
 
 // Distance from p to the chord less the radius: no point of the group is nearer.
 double ContourSearch::Capsules::lower_bound(std::size_t i, const Vec3& p) const {
-  const double w0 = p[0] - a[0][i], w1 = p[1] - a[1][i], w2 = p[2] - a[2][i];
-  const double t = std::clamp((w0 * d[0][i] + w1 * d[1][i] + w2 * d[2][i]) * inv_dd[i], 0.0, 1.0);
-  const double e0 = w0 - t * d[0][i], e1 = w1 - t * d[1][i], e2 = w2 - t * d[2][i];
-  return std::sqrt(e0 * e0 + e1 * e1 + e2 * e2) - radius[i];
+  const Shape& c = shape[i];
+  const double w0 = p[0] - c.a[0], w1 = p[1] - c.a[1], w2 = p[2] - c.a[2];
+  const double t = std::clamp((w0 * c.d[0] + w1 * c.d[1] + w2 * c.d[2]) * c.inv_dd, 0.0, 1.0);
+  const double e0 = w0 - t * c.d[0], e1 = w1 - t * c.d[1], e2 = w2 - t * c.d[2];
+  return std::sqrt(e0 * e0 + e1 * e1 + e2 * e2) - c.radius;
 }
 
 // The distance to the chord is convex along each segment, so the polyline's farthest point from
@@ -89,13 +88,14 @@ void ContourSearch::close_group(std::size_t g) {
   const Vec3& a = point(g * kGroup);
   const Vec3& b = point((g + 1) * kGroup);
   const Vec3 d{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-  for (int k = 0; k < 3; ++k) capsules_.a[k][c] = a[k], capsules_.d[k][c] = d[k];
+  Capsules::Shape& shape = capsules_.shape[c];
+  for (int k = 0; k < 3; ++k) shape.a[k] = a[k], shape.d[k] = d[k];
   const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-  capsules_.inv_dd[c] = dd > 0 ? 1 / dd : 0;
+  shape.inv_dd = dd > 0 ? 1 / dd : 0;
   double radius_sq = 0, s = 0;
   for (std::size_t i = g * kGroup + 1; i < (g + 1) * kGroup; ++i)
     radius_sq = std::max(radius_sq, servo::segment_distance_sq(a, b, point(i), s));
-  capsules_.radius[c] = std::sqrt(radius_sq);
+  shape.radius = std::sqrt(radius_sq);
   capsules_.far[c] = kUnknown;
 }
 
