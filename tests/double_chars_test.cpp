@@ -136,3 +136,17 @@ TEST(FixedDouble, WritesTheBytesOfToCharsWithEveryPrecision) {
     EXPECT_EQ(c.failed(), 0u) << "of " << c.checked() << " with " << decimals << " decimals";
   }
 }
+
+// Every block of 8 digits is written by one routine (8 digits side by side in a 64-bit word): the
+// low 8 digits of integers of 9 to 16 digits swept through [0, 10^8) in steps of 37, in the shortest
+// form and fixed with 0 decimals (the sweep checked every block once, outside the tests).
+TEST(ShortestDouble, WritesEveryBlockOfEightDigits) {
+  std::mt19937_64 rng(8);
+  Comparison shortest, fixed(0);
+  for (std::uint64_t low = 0; low < 100'000'000; low += 37) {
+    const auto v = static_cast<double>((rng() % 90'000'000 + 1) * 100'000'000 + low);  // exact: < 2^53
+    shortest.check(v), fixed.check(v), shortest.check(-v);
+  }
+  EXPECT_EQ(shortest.failed(), 0u) << "of " << shortest.checked();
+  EXPECT_EQ(fixed.failed(), 0u) << "of " << fixed.checked();
+}

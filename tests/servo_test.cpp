@@ -2,6 +2,8 @@
 // convergence, the look-ahead streaming, and the pluggable effects.
 #include <gtest/gtest.h>
 
+#include <bit>
+
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -107,6 +109,37 @@ TEST(ServoDiscretisation, Rk4ConvergesToTheExactStepAtFourthOrder) {
     }
     std::printf("\n");
     EXPECT_LT(prev_err, 1e-6);
+  }
+}
+
+// An axis at rest repeats its last step's result instead of working it out again: the same bits
+// as working every step out, through holds (reached exactly or still settling), moves that
+// resume after a hold, sub-micrometre steps, and torque-limited moves, on every axis of seed 002.
+TEST(ServoDiscretisation, RepeatedRestStepsChangeNoBit) {
+  const DriveSet d = seed002();
+  for (int axis : {kX, kY, kZ, kA, kC}) {
+    for (const bool limited : {false, true}) {
+      DriveParams p = d.axes[static_cast<std::size_t>(axis)];
+      if (!limited) p.torque_limit = 0;
+      std::vector<double> cmd(3000, 0.0);
+      for (std::size_t k = 0; k < cmd.size(); ++k) {
+        const double t = static_cast<double>(k) * kT;
+        cmd[k] = t < 0.3 ? 0.0 : t < 0.8 ? 40 * (t - 0.3) : t < 1.5 ? 20.0 : t < 1.6 ? 20.0 + 1e-7 * static_cast<double>(k % 3)
+                 : t < 2.2 ? 20.0 + 1e-4 : t < 2.4 ? 20.0 + 2000 * (t - 2.2) * (t - 2.2) : cmd[k - 1];
+      }
+      AxisDrive repeating(p, kT, 8, 0.9), working(p, kT, 8, 0.9);
+      working.repeat_rests(false);
+      const auto w = static_cast<std::size_t>(repeating.window());
+      repeating.reset(cmd[0]), working.reset(cmd[0]);
+      for (std::size_t k = 0; k + w <= cmd.size(); ++k) {
+        const AxisState a = repeating.step(std::span<const double>(cmd.data() + k, w));
+        const AxisState b = working.step(std::span<const double>(cmd.data() + k, w));
+        ASSERT_EQ(std::bit_cast<std::uint64_t>(a.position), std::bit_cast<std::uint64_t>(b.position)) << axis << " " << k;
+        ASSERT_EQ(std::bit_cast<std::uint64_t>(a.velocity), std::bit_cast<std::uint64_t>(b.velocity)) << axis << " " << k;
+        ASSERT_EQ(std::bit_cast<std::uint64_t>(a.torque), std::bit_cast<std::uint64_t>(b.torque)) << axis << " " << k;
+        ASSERT_EQ(a.saturated, b.saturated) << axis << " " << k;
+      }
+    }
   }
 }
 

@@ -60,7 +60,8 @@ TEST(Trace, WritesTheExactHeaderAndRoundTripsEveryDouble) {
 }
 
 // The formatter that reuses a repeated column's text writes the bytes of append_trace_row, row
-// by row: columns that change, stay, return to an earlier value, 0 and -0, denormals, extremes.
+// by row: columns that change, stay, return to an earlier value, equal their command (the text
+// copied from it), 0 and -0, denormals, extremes.
 TEST(Trace, RowFormatterWritesTheBytesOfAppendTraceRow) {
   std::mt19937_64 rng(3);
   std::uniform_int_distribution<int> pick(0, 7);
@@ -73,6 +74,7 @@ TEST(Trace, RowFormatterWritesTheBytesOfAppendTraceRow) {
     for (std::size_t i = 0; i < 5; ++i) {
       if (pick(rng) < 3) r.command[i] = specials[static_cast<std::size_t>(pick(rng))];  // else it stays
       if (pick(rng) < 2) r.actual[i] = std::sin(k * 0.01 + static_cast<double>(i)) * 50;
+      if (pick(rng) == 0) r.actual[i] = r.command[i];  // an axis on its command: the text is shared
     }
     format.append(fast, r);
     fast += '\n';

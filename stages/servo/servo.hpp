@@ -190,6 +190,9 @@ class AxisDrive {
   AxisState step(std::span<const double> commands);
   /// Forces the RK4 path everywhere (for the convergence test and the exact-vs-RK4 check).
   void force_rk4(bool on);
+  /// On by default: a step that left the state as it was and gets the same commands again returns
+  /// its result without working it out (an axis at rest). Off only to test that this changes no bit.
+  void repeat_rests(bool on);
   const DriveParams& params() const;
 
  private:

@@ -55,15 +55,26 @@ void TraceRowFormatter::append(std::string& s, const TraceRow& r) {
     const double v = i < kNumAxes ? r.command[i] : r.actual[i - kNumAxes];
     Column& c = columns_[i];
     const auto bits = std::bit_cast<std::uint64_t>(v);
-    if (c.size == 0 || c.bits != bits) {
-      c.bits = bits;
-      c.size = static_cast<std::uint8_t>(write_shortest(c.text, v) - c.text);
-    }
+    if (c.size == 0 || c.bits != bits) format_column(c, i, bits, v);
     *p++ = ',';
     std::memcpy(p, c.text, sizeof c.text);
     p += c.size;
   }
   s.append(row, static_cast<std::size_t>(p - row));
+}
+
+// An axis that follows its command exactly (a still axis, or one settling as the bench's Z does,
+// down to subnormals) has the same double in both columns: the command's text, formatted just
+// before in this row, is copied rather than worked out again.
+void TraceRowFormatter::format_column(Column& c, std::size_t i, std::uint64_t bits, double v) {
+  c.bits = bits;
+  const Column& command = columns_[i >= kNumAxes ? i - kNumAxes : i];
+  if (i >= kNumAxes && command.size != 0 && command.bits == bits) {
+    std::memcpy(c.text, command.text, sizeof c.text);
+    c.size = command.size;
+    return;
+  }
+  c.size = static_cast<std::uint8_t>(write_shortest(c.text, v) - c.text);
 }
 
 TraceWriter::TraceWriter(std::ostream& out) : out_(out) { out_ << kTraceHeader << '\n'; }

@@ -60,6 +60,8 @@ class TraceRowFormatter {
     char text[kShortestDoubleChars] = {};  //!< its text
     std::uint8_t size = 0;   //!< 0: nothing formatted yet
   };
+  /// Column i (commands 0 .. kNumAxes - 1, then actuals) takes the double whose bits are `bits`.
+  void format_column(Column& c, std::size_t i, std::uint64_t bits, double v);
   Column columns_[2 * kNumAxes];
 };
 

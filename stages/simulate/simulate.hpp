@@ -141,13 +141,17 @@ class ContourSearch {
     void drop_front(std::size_t n);
     double distance_sq(std::size_t i, const Vec3& p) const;
   };
-  /// Per group, structure of arrays: the points of a complete group lie within
-  /// `radius` of the chord a..a+d. An incomplete group (the newest) has an infinite radius: it is
-  /// always measured.
+  /// Per group: the points of a complete group lie within `radius` of the chord a..a+d. An
+  /// incomplete group (the newest) has an infinite radius: it is always measured. The shape of a
+  /// group is one 64-byte record (lower_bound() reads it whole); the kept bounds, scanned group
+  /// after group, are an array of their own.
   struct Capsules {
-    std::array<std::vector<double>, 3> a, d;
-    std::vector<double> inv_dd;  //!< 1 / |d|^2, 0 when d is 0
-    std::vector<double> radius;  //!< [mm]
+    struct Shape {
+      double a[3] = {}, d[3] = {};
+      double inv_dd = 0;  //!< 1 / |d|^2, 0 when d is 0
+      double radius = std::numeric_limits<double>::infinity();  //!< [mm]
+    };
+    std::vector<Shape> shape;
     /// Kept lower bound as super_far_: lower_bound() when last worked out plus the motion then.
     std::vector<double> far;
     std::size_t groups = 0;      //!< opened; the arrays hold whole super-groups
