@@ -506,12 +506,15 @@ int StageNode::run() {
         return m.ended ? Taken::kProgramEnd : Taken::kHandled;
       },
       m.status);
-  // Before the copies for monitors go with the process, the monitors matched now may take what
-  // they hold, for a second at most: a stage whose edge nobody reads (the last of a monitoring
-  // pipeline) leaves as soon as it has published, and a copy deleted that early loses its end
-  // marker on the way. A frozen monitor delays the exit by that second, never the program.
-  m.monitor_writer->wait_acknowledged(1.0);
-  if (m.telemetry_writer) m.telemetry_writer->wait_acknowledged(1.0);
+  // A stage whose edge nobody reads (the last of a monitoring pipeline) leaves as soon as it has
+  // published, and a copy for monitors deleted that early loses its end marker on the way: the
+  // monitors matched now get a second at most to take what the copies hold. (A stage with
+  // readers has waited for their acknowledgements, time enough for the copies.) A frozen
+  // monitor delays that exit by the second, never the program.
+  if (m.writer->subscribers() == 0) {
+    m.monitor_writer->wait_acknowledged(1.0);
+    if (m.telemetry_writer) m.telemetry_writer->wait_acknowledged(1.0);
+  }
   return status;
 }
 
