@@ -337,15 +337,19 @@ TEST_F(DdsPipeline, GeneratedProgramWithBadLinesMatchesBatchByteForByte) {
 }
 
 // A paced feed (a DNC drip feed's --rate) sends no faster than its rate and changes no byte.
+// Without --chunk-bytes a paced feed cuts 16 KB chunks (the unpaced default is 128 KB).
 TEST_F(DdsPipeline, PacedFeedKeepsItsRateAndChangesNoByte) {
-  const fs::path input = generate_program(dir_, 4000);
+  const fs::path input = generate_program(dir_, 20000);
   const double bytes = static_cast<double>(fs::file_size(input));
   const double rate = bytes / 1.5;  // the whole program due after 1.5 s
-  expect_same_as_batch(input, {}, {"--chunk-bytes", "4096", "--rate", std::to_string(rate)});
+  expect_same_as_batch(input, {}, {"--rate", std::to_string(rate)});
   const std::string log = slurp(dir_ / "feed.log");
   std::smatch m;
   ASSERT_TRUE(std::regex_search(log, m, std::regex(" bytes in ([0-9]+) chunks, ([0-9.]+) s;"))) << log;
-  EXPECT_GT(std::stoi(m[1]), 10) << log;            // paced chunk by chunk, not in one go
+  // Chunks of 16 KB of CDR text (each line counted with 20 bytes of overhead): more than the
+  // file's bytes / 16 KB, and far more than with 128 KB.
+  EXPECT_GT(std::stoi(m[1]), bytes / 16384) << log;
+  EXPECT_LT(std::stoi(m[1]), 3 * bytes / 16384) << log;
   // The last chunk was not sent before it was due: the feed paces by the lines' bytes with one
   // newline each, a little less than the file's (CRLF lines, the missing final newline).
   EXPECT_GE(std::stod(m[2]), 1.4) << log;

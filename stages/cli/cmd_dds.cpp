@@ -98,7 +98,7 @@ std::string group_name(const std::vector<std::string>& stages) {
 int run_feed(const FeedArgs& a) {
   dds::FeedOptions f;
   f.input = a.input;
-  f.chunk_bytes = a.chunk_bytes;
+  f.chunk_bytes = a.chunk_bytes != 0 ? a.chunk_bytes : a.rate > 0 ? dds::FeedOptions::kPacedChunkBytes : f.chunk_bytes;
   f.bytes_per_second = a.rate;
   f.program_id = a.program_id;
   f.topic = a.topic.empty() ? dds::kProgramTopicName : a.topic;

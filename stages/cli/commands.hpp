@@ -106,7 +106,7 @@ struct DdsArgs {
 };
 struct FeedArgs : DdsArgs {
   std::string input, config, topic;
-  std::size_t chunk_bytes = 128 * 1024;
+  std::size_t chunk_bytes = 0;  //!< 0: 128 KB, or 16 KB with --rate (dds::FeedOptions)
   double rate = 0;  //!< --rate [bytes/s]; 0 = unpaced
   std::uint64_t program_id = 0;
 };

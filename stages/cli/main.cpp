@@ -191,7 +191,8 @@ void add_feed(CLI::App& app, FeedArgs& a) {
   s->add_option("input", a.input, "the program; - reads standard input")->required();
   s->add_option("--config", a.config, "pipeline config (its parse.max_line_length cuts lines as batch does)")
       ->check(CLI::ExistingFile);
-  s->add_option("--chunk-bytes", a.chunk_bytes, "publish a chunk once it holds this much text")->check(CLI::Range(1024, 1048576));
+  s->add_option("--chunk-bytes", a.chunk_bytes, "publish a chunk once it holds this much text (default 128 KB; 16 KB with --rate)")
+      ->check(CLI::Range(1024, 1048576));
   s->add_option("--rate", a.rate, "send at most this many bytes of the program a second, as a drip feed; 0 = as fast as it is taken [bytes/s]")
       ->check(CLI::NonNegativeNumber);
   s->add_option("--program-id", a.program_id, "program id (default: time-based)");

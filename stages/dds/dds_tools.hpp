@@ -19,6 +19,11 @@ struct FeedOptions {
   /// Lines are cut at this length as batch mode's reader cuts them (parse.max_line_length) [bytes]
   std::size_t max_line_length = 256;
   std::size_t chunk_bytes = 128 * 1024;  //!< publish a chunk once it holds this much text [bytes]
+  /// A paced feed's chunks (--rate without --chunk-bytes): 16 KB of text become about one block
+  /// batch of the parse node (128 KB of blocks), where a 128 KB chunk became seven published back
+  /// to back, a burst that kept Fast DDS's receive threads waiting for a core (p99 per hop
+  /// 1.7-2.2 ms; with 16 KB chunks 0.16-0.53 ms: stages/dds/README.md, Speed).
+  static constexpr std::size_t kPacedChunkBytes = 16 * 1024;
   /// At most this many bytes of the program a second, as a DNC drip feed sends a program at the
   /// control's pace (and as a latency measurement needs a stream below the pipeline's capacity);
   /// 0 = as fast as the readers take it [bytes/s].
