@@ -86,13 +86,6 @@ std::vector<dds::StageNodeOptions> group_options(const NodeArgs& a) {
   return out;
 }
 
-// The process's name in its lines: the stage, or the group's stages joined by '+'.
-std::string group_name(const std::vector<std::string>& stages) {
-  std::string name;
-  for (const auto& s : stages) name += (name.empty() ? "" : "+") + s;
-  return name;
-}
-
 }  // namespace
 
 int run_feed(const FeedArgs& a) {
@@ -127,7 +120,7 @@ int run_node(const NodeArgs& a) {
   // each runs in its own thread, exactly as it would in a process of its own.
   std::vector<std::unique_ptr<dds::StageNode>> nodes;
   for (const auto& o : stages) nodes.push_back(std::make_unique<dds::StageNode>(participant, pc, o));
-  dds::say_line("gcpipe node " + group_name(a.stages) + ": up on domain " + std::to_string(options.domain) + ", " +
+  dds::say_line("gcpipe node " + dds::joined(a.stages, '+') + ": up on domain " + std::to_string(options.domain) + ", " +
                 std::to_string(nodes.size()) + " stages in one process");
   std::vector<int> status(nodes.size(), 0);
   std::vector<std::thread> threads;

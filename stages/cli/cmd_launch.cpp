@@ -46,17 +46,11 @@ dds::LaunchProcess sink_process(const dds::LaunchPlan& plan, const std::string& 
   return p;
 }
 
-std::string comma_list(const std::vector<std::string>& names) {
-  std::string s;
-  for (const auto& n : names) s += (s.empty() ? "" : ",") + n;
-  return s;
-}
-
 // The report sink: report.json, report.txt, summary.json and diagnostics.txt from the nodes' parts.
 dds::LaunchProcess report_sink_process(const dds::LaunchPlan& plan, const fs::path& dir) {
   dds::LaunchProcess p;
   p.name = "report-sink";
-  p.args = {"report-sink", "-o", dir.string(), "--stages", comma_list(plan.nodes), "--config", plan.config.string()};
+  p.args = {"report-sink", "-o", dir.string(), "--stages", dds::joined(plan.nodes, ','), "--config", plan.config.string()};
   const auto dds = dds::plan_dds_args(plan);
   p.args.insert(p.args.end(), dds.begin(), dds.end());
   p.ready_text = "gcpipe report-sink: ready";
@@ -113,7 +107,7 @@ int run_stream(const StreamArgs& a) {
   sup.add(report_sink_process(plan, out));
   for (auto& p : dds::node_processes(plan, /*forever=*/false, sinks)) {
     // Each node's figures go into OUTDIR, its report part to the report sink.
-    p.args.insert(p.args.end(), {"--pipeline-stages", comma_list(plan.nodes), "--report-dir", out.string(),
+    p.args.insert(p.args.end(), {"--pipeline-stages", dds::joined(plan.nodes, ','), "--report-dir", out.string(),
                                  "--report-readers", "1"});
     sup.add(std::move(p));
   }

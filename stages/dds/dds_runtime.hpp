@@ -2,9 +2,10 @@
 // and typed writers/readers of the pipeline's topics (one per edge, each of one of three types).
 //
 // This header is deliberately free of Fast DDS includes (they are heavy to compile): entities live
-// behind pointers to implementation in dds_runtime.cpp. QoS is never set in code; it comes from
-// the named profiles in pipeline_configs/dds_profiles.xml (see stages/dds/README.md for the
-// choices and the measurements behind them).
+// behind pointers to implementation in dds_runtime.cpp. QoS comes from the named profiles in
+// pipeline_configs/dds_profiles.xml (see stages/dds/README.md for the choices and the
+// measurements behind them), but for two things set from options: the DDS Security properties of
+// --identity, and the lifespan of the monitor copies (--monitor-history).
 #pragma once
 
 #include <cstdint>

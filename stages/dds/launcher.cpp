@@ -140,13 +140,14 @@ int readers_of(const pipeline::StageInfo& stage, const std::map<std::string, int
   return stage.output == pipeline::Port::kGcode ? std::max(1, n) : n;
 }
 
+}  // namespace
+
 std::string joined(const std::vector<std::string>& parts, char separator) {
   std::string out;
   for (const auto& p : parts) out += (out.empty() ? "" : std::string(1, separator)) + p;
   return out;
 }
 
-}  // namespace
 
 LaunchPlan load_launch_plan(const std::filesystem::path& file) {
   const Config root = Config::load_file(file);

@@ -60,6 +60,9 @@ std::vector<LaunchProcess> node_processes(const LaunchPlan& plan, bool forever,
 /// Arguments every process of the plan gets: --domain, --profiles.
 std::vector<std::string> plan_dds_args(const LaunchPlan& plan);
 
+/// `parts` with `separator` between them: a group's name (parse+trochoid), a comma list for an option.
+std::string joined(const std::vector<std::string>& parts, char separator);
+
 class Supervisor {
  public:
   /// `exe`: the gcpipe executable to start; `verbose`: forward every line of every process.
