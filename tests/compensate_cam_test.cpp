@@ -1,11 +1,10 @@
 // Issue 12: compensation on CAM-like programs at production cycle time. A generated program of
 // many short segments (0.1-2 mm), corners of 5-120 degrees, arcs and feeds of 500-6000 mm/min
 // goes through `gcpipe batch`; the written compensated.nc, read back and simulated, must keep the
-// planned cycle time (at most 1.02x), bring the cutting contour error down at least fivefold, and
-// beat the sceptic's baseline: the original slowed to the same cycle time. (The issue's target is
-// tenfold; seeds 1 and 2 reach 5.5x and 9.0x, held back by the X acceleration limit at their
-// sharpest corners:
-// README.md, "Compensation on CAM-like programs".)
+// planned cycle time (at most 1.02x), bring the cutting contour error down at least tenfold (the
+// issue's target), and beat the sceptic's baseline: the original slowed to the same cycle time.
+// Four seeds: 18.2x, 27.4x, 13.6x, 15.0x measured (README.md, "Compensation figures"); with the
+// first-order learning operator used before the chain inverse, seeds 1 and 2 stopped at 5.5x and 9.0x.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -18,7 +17,7 @@
 namespace {
 
 TEST(CompensateCam, GeneratedProgramsKeepThePlannedCycleTimeAndBeatTheSlowedOriginal) {
-  for (std::uint64_t seed : {1, 2}) {
+  for (std::uint64_t seed : {1, 2, 3, 4}) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     const fs::path dir = tmpdir("cam" + std::to_string(seed));
     // The generator is `gcpipe synth --cam-segments` (stages/cli/synthetic_program.cpp).
@@ -36,7 +35,7 @@ TEST(CompensateCam, GeneratedProgramsKeepThePlannedCycleTimeAndBeatTheSlowedOrig
                 static_cast<unsigned long long>(seed), before, planned, after, e0 * 1e3, e1 * 1e3, e0 / e1);
     const double slowed = sim.at("slowed_original").at("contour_error").at("max_mm");
     EXPECT_LE(after, 1.02 * planned);
-    EXPECT_GE(e0 / e1, 5.0);
+    EXPECT_GE(e0 / e1, 10.0);
     EXPECT_LT(e1, slowed) << "the original slowed to the same cycle time does better";
   }
 }

@@ -159,12 +159,14 @@ TEST(Compensate, CircleTestAt2PiComesDownTenfoldWithinLimitsAndReadsBack) {
               after.contour.max * 1e3, before.contour.max / after.contour.max, r.iterations.size());
   EXPECT_GT(before.contour.max, 10 * after.contour.max);
   // Never beyond the limits: no torque saturation the original did not have, accelerations
-  // within the machine's limits (or the original's own peak), velocities within the limits.
+  // within the machine's limits (or the original's own peak) plus the 1 % of the limit the
+  // learning allows for the second difference of 1 ms samples (README beside compensate.cpp,
+  // "Limits"), velocities within the limits.
   for (std::size_t i = 0; i < kNumAxes; ++i) {
     EXPECT_LE(after.axes.saturated_ticks[i], before.axes.saturated_ticks[i]) << kAxisLetters[i];
     EXPECT_LE(after.axes.peak_velocity[i], std::max(model.kin.max_velocity[i], before.axes.peak_velocity[i]) * (1 + 1e-6));
     EXPECT_LE(after.axes.peak_acceleration[i],
-              std::max(model.kin.max_acceleration[i], before.axes.peak_acceleration[i]) * (1 + 1e-6))
+              std::max(model.kin.max_acceleration[i], before.axes.peak_acceleration[i]) + 0.01 * model.kin.max_acceleration[i] + 1e-6)
         << kAxisLetters[i];
   }
   EXPECT_EQ(after.stats.interp.velocity_limited_blocks, 0u) << "every written point keeps its time";

@@ -9,6 +9,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "chain_inverse.hpp"
 #include "contour.hpp"
 #include "gcpipe/config.hpp"
 
@@ -80,43 +81,6 @@ simulate::BlockSource node_program(std::span<const ResolvedBlock> program, const
             node_block(program, nodes, i, start, period, *buffer);
             return *buffer;
           }};
-}
-
-struct Learning {
-  Axes lead_ticks{};   // d per axis [ticks]
-  Axes derivative{};   // T_L per axis [s]
-};
-
-Learning learning_operator(const Model& model) {
-  Learning L;
-  const double T = model.interp.period;
-  for (std::size_t i = 0; i < kNumAxes; ++i) {
-    const auto& p = model.drives.axes[i];
-    double d = p.model == servo::DriveModel::kDrive ? servo::ramp_lag_time(p) : 0.0;
-    const double Ts = model.interp.smoothing_time[i];
-    if (model.interp.smoothing == interpolate::Smoothing::kExponential) {
-      L.derivative[i] = Ts;
-    } else if (model.interp.smoothing == interpolate::Smoothing::kLinear) {
-      d += 0.5 * Ts;  // a moving average over Ts delays by Ts/2 and has no stable inverse
-    }
-    L.lead_ticks[i] = std::max(0.0, std::round(d / T));
-  }
-  return L;
-}
-
-/// Value of a per-tick series at tick `n` (clamped to the ends).
-const Axes& at(const std::vector<Axes>& v, std::int64_t n) {
-  return v[static_cast<std::size_t>(std::clamp<std::int64_t>(n, 0, static_cast<std::int64_t>(v.size()) - 1))];
-}
-
-/// L applied to a per-tick series at tick n for axis i: x(n + d) + T_L dx/dt(n + d).
-double apply_learning(const std::vector<Axes>& x, std::int64_t n, std::size_t i, const Learning& L, double period,
-                      std::int64_t h) {
-  const std::int64_t c = n + static_cast<std::int64_t>(L.lead_ticks[i]);
-  double v = at(x, c)[i];
-  if (L.derivative[i] > 0)
-    v += L.derivative[i] * (at(x, c + h)[i] - at(x, c - h)[i]) / (2.0 * static_cast<double>(h) * period);
-  return v;
 }
 
 /// Forward projection onto the speed bound: a node that would need a faster axis than the bound
@@ -224,15 +188,14 @@ void measure_source_joint_linear_deviation(const Model& model, std::span<const R
 // Model-inverse start u = L r at every node of the grid; the first node is where the machine
 // stands, the last the program's end point (the learning may move it, the end stays).
 std::vector<Node> model_inverse_nodes(const ReferenceClock& clock, const std::vector<std::uint64_t>& grid,
-                                      const Axes& start, const Learning& L, std::int64_t h) {
+                                      const Axes& start, const ChainInverse& inverse) {
   const Nominal& nom = clock.nom;
   std::vector<Node> nodes(grid.size());
   for (std::size_t k = 0; k < grid.size(); ++k) {
     nodes[k].tick = grid[k];
     nodes[k].block = clock.block_at(grid[k]);
     for (std::size_t i = 0; i < kNumAxes; ++i)
-      nodes[k].joints[i] = k == 0 ? start[i]
-                                  : apply_learning(nom.reference, static_cast<std::int64_t>(grid[k]), i, L, nom.period, h);
+      nodes[k].joints[i] = k == 0 ? start[i] : apply_inverse(inverse.axis[i], nom.reference, i, static_cast<std::int64_t>(grid[k]));
   }
   nodes.back().joints = nom.reference.back();
   return nodes;
@@ -304,9 +267,9 @@ Axes smoothed_121(InOrder& in, std::size_t k, std::size_t n) {
 // each iteration instead of holding a third node series (56 bytes a node) for the whole run.
 class InverseStart {
  public:
-  InverseStart(const Nominal& nom, const std::vector<std::uint64_t>& grid, const Axes& start, const Learning& L,
-               std::int64_t h, const Axes& vmax)
-      : nom_(nom), grid_(grid), start_(start), L_(L), h_(h), vmax_(vmax) {}
+  InverseStart(const Nominal& nom, const std::vector<std::uint64_t>& grid, const Axes& start, const ChainInverse& inverse,
+               const Axes& vmax)
+      : nom_(nom), grid_(grid), start_(start), inverse_(inverse), vmax_(vmax) {}
 
   /// Node k's joints; k only grows between calls until restart().
   const Axes& at(std::size_t k) {
@@ -323,15 +286,14 @@ class InverseStart {
     else if (k == 0) joints_ = start_;
     else
       for (std::size_t i = 0; i < kNumAxes; ++i)
-        joints_[i] = apply_learning(nom_.reference, static_cast<std::int64_t>(grid_[k]), i, L_, nom_.period, h_);
+        joints_[i] = apply_inverse(inverse_.axis[i], nom_.reference, i, static_cast<std::int64_t>(grid_[k]));
     if (k > 0) project_step(before, joints_, vmax_, static_cast<double>(grid_[k] - grid_[k - 1]) * nom_.period);
   }
 
   const Nominal& nom_;
   const std::vector<std::uint64_t>& grid_;
   Axes start_;
-  Learning L_;
-  std::int64_t h_;
+  const ChainInverse& inverse_;
   Axes vmax_;
   std::size_t next_ = 0;
   Axes joints_{};  // node next_ - 1
@@ -360,17 +322,14 @@ class WindowedLearning {
         E_(nom.reference.size()), clock_{model, nom, program},
         grid_(linearised_grid(clock_, static_cast<std::uint64_t>(std::max(1L, std::lround(opt.node_period / T_))),
                               opt.linearisation_tolerance, res)),
-        L_(learning_operator(model)),
-        // Derivatives by central differences over +-10 ms: wide enough that the corners of a
-        // finely chorded path (G275 loops: a chord every 4 ms) do not become steps in the commands.
-        h_(static_cast<std::int64_t>(std::max<long>(1, std::lround(0.010 / T_)))),
+        chain_inverse_(design_chain_inverse(model)),
         vbound_(interpolate::speed_bound(model.interp)), Wt_(static_cast<std::uint64_t>(std::max(1L, std::lround(1.0 / T_)))),
         nwin_(static_cast<std::size_t>((E_ + 4 * Wt_) / Wt_) + 1), nseg_(std::max<std::size_t>(1, nom.segments.size())),
         R_(static_cast<std::uint64_t>(std::lround(0.1 / T_))), base_(before.demand),
-        inverse_(nom, grid_, start, L_, h_, vbound_), win_best_(nwin_, std::numeric_limits<double>::infinity()),
+        inverse_(nom, grid_, start, chain_inverse_, vbound_), win_best_(nwin_, std::numeric_limits<double>::infinity()),
         win_gain_(nwin_, opt.gain), win_stalls_(nwin_, 0), win_learned_(nwin_, false) {
     measure_source_joint_linear_deviation(model, program, opt.linearisation_tolerance, res);
-    nodes_ = model_inverse_nodes(clock_, grid_, start, L_, h_);
+    nodes_ = model_inverse_nodes(clock_, grid_, start, chain_inverse_);
     project_speed(nodes_, vbound_, T_);
     best_error_.reserve(E_ + Wt_);  // the run settles a little past the reference's end
     best_ = nodes_;
@@ -398,7 +357,7 @@ class WindowedLearning {
         last_rejection_ = rec.rejected_because;
         break;
       }
-      // The error series is as long as the longest run learned from (apply_learning holds its end).
+      // The error series is as long as the longest run learned from (apply_inverse holds its ends).
       if (best_error_.size() < ticks) best_error_.resize(ticks, Axes{});
       std::vector<bool> improved(nwin_, false);
       const std::string why_iteration = judge_windows(lim, improved);
@@ -574,7 +533,7 @@ class WindowedLearning {
       const double gain_k = k == 0 ? 0.0 : gain_at.at(k);
       if (gain_k > 0)
         for (std::size_t i = 0; i < kNumAxes; ++i)
-          du[i] = gain_k * apply_learning(best_error_, static_cast<std::int64_t>(nodes_[k].tick), i, L_, T_, h_);
+          du[i] = gain_k * apply_inverse(chain_inverse_.axis[i], best_error_, i, static_cast<std::int64_t>(nodes_[k].tick));
       return du;
     });
     InOrder once([&](std::size_t k) { return smoothed_121(raw_update, k, n); });
@@ -607,8 +566,7 @@ class WindowedLearning {
   std::uint64_t E_;
   ReferenceClock clock_;
   std::vector<std::uint64_t> grid_;
-  Learning L_;
-  std::int64_t h_;
+  ChainInverse chain_inverse_;  // the learning operator L, per axis
   Axes vbound_;
   std::uint64_t Wt_;    // ticks in a window (1 s)
   std::size_t nwin_;

@@ -6,16 +6,17 @@
 //   1. Nominal run. The original program is interpolated (TCP blocks through the kinematics per
 //      tick) and simulated. Its raw, unsmoothed joint samples R_n define the nominal path; the
 //      contour error "before" is the distance from FK(actual) to that path.
-//   2. Reference. The path is re-timed, not re-shaped: the progress index n is smoothed with the
-//      control's own acc/dec (Ts), r(t_n) = R(p_n). The reference lies on the nominal path and
-//      has the original's speed profile, so it is a motion the drives can follow.
+//   2. Reference. The path planned as a look-ahead control runs it (stages/simulate/reference.cpp):
+//      feed planned over the whole program, corners passed at the speed compensate.path_tolerance
+//      allows, jerk-limited by smoothing the path parameter; it lies within path_tolerance of the
+//      nominal path, and its duration is the planned cycle time the compensated program keeps.
 //   3. Nodes. The compensated program is a chain of G93 G1 blocks in machine axes, one per node
 //      (node_period, a multiple of the interpolation period). Kinematic linearisation: a node
 //      interval is halved while joint-linear motion between its ends leaves the reference tool-tip
 //      path by more than linearisation_tolerance.
 //   4. Iterative learning control. u_{k+1} = u_k + gain * Q[L e_k], e_k = r - y_k per axis, with
-//      L the inverse of the model's dominant dynamics (first-order acc/dec and the drive's lag):
-//      L e(t) = e(t + d) + T_L de/dt(t + d). Each iterate is simulated with the same interpolator
+//      L a FIR inverse of the whole chain acc/dec + feed drive per axis, designed from the chain's
+//      simulated step response (chain_inverse.hpp); the start is u_0 = L r. Each iterate is simulated with the same interpolator
 //      and drives as the original; an iterate that would exceed an axis's velocity, acceleration,
 //      torque or travel is rejected and the gain halved.
 // The model comes from the config (machine file, interpolate section, drives file), so a drives

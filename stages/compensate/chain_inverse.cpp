@@ -1,0 +1,146 @@
+#include "chain_inverse.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Dense>
+
+#include "interpolate.hpp"
+#include "servo.hpp"
+
+namespace gcpipe::compensate {
+
+std::vector<double> chain_step_response(const simulate::Model& model, std::size_t axis, std::size_t ticks,
+                                        std::size_t onset, double amplitude) {
+  servo::ServoSimulator sim(model.drives, model.interp.period);
+  const Axes rest{};
+  std::vector<double> y;
+  y.reserve(ticks);
+  y.push_back(sim.reset(rest, 0.0).actual[axis] / amplitude);
+  interpolate::AxisSmoother smoother(model.interp.smoothing, model.interp.smoothing_time[axis], model.interp.period, 0.0);
+  servo::ServoSample s;
+  // Command p is pushed for tick p; the drive hands back tick p - (its look-ahead) meanwhile.
+  for (std::size_t p = 1; y.size() < ticks; ++p) {
+    Axes c{};
+    c[axis] = smoother.filter(p >= onset ? amplitude : 0.0);
+    if (sim.push(c, s)) y.push_back(s.actual[axis] / amplitude);
+  }
+  return y;
+}
+
+namespace {
+
+using Eigen::Index;
+
+// The design's time scales (README.md beside this file, "The learning operator"). The filter
+// reads the error from 0.1 s ahead (the chain's delay and more) to 0.2 s behind; the step
+// response is followed for 1.5 s (X of seed 002, Kvp 177.5 on J 4.5, settles in about 0.4 s).
+constexpr double kLeadSeconds = 0.10;
+constexpr double kSpanSeconds = 0.30;
+constexpr double kResponseSeconds = 1.5;
+// The step comes at the first tick, so g leaves out what the drive does before the step: its
+// feed-forward reads the command Tp ahead (X of seed 002: 15.5 ms) and answers early and sharply.
+// Measured: with that part in g (a step 0.1 s in) the inverse is sharper, its first iterate
+// breaks X's acceleration limit on the CAM-like programs and the learning ends at 5.3x / 9.8x
+// instead of 18.2x / 27.4x (README.md beside this file, "The learning operator").
+constexpr double kOnsetSeconds = 0.001;
+// Taps 4 ms apart: the inverse's output is smooth on that scale (its target is the Gaussian
+// below), and the update costs a quarter of 1 ms taps; measured: the same errors to 1-2 %.
+constexpr double kStrideSeconds = 0.004;
+// The target of chain * filter: a Gaussian of 10 ms standard deviation instead of a unit impulse.
+// An exact inverse of acc/dec plus a drive (relative degree 3 and more) amplifies the tick-scale
+// content of the error without bound; the Gaussian is the learning's low-pass Q, built into L.
+// Chosen by measurement over the README's programs (sigma 8, 10, 12, 15, 20 ms).
+constexpr double kTargetSigmaSeconds = 0.010;
+// Weight of the taps' second difference against the fit: a tie-breaker only (the fit's residual
+// is below 0.3 % on the shipped drives).
+constexpr double kSmoothness = 1e-6;
+
+Eigen::VectorXd impulse_response(const std::vector<double>& step) {
+  Eigen::VectorXd g(static_cast<Index>(step.size()));
+  g[0] = step[0];
+  for (std::size_t k = 1; k < step.size(); ++k) g[static_cast<Index>(k)] = step[k] - step[k - 1];
+  return g;
+}
+
+// A unit-sum Gaussian of `sigma` ticks centred on tick `centre`, over `length` ticks.
+Eigen::VectorXd gaussian(std::size_t length, std::size_t centre, double sigma) {
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(static_cast<Index>(length));
+  for (std::size_t k = 0; k < length; ++k) {
+    const double z = (static_cast<double>(k) - static_cast<double>(centre)) / sigma;
+    if (std::abs(z) < 5) q[static_cast<Index>(k)] = std::exp(-0.5 * z * z);
+  }
+  return q / q.sum();
+}
+
+// Least squares for taps f (every `stride` ticks): min |g * f - q|^2 + w |D2 f|^2 subject to
+// sum f = 1 / sum g and sum (stride j) f_j = (lead - mean delay of g) / sum g, so that a held
+// error and a ramp come back exactly (the Gaussian has unit sum and its centre at `lead`).
+// `step` is the response to a step at tick `onset`: g is taken as causal and `onset` late, so the
+// target and the delay are `onset` late too.
+AxisInverse design_axis(const std::vector<double>& step, std::size_t onset, std::size_t lead, std::size_t taps,
+                        std::size_t stride, double sigma) {
+  const Eigen::VectorXd g = impulse_response(step);
+  const std::size_t centre = lead + onset;
+  const Index G = g.size(), K = static_cast<Index>(taps), s = static_cast<Index>(stride);
+  const Index H = G + s * (K - 1);
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(H, K);
+  for (Index j = 0; j < K; ++j) A.block(s * j, j, G, 1) = g;
+  const Eigen::VectorXd q = gaussian(static_cast<std::size_t>(H), centre, sigma);
+  Eigen::MatrixXd D = Eigen::MatrixXd::Zero(K - 2, K);
+  for (Index j = 0; j + 2 < K; ++j) D(j, j) = 1, D(j, j + 1) = -2, D(j, j + 2) = 1;
+  const double dc = g.sum();
+  const double g_delay = Eigen::VectorXd::LinSpaced(G, 0, static_cast<double>(G - 1)).dot(g) / dc;
+  Eigen::MatrixXd C(2, K);
+  C.row(0).setOnes();
+  C.row(1) = Eigen::VectorXd::LinSpaced(K, 0, static_cast<double>(s * (K - 1))).transpose();
+  // The KKT system of the constrained least squares.
+  Eigen::MatrixXd kkt = Eigen::MatrixXd::Zero(K + 2, K + 2);
+  kkt.topLeftCorner(K, K) = A.transpose() * A + kSmoothness * (D.transpose() * D);
+  kkt.topRightCorner(K, 2) = C.transpose();
+  kkt.bottomLeftCorner(2, K) = C;
+  Eigen::VectorXd rhs(K + 2);
+  rhs.head(K) = A.transpose() * q;
+  rhs.tail(2) << 1.0 / dc, (static_cast<double>(centre) - g_delay) / dc;
+  const Eigen::VectorXd x = kkt.fullPivLu().solve(rhs);
+  AxisInverse f;
+  f.taps.assign(x.data(), x.data() + K);
+  f.lead = static_cast<std::ptrdiff_t>(lead);
+  f.stride = static_cast<std::ptrdiff_t>(stride);
+  f.residual = (A * x.head(K) - q).norm() / q.norm();
+  return f;
+}
+
+}  // namespace
+
+ChainInverse design_chain_inverse(const simulate::Model& model) {
+  const double T = model.interp.period;
+  const auto ticks = [T](double seconds) { return static_cast<std::size_t>(std::max(1L, std::lround(seconds / T))); };
+  const std::size_t stride = ticks(kStrideSeconds);
+  ChainInverse inv;
+  const std::size_t onset = ticks(kOnsetSeconds);
+  for (std::size_t i = 0; i < kNumAxes; ++i)
+    inv.axis[i] = design_axis(chain_step_response(model, i, onset + ticks(kResponseSeconds), onset, 1.0), onset,
+                              ticks(kLeadSeconds), std::max<std::size_t>(3, ticks(kSpanSeconds) / stride), stride,
+                              kTargetSigmaSeconds / T);
+  return inv;
+}
+
+double apply_inverse(const AxisInverse& f, const std::vector<Axes>& x, std::size_t axis, std::int64_t n) {
+  const std::int64_t last = static_cast<std::int64_t>(x.size()) - 1;
+  const std::int64_t top = n + f.lead;
+  const std::int64_t K = static_cast<std::int64_t>(f.taps.size());
+  double v = 0;
+  if (top <= last && top - (K - 1) * f.stride >= 0) {
+    // The filter lies inside the series: one strided pass, no clamping.
+    const double* p = &x[static_cast<std::size_t>(top)][axis];
+    const std::int64_t step = f.stride * static_cast<std::int64_t>(kNumAxes);
+    for (std::int64_t j = 0; j < K; ++j) v += f.taps[static_cast<std::size_t>(j)] * p[-j * step];
+    return v;
+  }
+  for (std::int64_t j = 0; j < K; ++j)
+    v += f.taps[static_cast<std::size_t>(j)] * x[static_cast<std::size_t>(std::clamp<std::int64_t>(top - j * f.stride, 0, last))][axis];
+  return v;
+}
+
+}  // namespace gcpipe::compensate

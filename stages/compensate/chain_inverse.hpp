@@ -1,0 +1,44 @@
+// The learning operator of the compensation: per axis, a non-causal FIR filter that inverts the
+// whole chain from a raw interpolated command to the simulated actual position (acc/dec after
+// interpolation, then the feed drive of the drives file), designed from that chain's own step
+// response. Derivation and checks: README.md beside this file, "The learning operator".
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "simulate.hpp"
+
+namespace gcpipe::compensate {
+
+/// Step response of axis `axis` of the model, raw command 0 -> `amplitude` at tick `onset`
+/// (>= 1), actual position per tick divided by the amplitude (`ticks` values, tick 0 at rest).
+/// Ticks before the onset are not all 0: the drive's feed-forward reads its command Tp ahead.
+std::vector<double> chain_step_response(const simulate::Model& model, std::size_t axis, std::size_t ticks,
+                                        std::size_t onset, double amplitude);
+
+/// du(n) = sum_j taps[j] e(n + lead - stride j): the correction of the raw command at tick n for
+/// an error e of the actual position, such that the chain's response to du is e smoothed by a
+/// 10 ms Gaussian, with no delay.
+struct AxisInverse {
+  std::vector<double> taps;
+  std::ptrdiff_t lead = 0;    //!< ticks of e ahead of n that the first tap reads
+  std::ptrdiff_t stride = 1;  //!< ticks between the samples of e that the taps read
+  double residual = 0;        //!< |g * f - q| / |q| of the design (q the Gaussian target)
+};
+
+struct ChainInverse {
+  std::array<AxisInverse, kNumAxes> axis;
+};
+
+/// Designs the inverse of every axis: least squares on the chain's impulse response g,
+/// min |g * f - q|^2 (q a 10 ms Gaussian centred `lead` ticks on), with the DC gain and the first
+/// moment held exactly (a held error and a ramp come back exactly).
+ChainInverse design_chain_inverse(const simulate::Model& model);
+
+/// The inverse applied to a per-tick series x at tick n (x clamped to its ends).
+double apply_inverse(const AxisInverse& f, const std::vector<Axes>& x, std::size_t axis, std::int64_t n);
+
+}  // namespace gcpipe::compensate
