@@ -42,7 +42,7 @@ constexpr double kResponseSeconds = 1.5;
 // feed-forward reads the command Tp ahead (X of seed 002: 15.5 ms) and answers early and sharply.
 // Measured: with that part in g (a step 0.1 s in) the inverse is sharper, its first iterate
 // breaks X's acceleration limit on the CAM-like programs and the learning ends at 5.3x / 9.8x
-// instead of 18.2x / 27.4x (README.md beside this file, "The learning operator").
+// instead of 18.5x / 24.3x (README.md beside this file, "The learning operator").
 constexpr double kOnsetSeconds = 0.001;
 // Taps 4 ms apart: the inverse's output is smooth on that scale (its target is the Gaussian
 // below), and the update costs a quarter of 1 ms taps; measured: the same errors to 1-2 %.
