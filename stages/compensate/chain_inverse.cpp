@@ -123,6 +123,9 @@ ChainInverse design_chain_inverse(const simulate::Model& model) {
     inv.axis[i] = design_axis(chain_step_response(model, i, onset + ticks(kResponseSeconds), onset, 1.0), onset,
                               ticks(kLeadSeconds), std::max<std::size_t>(3, ticks(kSpanSeconds) / stride), stride,
                               kTargetSigmaSeconds / T);
+  inv.interleaved.assign(inv.axis[0].taps.size(), Axes{});
+  for (std::size_t j = 0; j < inv.interleaved.size(); ++j)
+    for (std::size_t i = 0; i < kNumAxes; ++i) inv.interleaved[j][i] = inv.axis[i].taps[j];
   return inv;
 }
 
@@ -140,6 +143,22 @@ double apply_inverse(const AxisInverse& f, const std::vector<Axes>& x, std::size
   }
   for (std::int64_t j = 0; j < K; ++j)
     v += f.taps[static_cast<std::size_t>(j)] * x[static_cast<std::size_t>(std::clamp<std::int64_t>(top - j * f.stride, 0, last))][axis];
+  return v;
+}
+
+Axes apply_inverse(const ChainInverse& inv, const std::vector<Axes>& x, std::int64_t n) {
+  const AxisInverse& f = inv.axis[0];
+  const std::int64_t last = static_cast<std::int64_t>(x.size()) - 1;
+  const std::int64_t top = n + f.lead;
+  const std::int64_t K = static_cast<std::int64_t>(inv.interleaved.size());
+  Axes v{};
+  const bool inside = top <= last && top - (K - 1) * f.stride >= 0;
+  for (std::int64_t j = 0; j < K; ++j) {
+    const std::int64_t m = inside ? top - j * f.stride : std::clamp<std::int64_t>(top - j * f.stride, 0, last);
+    const Axes& e = x[static_cast<std::size_t>(m)];
+    const Axes& t = inv.interleaved[static_cast<std::size_t>(j)];
+    for (std::size_t i = 0; i < kNumAxes; ++i) v[i] += t[i] * e[i];
+  }
   return v;
 }
 

@@ -31,6 +31,9 @@ struct AxisInverse {
 
 struct ChainInverse {
   std::array<AxisInverse, kNumAxes> axis;
+  /// The same taps as axis[i].taps, tap by tap for all axes (every axis has the same lead,
+  /// stride and count): the hot loop reads each tick of the series once for the five axes.
+  std::vector<Axes> interleaved;
 };
 
 /// Designs the inverse of every axis: least squares on the chain's impulse response g,
@@ -40,5 +43,7 @@ ChainInverse design_chain_inverse(const simulate::Model& model);
 
 /// The inverse applied to a per-tick series x at tick n (x clamped to its ends).
 double apply_inverse(const AxisInverse& f, const std::vector<Axes>& x, std::size_t axis, std::int64_t n);
+/// All five axes at once: the same values as apply_inverse per axis.
+Axes apply_inverse(const ChainInverse& inv, const std::vector<Axes>& x, std::int64_t n);
 
 }  // namespace gcpipe::compensate

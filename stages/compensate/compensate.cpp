@@ -194,8 +194,7 @@ std::vector<Node> model_inverse_nodes(const ReferenceClock& clock, const std::ve
   for (std::size_t k = 0; k < grid.size(); ++k) {
     nodes[k].tick = grid[k];
     nodes[k].block = clock.block_at(grid[k]);
-    for (std::size_t i = 0; i < kNumAxes; ++i)
-      nodes[k].joints[i] = k == 0 ? start[i] : apply_inverse(inverse.axis[i], nom.reference, i, static_cast<std::int64_t>(grid[k]));
+    nodes[k].joints = k == 0 ? start : apply_inverse(inverse, nom.reference, static_cast<std::int64_t>(grid[k]));
   }
   nodes.back().joints = nom.reference.back();
   return nodes;
@@ -285,8 +284,7 @@ class InverseStart {
     if (k + 1 == grid_.size()) joints_ = nom_.reference.back();
     else if (k == 0) joints_ = start_;
     else
-      for (std::size_t i = 0; i < kNumAxes; ++i)
-        joints_[i] = apply_inverse(inverse_.axis[i], nom_.reference, i, static_cast<std::int64_t>(grid_[k]));
+      joints_ = apply_inverse(inverse_, nom_.reference, static_cast<std::int64_t>(grid_[k]));
     if (k > 0) project_step(before, joints_, vmax_, static_cast<double>(grid_[k] - grid_[k - 1]) * nom_.period);
   }
 
@@ -531,9 +529,10 @@ class WindowedLearning {
     InOrder raw_update([&](std::size_t k) {
       Axes du{};
       const double gain_k = k == 0 ? 0.0 : gain_at.at(k);
-      if (gain_k > 0)
-        for (std::size_t i = 0; i < kNumAxes; ++i)
-          du[i] = gain_k * apply_inverse(chain_inverse_.axis[i], best_error_, i, static_cast<std::int64_t>(nodes_[k].tick));
+      if (gain_k > 0) {
+        du = apply_inverse(chain_inverse_, best_error_, static_cast<std::int64_t>(nodes_[k].tick));
+        for (std::size_t i = 0; i < kNumAxes; ++i) du[i] *= gain_k;
+      }
       return du;
     });
     InOrder once([&](std::size_t k) { return smoothed_121(raw_update, k, n); });
