@@ -14,6 +14,7 @@
 #include "gcpipe/config.hpp"
 #include "gcpipe/pipeline_config.hpp"
 #include "parse.hpp"
+#include "report.hpp"
 #include "write.hpp"
 
 namespace gcpipe::compensate {
@@ -196,6 +197,37 @@ TEST(Compensate, ConfigRejectsUnknownKeysAndBadValues) {
     EXPECT_NE(std::string(e.what()).find("gain"), std::string::npos) << e.what();
   }
   fs::remove_all(dir);
+}
+
+// Issue 12: where the cutting contour error comes down less than tenfold, the report names what
+// limits it: the limit that held the learning back where the largest error is (its window or a
+// neighbour), else the floor of joint-linear motion between the points, else the stall.
+TEST(CompensateReport, BelowTenfoldTheReportNamesWhatLimitsIt) {
+  Evaluation before, after;
+  Result result;
+  result.compensated = true;
+  result.iterations.resize(7);
+  ReportInput in;
+  in.before = &before;
+  in.after = &after;
+  in.result = &result;
+  before.contour.max = 0.003;
+  after.contour.max = 0.0002;  // 15x: nothing to name
+  after.contour.t_at_max = 2.5;
+  EXPECT_EQ(reduction_limited_by(in), "");
+  after.contour.max = 0.001;  // 3x
+  result.window_limits[3] = "axis X acceleration 5062 > limit 5050 at t 3-4 s";
+  EXPECT_NE(reduction_limited_by(in).find("held back where the largest error is (t 2.500 s) by a limit: axis X acceleration 5062"),
+            std::string::npos)
+      << reduction_limited_by(in);
+  result.window_limits.clear();
+  result.window_limits[5] = "axis C acceleration 1020 > limit 1010 at t 5-6 s";  // far from t 2.5 s
+  result.linearisation_max_deviation = 0.0008;
+  EXPECT_NE(reduction_limited_by(in).find("floor of the points' joint-linear motion"), std::string::npos) << reduction_limited_by(in);
+  result.linearisation_max_deviation = 0.0001;
+  EXPECT_NE(reduction_limited_by(in).find("stopped gaining there after 7 iterations"), std::string::npos) << reduction_limited_by(in);
+  result.compensated = false;
+  EXPECT_EQ(reduction_limited_by(in), "");
 }
 
 }  // namespace

@@ -480,6 +480,7 @@ class WindowedLearning {
         char when[80];
         std::snprintf(when, sizeof when, " at t %.0f-%.0f s", static_cast<double>(w * Wt_) * T_, static_cast<double>((w + 1) * Wt_) * T_);
         last_rejection_ = why + when;
+        res_.window_limits[w] = last_rejection_;
         if (why_iteration.empty()) why_iteration = last_rejection_;
       }
       win_stalls_[w] = why.empty() && emax < 0.99 * previous ? 0 : win_stalls_[w] + 1;

@@ -26,6 +26,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <span>
 #include <string>
 #include <vector>
@@ -111,6 +112,10 @@ struct Result {
   double source_joint_linear_deviation = 0; //!< [mm] worst tool-tip deviation if the source's
                                             //!< TCP blocks were run joint-linearly between IK ends
   std::uint64_t source_blocks_needing_split = 0;
+  /// Per one-second window of the compensated clock (key: the window's index = its first second)
+  /// that broke a limit in some iteration: the last limit it broke, e.g. "axis X acceleration
+  /// 5062 > limit 5050 at t 28-29 s". Only such windows are kept.
+  std::map<std::size_t, std::string> window_limits;
 };
 
 /// Computes the compensated nodes. `program` is the original, `nominal` its nominal run.

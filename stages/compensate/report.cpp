@@ -124,6 +124,7 @@ nlohmann::ordered_json report_json(const ReportInput& in) {
   if (in.after) {
     j["contour_error_after"] = contour_json(*in.after);
     j["max_contour_error_reduction"] = ratio(in.before->contour.max, in.after->contour.max);
+    if (const std::string why = reduction_limited_by(in); !why.empty()) j["reduction_limited_by"] = why;
   }
   if (in.slowed != nullptr) {
     const simulate::SlowedBaseline& b = *in.slowed;
@@ -139,6 +140,43 @@ nlohmann::ordered_json report_json(const ReportInput& in) {
   j["best_kffp"] = kffp_json(in);
   j["best_kffp_per_segment"] = kffp_per_segment_json(in);
   return j;
+}
+
+namespace {
+
+// Issue 12's target for the cutting contour error: at least tenfold lower.
+constexpr double kTargetReduction = 10.0;
+
+}  // namespace
+
+std::string reduction_limited_by(const ReportInput& in) {
+  if (in.result == nullptr || in.after == nullptr || !in.result->compensated) return {};
+  const double before = in.before->contour.max, after = in.after->contour.max;
+  if (!(after > 0) || before >= kTargetReduction * after) return {};
+  const Result& r = *in.result;
+  char buf[400];
+  // The windows are one second of the compensated clock and their decisions are blended over
+  // +-0.1 s, so the window of the largest error and its two neighbours are the ones to ask.
+  const auto w = static_cast<std::size_t>(std::max(0.0, in.after->contour.t_at_max));
+  for (std::size_t k : {w, w + 1, w == 0 ? w : w - 1}) {
+    if (auto it = r.window_limits.find(k); it != r.window_limits.end()) {
+      std::snprintf(buf, sizeof buf, "the learning was held back where the largest error is (t %.3f s) by a limit: %s",
+                    in.after->contour.t_at_max, it->second.c_str());
+      return buf;
+    }
+  }
+  if (after < 2 * r.linearisation_max_deviation) {
+    std::snprintf(buf, sizeof buf,
+                  "the error after (%.2f um) is at the floor of the points' joint-linear motion, which stays within "
+                  "compensate.linearisation_tolerance of the path (worst %.2f um); the error before is only %.2f um",
+                  after * 1e3, r.linearisation_max_deviation * 1e3, before * 1e3);
+    return buf;
+  }
+  std::snprintf(buf, sizeof buf,
+                "no limit was broken near the largest error (t %.3f s); the learning stopped gaining there after %zu "
+                "iterations",
+                in.after->contour.t_at_max, r.iterations.size());
+  return buf;
 }
 
 namespace {
@@ -162,6 +200,7 @@ void contour_lines(const ReportInput& in, std::string& s) {
 void outcome_lines(const ReportInput& in, std::string& s) {
   char buf[400];
   if (in.result && !in.result->note.empty()) s += "  compensation: " + in.result->note + "\n";
+  if (const std::string why = reduction_limited_by(in); !why.empty()) s += "  below 10x: " + why + "\n";
   if (in.slowed != nullptr && in.slowed->ok) {
     std::snprintf(buf, sizeof buf,
                   "  baseline: the original with feeds x%.3f runs %.3f s: max %.2f um, RMS %.2f um (cutting moves)\n",

@@ -37,4 +37,9 @@ nlohmann::ordered_json report_json(const ReportInput& in);
 /// Readable summary, a few lines, each starting with two spaces.
 std::string report_text(const ReportInput& in);
 
+/// Where the cutting contour error came down less than tenfold (issue 12's target), what limits
+/// it: the limit that held the learning back where the largest error is, the floor of the
+/// points' joint-linear motion, or the learning's stall; empty when tenfold was reached.
+std::string reduction_limited_by(const ReportInput& in);
+
 }  // namespace gcpipe::compensate
