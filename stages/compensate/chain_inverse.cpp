@@ -42,8 +42,8 @@ constexpr double kResponseSeconds = 1.5;
 // feed-forward reads the command Tp ahead (X of seed 002: 15.5 ms) and answers early and sharply.
 // Measured: with that part in g (a step 0.1 s in) the inverse is sharper, its first iterate
 // breaks X's acceleration limit on the CAM-like programs and the learning ends at 5.3x / 9.8x
-// instead of 18.5x / 24.3x (README.md beside this file, "The learning operator").
-constexpr double kOnsetSeconds = 0.001;
+// instead of 18.5x / 24.3x (README.md beside this file, "Limits of the method").
+constexpr std::size_t kOnsetTicks = 1;
 // Taps 4 ms apart: the inverse's output is smooth on that scale (its target is the Gaussian
 // below), and the update costs a quarter of 1 ms taps; measured: the same errors to 1-2 %.
 constexpr double kStrideSeconds = 0.004;
@@ -53,7 +53,7 @@ constexpr double kStrideSeconds = 0.004;
 // Chosen by measurement over the README's programs (sigma 8, 10, 12, 15, 20 ms).
 constexpr double kTargetSigmaSeconds = 0.010;
 // Weight of the taps' second difference against the fit: a tie-breaker only (the fit's residual
-// is below 0.3 % on the shipped drives).
+// is below 1 % on the shipped drive axes).
 constexpr double kSmoothness = 1e-6;
 
 Eigen::VectorXd impulse_response(const std::vector<double>& step) {
@@ -118,7 +118,7 @@ ChainInverse design_chain_inverse(const simulate::Model& model) {
   const auto ticks = [T](double seconds) { return static_cast<std::size_t>(std::max(1L, std::lround(seconds / T))); };
   const std::size_t stride = ticks(kStrideSeconds);
   ChainInverse inv;
-  const std::size_t onset = ticks(kOnsetSeconds);
+  const std::size_t onset = kOnsetTicks;
   for (std::size_t i = 0; i < kNumAxes; ++i)
     inv.axis[i] = design_axis(chain_step_response(model, i, onset + ticks(kResponseSeconds), onset, 1.0), onset,
                               ticks(kLeadSeconds), std::max<std::size_t>(3, ticks(kSpanSeconds) / stride), stride,
