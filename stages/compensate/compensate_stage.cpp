@@ -118,8 +118,12 @@ class CompensateStage final : public pipeline::Stage {
     compensation_ = compensate::compensate_program(model_, options_, write_options_, simulated_->run, progress_);
     if (compensation_.text.empty()) return fail("no compensated program: " + compensation_.note);
     read_back(compensation_.text);
+    // The text goes out before the slowed baseline is run, which needs only the program: on a
+    // long program the text (tens of MB) would otherwise be held beside that simulation.
+    const bool r = out.text(compensation_.text);
+    std::string().swap(compensation_.text);  // emptied by the sinks; its memory too
     measure_slowed_baseline();
-    return out.text(compensation_.text);
+    return r;
   }
 
   void report(pipeline::ReportContext& r) const override {

@@ -74,10 +74,15 @@ struct Pipeline::Node final : Emitter {
   }
   bool text(std::string& gcode) override {
     bool go = true;
-    // Each sink takes its own copy (a sink empties what it is given).
-    for (Emitter* s : sinks) {
+    // Each sink takes its own copy (a sink empties what it is given), the last one the text
+    // itself: compensated.nc of a one-hour program is tens of MB, and a copy would add to the peak.
+    for (std::size_t i = 0; i < sinks.size(); ++i) {
+      if (i + 1 == sinks.size()) {
+        go = sinks[i]->text(gcode) && go;
+        break;
+      }
       std::string copy = gcode;
-      go = s->text(copy) && go;
+      go = sinks[i]->text(copy) && go;
     }
     gcode.clear();
     return go;
