@@ -146,20 +146,42 @@ double apply_inverse(const AxisInverse& f, const std::vector<Axes>& x, std::size
   return v;
 }
 
-Axes apply_inverse(const ChainInverse& inv, const std::vector<Axes>& x, std::int64_t n) {
+namespace {
+
+// The five axes at once over a series of `size` ticks whose tick m, axis i, is `value(m, i)`:
+// each tick is read once for the five axes (the taps interleaved), each axis summed in the order
+// of the per-axis apply_inverse, so the same values.
+template <class Value>
+Axes apply_all(const ChainInverse& inv, std::int64_t size, std::int64_t n, Value&& value) {
   const AxisInverse& f = inv.axis[0];
-  const std::int64_t last = static_cast<std::int64_t>(x.size()) - 1;
+  const std::int64_t last = size - 1;
   const std::int64_t top = n + f.lead;
   const std::int64_t K = static_cast<std::int64_t>(inv.interleaved.size());
   Axes v{};
   const bool inside = top <= last && top - (K - 1) * f.stride >= 0;
   for (std::int64_t j = 0; j < K; ++j) {
     const std::int64_t m = inside ? top - j * f.stride : std::clamp<std::int64_t>(top - j * f.stride, 0, last);
-    const Axes& e = x[static_cast<std::size_t>(m)];
     const Axes& t = inv.interleaved[static_cast<std::size_t>(j)];
-    for (std::size_t i = 0; i < kNumAxes; ++i) v[i] += t[i] * e[i];
+    for (std::size_t i = 0; i < kNumAxes; ++i) v[i] += t[i] * value(m, i);
   }
   return v;
+}
+
+}  // namespace
+
+Axes apply_inverse(const ChainInverse& inv, const std::vector<Axes>& x, std::int64_t n) {
+  return apply_all(inv, static_cast<std::int64_t>(x.size()), n,
+                   [&](std::int64_t m, std::size_t i) { return x[static_cast<std::size_t>(m)][i]; });
+}
+
+Axes apply_inverse(const ChainInverse& inv, const std::vector<AxesF>& x, std::int64_t n) {
+  return apply_all(inv, static_cast<std::int64_t>(x.size()), n,
+                   [&](std::int64_t m, std::size_t i) { return static_cast<double>(x[static_cast<std::size_t>(m)][i]); });
+}
+
+Axes apply_inverse(const ChainInverse& inv, const simulate::JointSeries& x, std::int64_t n) {
+  return apply_all(inv, static_cast<std::int64_t>(x.size()), n,
+                   [&](std::int64_t m, std::size_t i) { return x.at(static_cast<std::size_t>(m), i); });
 }
 
 }  // namespace gcpipe::compensate

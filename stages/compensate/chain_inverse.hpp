@@ -41,9 +41,16 @@ struct ChainInverse {
 /// moment held exactly (a held error and a ramp come back exactly).
 ChainInverse design_chain_inverse(const simulate::Model& model);
 
+/// Joints or errors in single precision: the learning's error r - y (errors are small, so a
+/// float's 7 digits are far below the 0.1 um the program is written with), 20 bytes a tick.
+using AxesF = std::array<float, kNumAxes>;
+
 /// The inverse applied to a per-tick series x at tick n (x clamped to its ends).
 double apply_inverse(const AxisInverse& f, const std::vector<Axes>& x, std::size_t axis, std::int64_t n);
-/// All five axes at once: the same values as apply_inverse per axis.
+/// All five axes at once: the same values as apply_inverse per axis; for the three ways the
+/// compensation stores a series (exact, the learning's error in float, the compact reference).
 Axes apply_inverse(const ChainInverse& inv, const std::vector<Axes>& x, std::int64_t n);
+Axes apply_inverse(const ChainInverse& inv, const std::vector<AxesF>& x, std::int64_t n);
+Axes apply_inverse(const ChainInverse& inv, const simulate::JointSeries& x, std::int64_t n);
 
 }  // namespace gcpipe::compensate

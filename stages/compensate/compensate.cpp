@@ -46,20 +46,18 @@ simulate::RunBounds run_bounds(const CompensateOptions& o) {
 
 namespace {
 
-/// Block i of a node program: the G93 G1 move to node i + 1 in machine axes, from node i (from
-/// `start` for the first: node 0 is the start, at tick 0), with the source block's modal state.
-void node_block(std::span<const ResolvedBlock> program, const std::vector<Node>& nodes, std::size_t i, const Axes& start,
-                double period, ResolvedBlock& b) {
-  const Node& nd = nodes[i + 1];
-  const ResolvedBlock& src = program[nd.block];
+/// The block of a node program that moves from `from` to `to` in `ticks` periods: G93 G1 in
+/// machine axes, with the modal state of the source block `src`.
+void node_block(const ResolvedBlock& src, const Axes& from, const Axes& to, std::uint64_t ticks, double period,
+                ResolvedBlock& b) {
   b = ResolvedBlock{};
   b.line = src.line;
   b.motion = Motion::kLinear;
-  b.start = i == 0 ? start : nodes[i].joints;
-  b.target = nd.joints;
+  b.start = from;
+  b.target = to;
   b.axis_words = 0x1F;
   b.feed_mode = FeedMode::kInverseTime;
-  b.feed = 60.0 / (static_cast<double>(nd.tick - nodes[i].tick) * period);
+  b.feed = 60.0 / (static_cast<double>(ticks) * period);
   b.spindle_speed = src.spindle_speed;
   b.spindle = src.spindle;
   b.tool = src.tool;
@@ -71,14 +69,18 @@ void node_block(std::span<const ResolvedBlock> program, const std::vector<Node>&
   b.plane = src.plane;
 }
 
-/// A node program as the simulation reads it (no interleaved M words): made block by block, not
-/// held (a block is 464 bytes, and a long program has a node every 4 ms). `nodes` and `program`
-/// must outlive the source; the block it gives is valid until the next one is asked for.
+/// A node program as the simulation reads it (no interleaved M words): block i is the move to
+/// node i + 1 from node i (from `start` for the first: node 0 is the start, at tick 0). Made
+/// block by block, not held (a block is 464 bytes, and a long program has a node every 4 ms).
+/// `nodes` and `program` must outlive the source; the block it gives is valid until the next one
+/// is asked for.
 simulate::BlockSource node_program(std::span<const ResolvedBlock> program, const std::vector<Node>& nodes,
                                    const Axes& start, double period) {
   auto buffer = std::make_shared<ResolvedBlock>();
   return {nodes.empty() ? 0 : nodes.size() - 1, [program, &nodes, start, period, buffer](std::size_t i) -> const ResolvedBlock& {
-            node_block(program, nodes, i, start, period, *buffer);
+            const Node& nd = nodes[i + 1];
+            node_block(program[nd.block], i == 0 ? start : nodes[i].joints, nd.joints, nd.tick - nodes[i].tick, period,
+                       *buffer);
             return *buffer;
           }};
 }
@@ -95,19 +97,14 @@ void project_step(const Axes& from, Axes& to, const Axes& vmax, double dt) {
   }
 }
 
-void project_speed(std::vector<Node>& nodes, const Axes& vmax, double period) {
-  for (std::size_t k = 1; k < nodes.size(); ++k)
-    project_step(nodes[k - 1].joints, nodes[k].joints, vmax, static_cast<double>(nodes[k].tick - nodes[k - 1].tick) * period);
-}
-
 // Where a tick of the planned reference is in the program, and its reference tool tip.
 struct ReferenceClock {
   const Model& model;
   const Nominal& nom;
   std::span<const ResolvedBlock> program;
   std::uint32_t block_at(std::uint64_t tick) const {
-    const double p = nom.progress[std::min<std::size_t>(tick, nom.progress.size() - 1)];
-    return nom.block[std::min<std::size_t>(static_cast<std::size_t>(p), nom.block.size() - 1)];
+    const std::size_t p = nom.progress[std::min<std::size_t>(tick, nom.progress.size() - 1)];
+    return nom.block[std::min<std::size_t>(p, nom.block.size() - 1)];
   }
   Vec3 tip_at(const Axes& j, std::uint64_t tick) const {
     return forward_kinematics(model.kin, j, tool_length_of(model, program[block_at(tick)])).tip;
@@ -185,28 +182,13 @@ void measure_source_joint_linear_deviation(const Model& model, std::span<const R
   }
 }
 
-// Model-inverse start u = L r at every node of the grid; the first node is where the machine
-// stands, the last the program's end point (the learning may move it, the end stays).
-std::vector<Node> model_inverse_nodes(const ReferenceClock& clock, const std::vector<std::uint64_t>& grid,
-                                      const Axes& start, const ChainInverse& inverse) {
-  const Nominal& nom = clock.nom;
-  std::vector<Node> nodes(grid.size());
-  for (std::size_t k = 0; k < grid.size(); ++k) {
-    nodes[k].tick = grid[k];
-    nodes[k].block = clock.block_at(grid[k]);
-    nodes[k].joints = k == 0 ? start : apply_inverse(inverse, nom.reference, static_cast<std::int64_t>(grid[k]));
-  }
-  nodes.back().joints = nom.reference.back();
-  return nodes;
-}
-
 // A value per node (of the node's tick) averaged over the nodes within +-R ticks of each node,
 // made node by node in order: the two ends of the span move forward, the sum adds a node as it
 // enters and takes it off as it leaves, in the order a pass over a whole series of values would.
 class WindowAverage {
  public:
-  WindowAverage(const std::vector<Node>& nodes, std::uint64_t R, std::function<double(std::uint64_t tick)> value)
-      : nodes_(nodes), R_(R), value_(std::move(value)) {}
+  WindowAverage(const std::vector<std::uint64_t>& ticks, std::uint64_t R, std::function<double(std::uint64_t tick)> value)
+      : ticks_(ticks), R_(R), value_(std::move(value)) {}
 
   /// The average at node k; k only grows between calls.
   double at(std::size_t k) {
@@ -217,13 +199,13 @@ class WindowAverage {
  private:
   void step() {
     const std::size_t k = next_++;
-    const std::size_t n = nodes_.size();
-    while (hi_ < n && nodes_[hi_].tick <= nodes_[k].tick + R_) sum_ += value_(nodes_[hi_++].tick);
-    while (nodes_[lo_].tick + R_ < nodes_[k].tick) sum_ -= value_(nodes_[lo_++].tick);
+    const std::size_t n = ticks_.size();
+    while (hi_ < n && ticks_[hi_] <= ticks_[k] + R_) sum_ += value_(ticks_[hi_++]);
+    while (ticks_[lo_] + R_ < ticks_[k]) sum_ -= value_(ticks_[lo_++]);
     current_ = sum_ / static_cast<double>(hi_ - lo_);
   }
 
-  const std::vector<Node>& nodes_;
+  const std::vector<std::uint64_t>& ticks_;  // of the nodes
   std::uint64_t R_;
   std::function<double(std::uint64_t)> value_;
   std::size_t next_ = 0, lo_ = 0, hi_ = 0;
@@ -261,9 +243,11 @@ Axes smoothed_121(InOrder& in, std::size_t k, std::size_t n) {
   return out;
 }
 
-// The model-inverse start as model_inverse_nodes() and project_speed() make it, node by node in
-// order: the learning falls back on it where nothing was accepted yet, and makes it again in
-// each iteration instead of holding a third node series (56 bytes a node) for the whole run.
+// The model-inverse start u0 = L r at every node of the grid, projected onto the speed bound,
+// node by node in order; the first node is where the machine stands, the last the program's end
+// point (the learning may move it, the end stays). It is the learning's first iterate, and the
+// learning falls back on it where nothing was accepted yet: made again in each iteration instead
+// of holding a third node series for the whole run.
 class InverseStart {
  public:
   InverseStart(const Nominal& nom, const std::vector<std::uint64_t>& grid, const Axes& start, const ChainInverse& inverse,
@@ -297,6 +281,56 @@ class InverseStart {
   Axes joints_{};  // node next_ - 1
 };
 
+// The joints of every node of the grid, as float offsets from the reference at the node's tick.
+// A node is the reference plus its compensation, which is small (the lag of the chain: mm, a few
+// degrees), so a float keeps it to a fraction of a nanometre, far below the 0.1 um the program is
+// written with: 20 bytes a node instead of a Node's 56 (the tick and block are the grid's, the
+// same for the current and the best nodes). `set` stores a value, `get` gives it back as stored.
+class NodeJoints {
+ public:
+  NodeJoints(const simulate::JointSeries& reference, const std::vector<std::uint64_t>& grid)
+      : reference_(&reference), grid_(&grid), offset_(grid.size()) {}
+
+  std::size_t size() const { return offset_.size(); }
+  /// The reference at node k's tick (the base of its offsets).
+  Axes reference(std::size_t k) const { return (*reference_)[(*grid_)[k]]; }
+  Axes get(std::size_t k) const { return get(k, reference(k)); }
+  Axes get(std::size_t k, const Axes& r) const {
+    Axes j;
+    for (std::size_t i = 0; i < kNumAxes; ++i) j[i] = r[i] + static_cast<double>(offset_[k][i]);
+    return j;
+  }
+  void set(std::size_t k, const Axes& joints) { set(k, reference(k), joints); }
+  /// `r` must be reference(k).
+  void set(std::size_t k, const Axes& r, const Axes& joints) {
+    for (std::size_t i = 0; i < kNumAxes; ++i) offset_[k][i] = static_cast<float>(joints[i] - r[i]);
+  }
+  void release() { std::vector<AxesF>().swap(offset_); }
+
+ private:
+  const simulate::JointSeries* reference_;
+  const std::vector<std::uint64_t>* grid_;
+  std::vector<AxesF> offset_;
+};
+
+// Forward projection of every node onto the speed bound, in order (each against its projected
+// predecessor as stored), as project_step does it for one node.
+void project_speed(NodeJoints& nodes, const std::vector<std::uint64_t>& grid, const Axes& vmax, double period) {
+  if (nodes.size() == 0) return;
+  Axes before = nodes.get(0);
+  for (std::size_t k = 1; k < nodes.size(); ++k) {
+    const Axes r = nodes.reference(k);
+    Axes j = nodes.get(k, r);
+    const Axes unprojected = j;
+    project_step(before, j, vmax, static_cast<double>(grid[k] - grid[k - 1]) * period);
+    if (j != unprojected) {
+      nodes.set(k, r, j);
+      j = nodes.get(k, r);
+    }
+    before = j;
+  }
+}
+
 // What one window's part of a node-program run did: the limits it met and its contour error.
 struct WindowLimits {
   std::array<std::uint64_t, kNumAxes> saturated{};
@@ -325,10 +359,11 @@ class WindowedLearning {
         nwin_(static_cast<std::size_t>((E_ + 4 * Wt_) / Wt_) + 1), nseg_(std::max<std::size_t>(1, nom.segments.size())),
         R_(static_cast<std::uint64_t>(std::lround(0.1 / T_))), base_(before.demand),
         inverse_(nom, grid_, start, chain_inverse_, vbound_), win_best_(nwin_, std::numeric_limits<double>::infinity()),
-        win_gain_(nwin_, opt.gain), win_stalls_(nwin_, 0), win_learned_(nwin_, false) {
+        win_gain_(nwin_, opt.gain), win_stalls_(nwin_, 0), win_learned_(nwin_, false), nodes_(nom.reference, grid_),
+        best_(nom.reference, grid_) {
     measure_source_joint_linear_deviation(model, program, opt.linearisation_tolerance, res);
-    nodes_ = model_inverse_nodes(clock_, grid_, start, chain_inverse_);
-    project_speed(nodes_, vbound_, T_);
+    for (std::size_t k = 0; k < grid_.size(); ++k) nodes_.set(k, inverse_.at(k));  // the start u0 = L r
+    project_speed(nodes_, grid_, vbound_, T_);  // as stored (InverseStart projected the exact values)
     best_error_.reserve(E_ + Wt_);  // the run settles a little past the reference's end
     best_ = nodes_;
     window_err_.reserve(Wt_);
@@ -336,8 +371,8 @@ class WindowedLearning {
 
   void run(const Progress& progress) {
     // The node program is made block by block as it is simulated, from nodes_ as they are then.
-    const simulate::BlockSource blocks = node_program(program_, nodes_, start_, T_);
-    auto node_source = [this](std::uint32_t i) { return nodes_[std::min<std::size_t>(i + 1, nodes_.size() - 1)].block; };
+    const simulate::BlockSource blocks = learning_program();
+    auto node_source = [this](std::uint32_t i) { return clock_.block_at(grid_[std::min<std::size_t>(i + 1, grid_.size() - 1)]); };
     for (int it = 0; it <= opt_.max_iterations; ++it) {
       if (progress) progress("compensating (learning iterations)", static_cast<std::uint64_t>(it), static_cast<std::uint64_t>(opt_.max_iterations));
       std::vector<WindowLimits> lim;
@@ -356,7 +391,7 @@ class WindowedLearning {
         break;
       }
       // The error series is as long as the longest run learned from (apply_inverse holds its ends).
-      if (best_error_.size() < ticks) best_error_.resize(ticks, Axes{});
+      if (best_error_.size() < ticks) best_error_.resize(ticks, AxesF{});
       std::vector<bool> improved(nwin_, false);
       const std::string why_iteration = judge_windows(lim, improved);
       rec.accepted = why_iteration.empty();
@@ -365,14 +400,25 @@ class WindowedLearning {
       blend_into_best(improved);
       if (all_stalled(lim) || it == opt_.max_iterations) break;
       nodes_ = best_;
-      project_speed(nodes_, vbound_, T_);
+      project_speed(nodes_, grid_, vbound_, T_);
       learning_step();
-      project_speed(nodes_, vbound_, T_);
+      project_speed(nodes_, grid_, vbound_, T_);
     }
     finish();
   }
 
  private:
+  // The node program of nodes_ as they are when it is run, block by block (node_program's blocks
+  // from the stored joints).
+  simulate::BlockSource learning_program() {
+    auto buffer = std::make_shared<ResolvedBlock>();
+    return {grid_.empty() ? 0 : grid_.size() - 1, [this, buffer](std::size_t i) -> const ResolvedBlock& {
+              node_block(program_[clock_.block_at(grid_[i + 1])], i == 0 ? start_ : nodes_.get(i), nodes_.get(i + 1),
+                         grid_[i + 1] - grid_[i], T_, *buffer);
+              return *buffer;
+            }};
+  }
+
   std::size_t window_of(std::uint64_t tick) const {
     return std::min<std::size_t>(static_cast<std::size_t>(tick / Wt_), nwin_ - 1);
   }
@@ -410,8 +456,9 @@ class WindowedLearning {
   void keep_if_improved(std::size_t w, const WindowLimits& lw) {
     if (!lw.seen || !limit_broken(lw).empty() || !(lw.max_contour < win_best_[w])) return;
     const std::size_t n0 = w * Wt_, n1 = n0 + window_err_.size();
-    if (best_error_.size() < n1) best_error_.resize(n1, Axes{});
-    std::copy(window_err_.begin(), window_err_.end(), best_error_.begin() + static_cast<std::ptrdiff_t>(n0));
+    if (best_error_.size() < n1) best_error_.resize(n1, AxesF{});
+    for (std::size_t n = n0; n < n1; ++n)
+      for (std::size_t i = 0; i < kNumAxes; ++i) best_error_[n][i] = static_cast<float>(window_err_[n - n0][i]);
   }
 
   // Torque saturation, smoothed-command acceleration and contour error of one node-program run
@@ -490,29 +537,32 @@ class WindowedLearning {
 
   // A per-window value at every node, moving-averaged over +-0.1 s of nodes, node by node in
   // order (WindowAverage): four of these per iteration were a double a node each.
-  WindowAverage over_nodes(const std::vector<Node>& nd, std::function<double(std::size_t)> value) const {
-    return WindowAverage(nd, R_, [value = std::move(value), this](std::uint64_t tick) { return value(window_of(tick)); });
+  WindowAverage over_nodes(std::function<double(std::size_t)> value) const {
+    return WindowAverage(grid_, R_, [value = std::move(value), this](std::uint64_t tick) { return value(window_of(tick)); });
   }
 
   // Accepting some windows and not others must not leave a step in the commands at a window
   // boundary (the step itself would break the acceleration limit there): the per-window
   // decisions are blended over about 0.1 s of nodes on either side of each boundary.
   void blend_into_best(const std::vector<bool>& improved) {
-    WindowAverage take = over_nodes(nodes_, [&](std::size_t w) { return improved[w] ? 1.0 : 0.0; });
-    WindowAverage learned = over_nodes(nodes_, [&](std::size_t w) { return win_learned_[w] ? 1.0 : 0.0; });
-    WindowAverage blend = over_nodes(nodes_, [&](std::size_t w) { return win_gain_[w]; });
+    WindowAverage take = over_nodes([&](std::size_t w) { return improved[w] ? 1.0 : 0.0; });
+    WindowAverage learned = over_nodes([&](std::size_t w) { return win_learned_[w] ? 1.0 : 0.0; });
+    WindowAverage blend = over_nodes([&](std::size_t w) { return win_gain_[w]; });
     inverse_.restart();
-    for (std::size_t k = 1; k < nodes_.size(); ++k) {
+    for (std::size_t k = 1; k < grid_.size(); ++k) {
       // Where nothing was accepted yet: the model-inverse start blended back towards the
       // reference (the uncompensated motion, gentler than the program's own) by the gain.
-      const Axes& r = nom_.reference[nodes_[k].tick];
+      const Axes r = best_.reference(k);
       const Axes& u0 = inverse_.at(k);
       const double take_k = take.at(k), learned_k = learned.at(k), blend_k = blend.at(k);
+      const Axes current = nodes_.get(k, r);
+      Axes best = best_.get(k, r);
       for (std::size_t i = 0; i < kNumAxes; ++i) {
         const double fallback = r[i] + std::min(1.0, blend_k) * (u0[i] - r[i]);
-        const double kept = learned_k * best_[k].joints[i] + (1 - learned_k) * fallback;
-        best_[k].joints[i] = take_k * nodes_[k].joints[i] + (1 - take_k) * kept;
+        const double kept = learned_k * best[i] + (1 - learned_k) * fallback;
+        best[i] = take_k * current[i] + (1 - take_k) * kept;
       }
+      best_.set(k, r, best);
     }
   }
 
@@ -525,13 +575,13 @@ class WindowedLearning {
   // Learning update on each window's best error, zero-phase smoothed over nodes ([1 2 1]/4
   // twice) so that the derivative term does not feed tick-scale roughness back.
   void learning_step() {
-    WindowAverage gain_at = over_nodes(nodes_, [&](std::size_t w) { return win_learned_[w] ? win_gain_[w] : 0.0; });
-    const std::size_t n = nodes_.size();
+    WindowAverage gain_at = over_nodes([&](std::size_t w) { return win_learned_[w] ? win_gain_[w] : 0.0; });
+    const std::size_t n = grid_.size();
     InOrder raw_update([&](std::size_t k) {
       Axes du{};
       const double gain_k = k == 0 ? 0.0 : gain_at.at(k);
       if (gain_k > 0) {
-        du = apply_inverse(chain_inverse_, best_error_, static_cast<std::int64_t>(nodes_[k].tick));
+        du = apply_inverse(chain_inverse_, best_error_, static_cast<std::int64_t>(grid_[k]));
         for (std::size_t i = 0; i < kNumAxes; ++i) du[i] *= gain_k;
       }
       return du;
@@ -540,17 +590,30 @@ class WindowedLearning {
     InOrder twice([&](std::size_t k) { return smoothed_121(once, k, n); });
     for (std::size_t k = 1; k + 1 < n; ++k) {
       const Axes du = twice.at(k);
+      const Axes r = nodes_.reference(k);
+      Axes j = nodes_.get(k, r);
       for (std::size_t i = 0; i < kNumAxes; ++i) {
         const auto& tr = model_.kin.travel[i];
-        nodes_[k].joints[i] = std::clamp(nodes_[k].joints[i] + du[i], tr.min, tr.max);
+        j[i] = std::clamp(j[i] + du[i], tr.min, tr.max);
       }
+      nodes_.set(k, r, j);
     }
   }
 
   void finish() {
     bool any = false;
     for (std::size_t w = 0; w < nwin_; ++w) any = any || win_learned_[w];
-    res_.nodes = std::move(best_);
+    // The learning's series go before the result's nodes (56 bytes a node) are made.
+    nodes_.release();
+    std::vector<AxesF>().swap(best_error_);
+    res_.nodes.resize(grid_.size());
+    for (std::size_t k = 0; k < grid_.size(); ++k) {
+      Node& nd = res_.nodes[k];
+      nd.tick = grid_[k];
+      nd.block = clock_.block_at(grid_[k]);
+      nd.joints = best_.get(k);
+    }
+    best_.release();
     res_.compensated = any;
     if (!res_.compensated) res_.note = "no iterate stayed within the axis limits: " + last_rejection_;
     else if (!last_rejection_.empty()) res_.note = "learning held back where it would exceed a limit: " + last_rejection_;
@@ -577,8 +640,8 @@ class WindowedLearning {
   std::vector<double> win_best_, win_gain_;
   std::vector<int> win_stalls_;
   std::vector<bool> win_learned_;
-  std::vector<Node> nodes_, best_;
-  std::vector<Axes> best_error_;  // r - y per tick, each window from its best run
+  NodeJoints nodes_, best_;       // the current iterate and the best per window, on grid_
+  std::vector<AxesF> best_error_;  // r - y per tick, each window from its best run
   std::vector<Axes> window_err_;  // the current window's r - y, while a run is measured
   std::string last_rejection_;
 };

@@ -131,39 +131,58 @@ std::vector<double> sample_speeds(const RawPath& p, const std::vector<double>& w
   return W;
 }
 
-/// Planned sigma at every tick. A moving step takes the time of a linear speed change between
-/// its end speeds (never less than one tick: never faster than the program); a step that does
-/// not move (a dwell) keeps its tick. Empty when the plan would run past `max_ticks`.
-std::vector<double> planned_sigma(const RawPath& p, const std::vector<double>& W, double T, double a,
-                                  double max_ticks) {
-  const std::size_t S = p.ds.size();
-  std::vector<double> t(S + 1, 0.0);
-  for (std::size_t k = 0; k < S; ++k) {
-    double dt = p.rest[k] ? T : 0.0;
-    if (p.ds[k] > kStill) {
-      const double v = W[k] + W[k + 1];
-      dt = std::max(T, v > 1e-15 ? 2 * p.ds[k] / v : 2 * std::sqrt(p.ds[k] / a));
-    }
-    t[k + 1] = t[k] + dt;
+/// Planned sigma at every tick, made tick by tick as the blend asks for it (held whole it was
+/// 8 bytes a tick at the planner's peak). A moving step takes the time of a linear speed change
+/// between its end speeds (never less than one tick: never faster than the program); a step that
+/// does not move (a dwell) keeps its tick. The step times are summed in order, once for the total
+/// and again as the ticks pass: the same sums, so the same ticks as a table of them.
+class PlannedSigma {
+ public:
+  PlannedSigma(const RawPath& p, std::vector<double> W, double T, double a) : p_(p), W_(std::move(W)), T_(T), a_(a) {
+    const std::size_t S = p.ds.size();
+    double t = 0;
+    for (std::size_t k = 0; k < S; ++k) t = t + step_time(k);
+    end_ = t;
+    if (S > 0) t1_ = 0.0 + step_time(0);
+    ticks_ = static_cast<std::size_t>(std::ceil(end_ / T - 1e-9)) + 1;
   }
-  std::vector<double> sig;
-  if (t[S] / T > max_ticks) return sig;
-  const auto J = static_cast<std::size_t>(std::ceil(t[S] / T - 1e-9));
-  sig.reserve(J + 1);
-  std::size_t k = 0;
-  for (std::size_t j = 0; j <= J; ++j) {
-    const double tj = std::min(static_cast<double>(j) * T, t[S]);
-    while (k + 1 < S && t[k + 1] <= tj) ++k;
-    if (S == 0) {
-      sig.push_back(0.0);
-      continue;
+  /// The plan would run past `max_ticks`.
+  bool longer_than(double max_ticks) const { return end_ / T_ > max_ticks; }
+  /// Ticks of the plan (next() gives each once).
+  std::size_t size() const { return ticks_; }
+  double next() {
+    const std::size_t S = p_.ds.size();
+    const double tj = std::min(static_cast<double>(j_++) * T_, end_);
+    if (S == 0) return 0.0;
+    while (k_ + 1 < S && t1_ <= tj) {
+      ++k_;
+      t0_ = t1_;
+      t1_ = t0_ + step_time(k_);
     }
-    const double span = t[k + 1] - t[k];
-    const double f = span > 0 ? std::clamp((tj - t[k]) / span, 0.0, 1.0) : 1.0;
-    sig.push_back(p.sigma[k] + f * p.ds[k]);
+    const double span = t1_ - t0_;
+    const double f = span > 0 ? std::clamp((tj - t0_) / span, 0.0, 1.0) : 1.0;
+    return p_.sigma[k_] + f * p_.ds[k_];
   }
-  return sig;
-}
+
+ private:
+  double step_time(std::size_t k) const {
+    double dt = p_.rest[k] ? T_ : 0.0;
+    if (p_.ds[k] > kStill) {
+      const double v = W_[k] + W_[k + 1];
+      dt = std::max(T_, v > 1e-15 ? 2 * p_.ds[k] / v : 2 * std::sqrt(p_.ds[k] / a_));
+    }
+    return dt;
+  }
+
+  const RawPath& p_;
+  std::vector<double> W_;  // speed at every raw sample (sample_speeds)
+  double T_, a_;
+  double end_ = 0;         // the plan's duration [s]
+  std::size_t ticks_ = 0;
+  std::size_t j_ = 0;      // next tick
+  std::size_t k_ = 0;      // raw step of the last tick
+  double t0_ = 0, t1_ = 0; // times at which step k_ begins and ends
+};
 
 /// Causal moving average of length m, fed one value at a time: held at the first value before
 /// the start; push the last value m - 1 more times to run m - 1 ticks past the end. Streaming, so
@@ -242,23 +261,67 @@ double index_of_sigma(const RawPath& p, double s, std::size_t& k) {
   return static_cast<double>(k) + std::clamp((s - p.sigma[k]) / p.ds[k], 0.0, 1.0);
 }
 
+/// Ticks where the reference leaves the nominal tool-tip path by more than `tolerance`, and by
+/// how much, found with the contour metric itself (the polyline made as the reference reaches it,
+/// not held whole: 28 bytes a tick at the planner's peak). Fed the reference tick by tick as the
+/// blend makes it, in full precision: the plan's decisions (which ticks pass the tolerance) do not
+/// depend on how the reference is then stored.
+class Excursions {
+ public:
+  Excursions(const Model& model, std::span<const ResolvedBlock> program, const Nominal& nom, std::size_t h,
+             double tolerance)
+      : model_(model), program_(program), nom_(nom), path_(model, nom, program, search_), h_(h), tolerance_(tolerance) {}
+
+  /// Reference tick n (in order) is at joints r, with raw index k its progress.
+  void add(const Axes& r, std::size_t k) {
+    k = std::min(k, nom_.raw.size() - 1);
+    const Vec3 tip = forward_kinematics(model_.kin, r, tool_length_of(model_, program_[nom_.block[k]])).tip;
+    const std::size_t limit = path_.index_of_tick(k + h_ + 2);
+    path_.fill(std::max<std::size_t>(limit, 1) + 1);  // as the search over a whole polyline takes them
+    Vec3 c;
+    const double e = search_.distance(tip, limit, c);
+    if (e > tolerance_) over_.emplace_back(k, e);
+  }
+  std::vector<std::pair<std::size_t, double>>& over() { return over_; }
+
+ private:
+  const Model& model_;
+  std::span<const ResolvedBlock> program_;
+  const Nominal& nom_;
+  ContourSearch search_;
+  NominalPolyline path_;
+  std::size_t h_;
+  double tolerance_;
+  std::vector<std::pair<std::size_t, double>> over_;
+};
+
 /// The reference of one plan: sigma smoothed by two moving averages (ma, mb ticks: speed changes
 /// become jerk-limited, the path stays exact), the joints at that sigma, then blended by two short
 /// moving averages (m1, m2: corners are rounded within the tolerance, arcs shrink by
 /// v^2 (T1^2 + T2^2) / 24 R at most). Each stage streams into the next: only the reference and
-/// its progress are series.
-void blend(const RawPath& p, const std::vector<double>& sig, std::size_t ma, std::size_t mb, std::size_t m1,
-           std::size_t m2, Nominal& nom) {
+/// its progress are series. Every reference tick goes to `check` before it is stored.
+void blend(const RawPath& p, PlannedSigma& sig, std::size_t ma, std::size_t mb, std::size_t m1,
+           std::size_t m2, Nominal& nom, Excursions& check) {
   const std::size_t N = nom.raw.size();
   const std::size_t J = sig.size() + ma - 1 + mb - 1;  // samples of the smoothed sigma
   const std::size_t delay = (m1 - 1) / 2 + (m2 - 1) / 2;
-  // The previous plan's series go first: a long program's reference is tens of MB.
-  std::vector<Axes>().swap(nom.reference);
-  std::vector<double>().swap(nom.progress);
-  nom.reference.reserve(J + m1 - 1 + m2 - 1);
-  nom.progress.reserve(J + m1 - 1 + m2 - 1);
+  // The previous plan's series go first (a long program's reference is tens of MB), or are
+  // written over where they are long enough: the next round's plan is about as long, and memory
+  // freed and taken again in another size leaves holes that stay resident.
+  const std::size_t E = J + m1 - 1 + m2 - 1;
+  nom.reference.clear_for(E);
+  if (nom.progress.capacity() < E) std::vector<std::uint32_t>().swap(nom.progress);
+  nom.progress.clear();
+  nom.progress.reserve(E);
   TwoAverages<Axes> joint_blend(m1, m2);
-  auto keep_reference = [&nom](const Axes& r) { nom.reference.push_back(r); };
+  // progress runs `delay` ticks ahead of the reference (below); the reference's last ticks, made
+  // past the end of the plan, keep the last progress.
+  auto keep_reference = [&nom, &check](const Axes& blended) {
+    const std::size_t n = nom.reference.size();
+    const Axes& r = n == 0 ? nom.raw.front() : blended;  // exactly at rest where the program starts
+    check.add(r, n < nom.progress.size() ? nom.progress[n] : nom.progress.back());
+    nom.reference.push_back(r);
+  };
   std::size_t k = 0, j = 0;
   double last = 0;
   auto joints_at = [&](double s) {
@@ -273,37 +336,16 @@ void blend(const RawPath& p, const std::vector<double>& sig, std::size_t ma, std
       q = lerp(nom.raw[i0], nom.raw[std::min(i0 + 1, N - 1)], last - static_cast<double>(i0));
     }
     // progress[n] is the raw index of the joints the blend centres on at n: delay ticks back.
-    if (nom.progress.empty()) nom.progress.assign(delay, progress);
-    nom.progress.push_back(progress);
+    const auto whole = static_cast<std::uint32_t>(progress);
+    if (nom.progress.empty()) nom.progress.assign(delay, whole);
+    nom.progress.push_back(whole);
     joint_blend.push(q, keep_reference);
   };
   TwoAverages<double> speed_smoothing(ma, mb);
-  for (double s : sig) speed_smoothing.push(s, joints_at);
+  for (std::size_t n = sig.size(); n > 0; --n) speed_smoothing.push(sig.next(), joints_at);
   speed_smoothing.finish(joints_at);
   joint_blend.finish(keep_reference);
   nom.progress.resize(nom.reference.size(), nom.progress.back());
-  nom.reference.front() = nom.raw.front();  // exactly at rest where the program starts
-}
-
-/// Ticks where the reference leaves the nominal tool-tip path by more than `tolerance`, and by
-/// how much, found with the contour metric itself (the polyline made as the reference reaches it,
-/// not held whole: 28 bytes a tick at the planner's peak).
-std::vector<std::pair<std::size_t, double>> excursions(const Model& model, std::span<const ResolvedBlock> program,
-                                                       const Nominal& nom, std::size_t h, double tolerance) {
-  std::vector<std::pair<std::size_t, double>> out;
-  ContourSearch search;
-  NominalPolyline path(model, nom, program, search);
-  const std::size_t N = nom.raw.size();
-  for (std::size_t n = 0; n < nom.reference.size(); ++n) {
-    const auto k = std::min(static_cast<std::size_t>(nom.progress[n]), N - 1);
-    const Vec3 tip = forward_kinematics(model.kin, nom.reference[n], tool_length_of(model, program[nom.block[k]])).tip;
-    const std::size_t limit = path.index_of_tick(k + h + 2);
-    path.fill(std::max<std::size_t>(limit, 1) + 1);  // as the search over a whole polyline takes them
-    Vec3 c;
-    const double e = search.distance(tip, limit, c);
-    if (e > tolerance) out.emplace_back(k, e);
-  }
-  return out;
 }
 
 /// Lowers the speed limits where the reference left the path: by 0.9 tolerance / deviation
@@ -331,8 +373,10 @@ std::size_t ticks(double seconds, double T) {
 
 }  // namespace
 
-void plan_reference(const Model& model, std::span<const ResolvedBlock> program, const ReferencePlan& plan,
-                    double max_ticks, Nominal& nom) {
+namespace {
+
+void plan_rounds(const Model& model, std::span<const ResolvedBlock> program, const ReferencePlan& plan,
+                 double max_ticks, Nominal& nom) {
   const double T = nom.period;
   double Ts = 0, a_sigma = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < kNumAxes; ++i) {
@@ -351,18 +395,28 @@ void plan_reference(const Model& model, std::span<const ResolvedBlock> program, 
   // a tight arc), the speed there is lowered and the plan made again: the deviation of a blended
   // corner grows with the speed, so a few rounds settle it.
   for (int round = 0; round < 8; ++round) {
-    const std::vector<double> sig = planned_sigma(raw, sample_speeds(raw, w, a_sigma, program, nom), T, a_sigma, max_ticks);
-    if (sig.empty()) {
-      nom.reference.clear();
-      nom.progress.clear();
+    PlannedSigma sig(raw, sample_speeds(raw, w, a_sigma, program, nom), T, a_sigma);
+    if (sig.longer_than(max_ticks)) {
+      nom.reference.release();
+      std::vector<std::uint32_t>().swap(nom.progress);
       nom.reference_too_long = true;
       return;
     }
-    blend(raw, sig, ma, mb, m1, m2, nom);
-    const auto over = excursions(model, program, nom, spread, plan.tolerance);
-    if (over.empty()) return;
-    slow_down(raw, over, plan.tolerance, static_cast<double>(ma + mb) * T / 2, h, w);
+    Excursions check(model, program, nom, spread, plan.tolerance);
+    blend(raw, sig, ma, mb, m1, m2, nom, check);
+    if (check.over().empty()) return;
+    slow_down(raw, check.over(), plan.tolerance, static_cast<double>(ma + mb) * T / 2, h, w);
   }
+}
+
+}  // namespace
+
+void plan_reference(const Model& model, std::span<const ResolvedBlock> program, const ReferencePlan& plan,
+                    double max_ticks, Nominal& nom) {
+  plan_rounds(model, program, plan, max_ticks, nom);
+  // The plan was made on the exact raw samples; from here on (the learning, the contour metric,
+  // the figures) they are read at the compact series' 0.5 nm, in half the memory.
+  nom.raw.compact();
 }
 
 }  // namespace gcpipe::simulate

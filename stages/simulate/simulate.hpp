@@ -18,6 +18,7 @@
 #include "gcpipe/kinematics.hpp"
 #include "gcpipe/pipeline_config.hpp"
 #include "interpolate.hpp"
+#include "joint_series.hpp"
 #include "servo.hpp"
 
 namespace gcpipe::simulate {
@@ -258,10 +259,13 @@ struct ReferencePlan {
 /// The nominal run of the original program.
 struct Nominal {
   double period = 0.001;
-  std::vector<Axes> raw;               //!< R_n, n = 0..N-1
+  JointSeries raw{JointSeries::kExact};  //!< R_n, n = 0..N-1: exact while the reference is
+                                       //!< planned, compact after (joint_series.hpp)
   std::vector<std::uint32_t> block;    //!< block index of each raw sample
-  std::vector<Axes> reference;         //!< r_n (planned and blended path), n = 0..E-1
-  std::vector<double> progress;        //!< p_n, fractional raw index of r_n
+  JointSeries reference;               //!< r_n (planned and blended path), n = 0..E-1, stored
+                                       //!< compactly (joint_series.hpp: within 0.5 nm)
+  std::vector<std::uint32_t> progress; //!< p_n, the raw index r_n has reached (whole samples:
+                                       //!< every user asks which sample, and 4 bytes a tick)
   bool reference_too_long = false;     //!< the reference would exceed max_machine_time (empty)
   std::vector<std::uint32_t> segment_of_block;  //!< per program block
   std::vector<Segment> segments;
