@@ -330,11 +330,16 @@ void add_dds_commands(CLI::App& app, DdsCommands& d) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // A long program's per-tick series (tens of MB) are allocated and freed many times in one run
-  // (the planner's rounds, the learning's iterations). glibc serves each from a fresh mmap whose
-  // pages fault in again (about 10 us per 4 KiB page on the VM measured); kept in the heap, the
-  // freed memory is reused instead. Peak memory is what the run needs at once either way.
-  mallopt(M_MMAP_THRESHOLD, 256 * 1024 * 1024);
+  // A long program's per-tick series are tens of MB. glibc serves an allocation above the mmap
+  // threshold from a fresh mmap whose pages fault in again (about 10 us per 4 KiB page on the VM
+  // measured) and gives it back when it is freed; below it, from the heap, where freed memory is
+  // reused but stays resident. 32 MB: the series made again many times (the planner's speeds and
+  // slow-down factors each round, 13 MB on a one-hour program) stay in the heap, while the ones
+  // made once per phase and held through it (the raw samples, the reference, the learning's error:
+  // 30-70 MB there) are mapped, so that what one phase frees does not stay resident beside the
+  // next phase's series (issue 12: 325 -> 304 MB peak on the one-hour program when this was set,
+  // from 256 MB; stages/compensate/README.md, "Memory").
+  mallopt(M_MMAP_THRESHOLD, 32 * 1024 * 1024);
   mallopt(M_TRIM_THRESHOLD, 512 * 1024 * 1024);
   CLI::App app{"gcpipe: G-code stream-processing pipeline for table-table five-axis machines", "gcpipe"};
   app.set_version_flag("--version", std::string("gcpipe ") + GCPIPE_VERSION);

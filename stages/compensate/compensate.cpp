@@ -156,6 +156,7 @@ std::vector<std::uint64_t> linearised_grid(const ReferenceClock& clock, std::uin
     std::sort(added.begin(), added.end());
     grid.insert(grid.end(), added.begin(), added.end());
   }
+  grid.shrink_to_fit();  // grew node by node; held through the learning
   return grid;
 }
 
@@ -367,6 +368,9 @@ class WindowedLearning {
     best_error_.reserve(E_ + Wt_);  // the run settles a little past the reference's end
     best_ = nodes_;
     window_err_.reserve(Wt_);
+    // The grid's making (its tick list, its growth) and the operator's design are freed: their
+    // pages go back before the iterations, which are the peak.
+    simulate::give_back_freed_memory();
   }
 
   void run(const Progress& progress) {
@@ -669,6 +673,7 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
     return res;
   }
   WindowedLearning(model, nom, program, start, before, opt, res).run(progress);
+  simulate::give_back_freed_memory();  // the learning's series, before the program is written
   return res;
 }
 

@@ -417,6 +417,7 @@ void plan_reference(const Model& model, std::span<const ResolvedBlock> program, 
   // The plan was made on the exact raw samples; from here on (the learning, the contour metric,
   // the figures) they are read at the compact series' 0.5 nm, in half the memory.
   nom.raw.compact();
+  give_back_freed_memory();
 }
 
 }  // namespace gcpipe::simulate

@@ -1,6 +1,9 @@
 #include "simulate.hpp"
 
 #include <algorithm>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -414,6 +417,13 @@ class RunAccumulator {
   double bucket_max_ = 0;
 };
 
+/// The recorded run's series grew sample by sample, so up to half of what they hold is spare: it
+/// goes before the planner, whose peak it would add to (20 MB on a one-hour program).
+void shrink_recorded(Nominal& nom) {
+  nom.raw.shrink_to_fit();
+  nom.block.shrink_to_fit();
+}
+
 /// The program's own run, evaluated as it goes: each tick's raw sample is the nominal (pushed to
 /// the contour search), its actual is measured against the nominal path so far. With
 /// `record` the run is also recorded for the report and the compensation: raw samples and blocks
@@ -430,8 +440,8 @@ OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> progra
   Vec3 last_nominal{};
   // Everything but the interpolator, the drives and the kinematics, on a second thread (on
   // `gcpipe simulate`'s benchmark the two take about 0.3 and 0.9 G instructions): it alone
-  // touches acc, contour, own and nom's samples until finish(). The tool tips are worked out on
-  // the simulation's thread, the lighter one.
+  // touches acc, contour and own until finish(); nom's samples are recorded on the simulation's
+  // thread. The tool tips are worked out on the simulation's thread, the lighter one.
   struct Tips {
     Tick t;
     Vec3 nominal, actual;
@@ -445,10 +455,6 @@ OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> progra
     Vec3 nearest;
     const double e = contour.distance(tip, nearest);
     const bool cutting = acc.add(t, b, nom.segment_of_block[t.block], e, tip, nearest);
-    if (record) {
-      nom.raw.push_back(t.raw);
-      nom.block.push_back(t.block);
-    }
     hand_on(on_tick, t, cutting, e, tip);
   };
   ChunkedWorker<Tips> evaluation(256, 8, [&](const std::vector<Tips>& ticks) {
@@ -457,6 +463,13 @@ OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> progra
   nom.stats = run_program(
       model, program, start,
       [&](const Tick& t) {
+        // The raw samples are recorded on this thread, not the evaluation's: a thread's own
+        // malloc arena keeps the memory a growing series leaves behind (tens of MB on a long
+        // program) resident to the end, where the main arena's is given back after the plan.
+        if (record) {
+          nom.raw.push_back(t.raw);
+          nom.block.push_back(t.block);
+        }
         const double tool = tool_length_of(model, program[t.block]);
         evaluation.push({t, forward_kinematics(model.kin, t.raw, tool).tip, forward_kinematics(model.kin, t.actual, tool).tip});
       },
@@ -481,12 +494,19 @@ Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program
       },
       tick_bound(max_ticks));
   if (nom.raw.empty() || !nom.stats.ok) return nom;
+  shrink_recorded(nom);
   std::size_t nseg = 0;
   nom.segment_of_block = segment_blocks(program, nseg);
   nom.segments.assign(nseg, Segment{});
   describe_segments(model, program, nom);
   plan_reference(model, program, plan, max_ticks, nom);
   return nom;
+}
+
+void give_back_freed_memory() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
 }
 
 Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
@@ -543,6 +563,7 @@ SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> pr
                                const std::function<void(const Tick&)>& on_tick, const Progress& progress) {
   SimulationRun run;
   run.program = std::move(program);
+  run.program.shrink_to_fit();  // collected block by block: up to half of it spare, held to the end
   const auto& p = run.program;
   std::size_t first = 0;
   while (first < p.size() && p[first].motion == Motion::kNone) ++first;
@@ -572,6 +593,7 @@ SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> pr
     return run;
   }
   if (bounds.record_nominal) {
+    shrink_recorded(nom);
     describe_segments(model, p, nom);
     plan_reference(model, p, bounds.plan, max_ticks, nom);
     add_tracking_against_reference(model, p, run.start, nom, tick_bound(max_ticks), own.eval.axes);

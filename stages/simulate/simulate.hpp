@@ -307,6 +307,11 @@ Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program
 void plan_reference(const Model& model, std::span<const ResolvedBlock> program, const ReferencePlan& plan,
                     double max_ticks, Nominal& nom);
 
+/// Hands the heap's free pages back to the system (glibc's malloc_trim; elsewhere nothing). Called
+/// where a phase has freed its long series (the planner's, the learning's): the next phase's
+/// series seldom fit the holes they leave, and the holes would stay resident beside them.
+void give_back_freed_memory();
+
 /// Runs `blocks` and measures them against the nominal path. `source_block(i)` is the program
 /// block that block i of `blocks` stands for (its tool length and segment); `also` sees every tick.
 /// `on_reference_clock`: `blocks` is a node program, timed like the re-timed reference.
