@@ -180,8 +180,18 @@ Axes apply_inverse(const ChainInverse& inv, const std::vector<AxesF>& x, std::in
 }
 
 Axes apply_inverse(const ChainInverse& inv, const simulate::JointSeries& x, std::int64_t n) {
-  return apply_all(inv, static_cast<std::int64_t>(x.size()), n,
-                   [&](std::int64_t m, std::size_t i) { return x.at(static_cast<std::size_t>(m), i); });
+  const auto size = static_cast<std::int64_t>(x.size());
+  if (x.exact())
+    return apply_all(inv, size, n, [&](std::int64_t m, std::size_t i) { return x.at(static_cast<std::size_t>(m), i); });
+  // Compact: the arrays read directly (at() would test exact() at every tap; the model-inverse
+  // start reads the whole reference this way in every learning iteration).
+  const double* base = x.base_data();
+  const float* offset = x.offset_data();
+  constexpr auto kA = static_cast<std::int64_t>(kNumAxes);
+  constexpr auto kBits = static_cast<std::int64_t>(simulate::JointSeries::kBlockBits);
+  return apply_all(inv, size, n, [&](std::int64_t m, std::size_t i) {
+    return base[(m >> kBits) * kA + static_cast<std::int64_t>(i)] + static_cast<double>(offset[m * kA + static_cast<std::int64_t>(i)]);
+  });
 }
 
 }  // namespace gcpipe::compensate

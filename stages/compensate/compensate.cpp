@@ -414,12 +414,20 @@ class WindowedLearning {
  private:
   // The node program of nodes_ as they are when it is run, block by block (node_program's blocks
   // from the stored joints).
+  // The blocks are asked for in order, so the end of block i is kept as the start of block i + 1
+  // instead of being made again from the stored joints.
   simulate::BlockSource learning_program() {
-    auto buffer = std::make_shared<ResolvedBlock>();
+    struct Buffer {
+      ResolvedBlock block;
+      std::size_t end_node = 0;  // the node block.target is (0: none yet)
+    };
+    auto buffer = std::make_shared<Buffer>();
     return {grid_.empty() ? 0 : grid_.size() - 1, [this, buffer](std::size_t i) -> const ResolvedBlock& {
-              node_block(program_[clock_.block_at(grid_[i + 1])], i == 0 ? start_ : nodes_.get(i), nodes_.get(i + 1),
-                         grid_[i + 1] - grid_[i], T_, *buffer);
-              return *buffer;
+              const Axes from = i == 0 ? start_ : buffer->end_node == i ? buffer->block.target : nodes_.get(i);
+              node_block(program_[clock_.block_at(grid_[i + 1])], from, nodes_.get(i + 1), grid_[i + 1] - grid_[i], T_,
+                         buffer->block);
+              buffer->end_node = i + 1;
+              return buffer->block;
             }};
   }
 

@@ -90,6 +90,12 @@ class JointSeries {
     for (std::size_t i = 0; i < kNumAxes; ++i) x[i] = b[i] + static_cast<double>(o[i]);
     return x;
   }
+  /// For loops over many ticks (the learning operator): whether the series is still exact, and
+  /// its compact arrays, tick n's axis i at base_data()[(n >> kBlockBits) * kNumAxes + i] +
+  /// offset_data()[n * kNumAxes + i].
+  bool exact() const { return exact_; }
+  const double* base_data() const { return base_.empty() ? nullptr : base_.front().data(); }
+  const float* offset_data() const { return offset_.empty() ? nullptr : offset_.front().data(); }
   Axes front() const { return (*this)[0]; }
   Axes back() const { return (*this)[size() - 1]; }
 
