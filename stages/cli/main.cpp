@@ -337,7 +337,7 @@ int main(int argc, char** argv) {
   // slow-down factors each round, 13 MB on a one-hour program) stay in the heap, while the ones
   // made once per phase and held through it (the raw samples, the reference, the learning's error:
   // 30-70 MB there) are mapped, so that what one phase frees does not stay resident beside the
-  // next phase's series (issue 12: 325 -> 304 MB peak on the one-hour program when this was set,
+  // next phase's series (issue 12: 317 -> 297 MB peak on the one-hour program when this was set,
   // from 256 MB; stages/compensate/README.md, "Memory").
   mallopt(M_MMAP_THRESHOLD, 32 * 1024 * 1024);
   mallopt(M_TRIM_THRESHOLD, 512 * 1024 * 1024);

@@ -13,7 +13,7 @@ namespace gcpipe::simulate {
 
 /// Joints per tick in about 20.6 bytes a tick instead of 40: a double base per block of kBlock
 /// ticks (the block's first value, kept exactly) and a float offset from it per tick.
-/// A float alone would not do: C is unwrapped up to +-36000 deg, where a float's step is 2 mdeg.
+/// A float alone would not do: C is unwrapped up to +-36000 deg, where a float's step is 2-4 mdeg.
 /// An offset within a block is what an axis covers in 64 ms, so its rounding (half a float step
 /// of that distance) stays below 0.5 nm at 100 mm/s and 2e-6 deg at 720 deg/s (the circle test's
 /// C at 4 pi): far below the 0.1 um the compensated program is written with.
