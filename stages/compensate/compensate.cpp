@@ -413,9 +413,8 @@ class WindowedLearning {
 
  private:
   // The node program of nodes_ as they are when it is run, block by block (node_program's blocks
-  // from the stored joints).
-  // The blocks are asked for in order, so the end of block i is kept as the start of block i + 1
-  // instead of being made again from the stored joints.
+  // from the stored joints). The blocks are asked for in order, so the end of block i is kept as
+  // the start of block i + 1 instead of being made again from the stored joints.
   simulate::BlockSource learning_program() {
     struct Buffer {
       ResolvedBlock block;
