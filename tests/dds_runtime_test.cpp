@@ -50,22 +50,23 @@ std::vector<std::uint64_t> range(std::uint64_t first, std::uint64_t count) {
   return v;
 }
 
-TEST(DdsMonitorHistory, ALateMonitorGetsWhatWasPublishedWithinTheHistoryAndNothingOlder) {
-  Participant participant(options(/*monitor_history=*/1.0));
-  Writer<msg::GcodeChunk> copy(participant, "gcpipe_test_history_1s", /*monitor=*/true);
+// Batches 0-4, then 1.6 s later batches 5-9, on a monitor copy kept `history` seconds: what a
+// monitor that starts after that receives.
+std::vector<std::uint64_t> late_monitor_after_two_bursts(double history, const std::string& topic) {
+  Participant participant(options(history));
+  Writer<msg::GcodeChunk> copy(participant, topic, /*monitor=*/true);
   publish(copy, 0, 5);
   std::this_thread::sleep_for(std::chrono::milliseconds(1600));  // batches 0-4 are now 1.6 s old
   publish(copy, 5, 5);
-  EXPECT_EQ(late_monitor_receives(participant, "gcpipe_test_history_1s"), range(5, 5));
+  return late_monitor_receives(participant, topic);
+}
+
+TEST(DdsMonitorHistory, ALateMonitorGetsWhatWasPublishedWithinTheHistoryAndNothingOlder) {
+  EXPECT_EQ(late_monitor_after_two_bursts(/*history=*/1.0, "gcpipe_test_history_1s"), range(5, 5));
 }
 
 TEST(DdsMonitorHistory, WithinTheHistoryALateMonitorGetsEverythingInOrder) {
-  Participant participant(options(/*monitor_history=*/30.0));
-  Writer<msg::GcodeChunk> copy(participant, "gcpipe_test_history_30s", /*monitor=*/true);
-  publish(copy, 0, 5);
-  std::this_thread::sleep_for(std::chrono::milliseconds(1600));
-  publish(copy, 5, 5);
-  EXPECT_EQ(late_monitor_receives(participant, "gcpipe_test_history_30s"), range(0, 10));
+  EXPECT_EQ(late_monitor_after_two_bursts(/*history=*/30.0, "gcpipe_test_history_30s"), range(0, 10));
 }
 
 TEST(DdsMonitorHistory, TheDepthBoundsWhatIsKeptHoweverRecent) {

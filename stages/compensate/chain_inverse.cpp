@@ -10,27 +10,28 @@
 
 namespace gcpipe::compensate {
 
+namespace {
+
+using Eigen::Index;
+
+// Step response of axis `axis` of the model: raw command 0 -> 1 (mm or deg) at tick `onset`
+// (>= 1), the actual position per tick (`ticks` values, tick 0 at rest).
 std::vector<double> chain_step_response(const simulate::Model& model, std::size_t axis, std::size_t ticks,
-                                        std::size_t onset, double amplitude) {
+                                        std::size_t onset) {
   servo::ServoSimulator sim(model.drives, model.interp.period);
-  const Axes rest{};
   std::vector<double> y;
   y.reserve(ticks);
-  y.push_back(sim.reset(rest, 0.0).actual[axis] / amplitude);
+  y.push_back(sim.reset(Axes{}, 0.0).actual[axis]);
   interpolate::AxisSmoother smoother(model.interp.smoothing, model.interp.smoothing_time[axis], model.interp.period, 0.0);
   servo::ServoSample s;
   // Command p is pushed for tick p; the drive hands back tick p - (its look-ahead) meanwhile.
   for (std::size_t p = 1; y.size() < ticks; ++p) {
     Axes c{};
-    c[axis] = smoother.filter(p >= onset ? amplitude : 0.0);
-    if (sim.push(c, s)) y.push_back(s.actual[axis] / amplitude);
+    c[axis] = smoother.filter(p >= onset ? 1.0 : 0.0);
+    if (sim.push(c, s)) y.push_back(s.actual[axis]);
   }
   return y;
 }
-
-namespace {
-
-using Eigen::Index;
 
 // The design's time scales (README.md beside this file, "The learning operator"). The filter
 // reads the error from 0.1 s ahead (the chain's delay and more) to 0.2 s behind; the step
@@ -120,7 +121,7 @@ ChainInverse design_chain_inverse(const simulate::Model& model) {
   ChainInverse inv;
   const std::size_t onset = kOnsetTicks;
   for (std::size_t i = 0; i < kNumAxes; ++i)
-    inv.axis[i] = design_axis(chain_step_response(model, i, onset + ticks(kResponseSeconds), onset, 1.0), onset,
+    inv.axis[i] = design_axis(chain_step_response(model, i, onset + ticks(kResponseSeconds), onset), onset,
                               ticks(kLeadSeconds), std::max<std::size_t>(3, ticks(kSpanSeconds) / stride), stride,
                               kTargetSigmaSeconds / T);
   inv.interleaved.assign(inv.axis[0].taps.size(), Axes{});
@@ -129,28 +130,10 @@ ChainInverse design_chain_inverse(const simulate::Model& model) {
   return inv;
 }
 
-double apply_inverse(const AxisInverse& f, const std::vector<Axes>& x, std::size_t axis, std::int64_t n) {
-  const std::int64_t last = static_cast<std::int64_t>(x.size()) - 1;
-  const std::int64_t top = n + f.lead;
-  const std::int64_t K = static_cast<std::int64_t>(f.taps.size());
-  double v = 0;
-  if (top <= last && top - (K - 1) * f.stride >= 0) {
-    // The filter lies inside the series: one strided pass, no clamping.
-    const double* p = &x[static_cast<std::size_t>(top)][axis];
-    const std::int64_t step = f.stride * static_cast<std::int64_t>(kNumAxes);
-    for (std::int64_t j = 0; j < K; ++j) v += f.taps[static_cast<std::size_t>(j)] * p[-j * step];
-    return v;
-  }
-  for (std::int64_t j = 0; j < K; ++j)
-    v += f.taps[static_cast<std::size_t>(j)] * x[static_cast<std::size_t>(std::clamp<std::int64_t>(top - j * f.stride, 0, last))][axis];
-  return v;
-}
-
 namespace {
 
 // The five axes at once over a series of `size` ticks whose tick m, axis i, is `value(m, i)`:
-// each tick is read once for the five axes (the taps interleaved), each axis summed in the order
-// of the per-axis apply_inverse, so the same values.
+// each tick is read once for the five axes (the taps interleaved).
 template <class Value>
 Axes apply_all(const ChainInverse& inv, std::int64_t size, std::int64_t n, Value&& value) {
   const AxisInverse& f = inv.axis[0];

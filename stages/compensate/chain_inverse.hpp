@@ -13,12 +13,6 @@
 
 namespace gcpipe::compensate {
 
-/// Step response of axis `axis` of the model, raw command 0 -> `amplitude` at tick `onset`
-/// (>= 1), actual position per tick divided by the amplitude (`ticks` values, tick 0 at rest).
-/// Ticks before the onset are not all 0: the drive's feed-forward reads its command Tp ahead.
-std::vector<double> chain_step_response(const simulate::Model& model, std::size_t axis, std::size_t ticks,
-                                        std::size_t onset, double amplitude);
-
 /// du(n) = sum_j taps[j] e(n + lead - stride j): the correction of the raw command at tick n for
 /// an error e of the actual position, such that the chain's response to du is e smoothed by a
 /// 10 ms Gaussian, with no delay.
@@ -45,10 +39,9 @@ ChainInverse design_chain_inverse(const simulate::Model& model);
 /// float's 7 digits are far below the 0.1 um the program is written with), 20 bytes a tick.
 using AxesF = std::array<float, kNumAxes>;
 
-/// The inverse applied to a per-tick series x at tick n (x clamped to its ends).
-double apply_inverse(const AxisInverse& f, const std::vector<Axes>& x, std::size_t axis, std::int64_t n);
-/// All five axes at once: the same values as apply_inverse per axis; for the three ways the
-/// compensation stores a series (exact, the learning's error in float, the compact reference).
+/// The inverse applied to a per-tick series x at tick n (x clamped to its ends), the five axes in
+/// one pass; for the ways a series is stored (exact, the learning's error in float, the compact
+/// reference).
 Axes apply_inverse(const ChainInverse& inv, const std::vector<Axes>& x, std::int64_t n);
 Axes apply_inverse(const ChainInverse& inv, const std::vector<AxesF>& x, std::int64_t n);
 Axes apply_inverse(const ChainInverse& inv, const simulate::JointSeries& x, std::int64_t n);
