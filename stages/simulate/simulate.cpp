@@ -124,62 +124,86 @@ double tool_length_of(const Model& model, const ResolvedBlock& b) {
   return b.tool_length_active ? b.tool_length : model.kin.tool_length;
 }
 
-RunStats run_program(const Model& model, const BlockSource& blocks, const Axes& start,
-                     const std::function<void(const Tick&)>& on_tick, std::uint64_t max_ticks) {
-  struct Sink final : interpolate::SampleSink {
-    servo::ServoSimulator sim;
-    std::deque<std::pair<Axes, std::uint32_t>> raw;
-    std::uint32_t block = 0;
-    std::uint64_t n = 0;
-    std::uint64_t max_ticks = 0;
-    bool over = false;  // max_ticks reached: later ticks are simulated but not handed on
-    RunStats& stats;
-    const std::function<void(const Tick&)>& on_tick;
-    Sink(const Model& m, RunStats& s, const std::function<void(const Tick&)>& f)
-        : sim(m.drives, m.interp.period), stats(s), on_tick(f) {}
-    void raw_sample(const Axes& r) override { raw.emplace_back(r, block); }
-    void sample(const Axes& c) override {
-      servo::ServoSample s;
-      if (sim.push(c, s)) emit(s);
-    }
-    void emit(const servo::ServoSample& s) {
-      Tick t;
-      t.n = n++;
-      t.raw = raw.front().first;
-      t.block = raw.front().second;
-      raw.pop_front();
-      t.command = s.command;
-      t.actual = s.actual;
-      t.torque = s.torque;
-      t.saturated = s.saturated;
-      for (std::size_t i = 0; i < kNumAxes; ++i) {
-        if (s.saturated & (1u << i)) ++stats.saturated_ticks[i];
-      }
-      ++stats.ticks;
-      if (t.n >= max_ticks) {
-        over = true;
-        return;
-      }
-      on_tick(t);
-    }
-  };
-  RunStats stats;
+namespace {
+interpolate::InterpolateOptions run_options(const Model& model, std::uint64_t max_ticks) {
   interpolate::InterpolateOptions io = model.interp;
   io.kinematics = &model.kin;  // TCP blocks: inverse kinematics per tick, feed along the tool tip
   // The bound holds inside blocks too: one block past it is refused before its first tick.
   if (max_ticks != UINT64_MAX) io.max_time = static_cast<double>(max_ticks) * model.interp.period;
-  Sink sink(model, stats, on_tick);
-  sink.max_ticks = max_ticks;
-  interpolate::Interpolator interp(io, start);
-  while (sink.block + 1 < blocks.count && blocks.at(sink.block).motion == Motion::kNone) ++sink.block;
-  sink.raw.emplace_back(start, sink.block);
-  sink.emit(sink.sim.reset(start, 0.0));
+  return io;
+}
+}  // namespace
+
+MachineRun::MachineRun(const Model& model, const Axes& start, std::uint32_t first_block, std::uint64_t max_ticks)
+    : interp_(run_options(model, max_ticks), start), sink_(model) {
+  sink_.max_ticks = max_ticks;
+  sink_.block = first_block;
+  sink_.raw.emplace_back(start, first_block);
+  first_ = sink_.sim.reset(start, 0.0);
+}
+
+void MachineRun::Sink::sample(const Axes& c) {
+  servo::ServoSample s;
+  if (sim.push(c, s)) emit(s);
+}
+
+void MachineRun::Sink::emit(const servo::ServoSample& s) {
+  Tick t;
+  t.n = n++;
+  t.raw = raw.front().first;
+  t.block = raw.front().second;
+  raw.pop_front();
+  t.command = s.command;
+  t.actual = s.actual;
+  t.torque = s.torque;
+  t.saturated = s.saturated;
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    if (s.saturated & (1u << i)) ++saturated[i];
+  }
+  if (t.n >= max_ticks) {
+    over = true;
+    return;
+  }
+  (*on_tick)(t);
+}
+
+void MachineRun::emit_first() {
+  if (!sink_.first_pending) return;
+  sink_.first_pending = false;
+  sink_.emit(first_);
+}
+
+interpolate::InterpolateResult MachineRun::add(const ResolvedBlock& b, std::uint32_t source, const TickFn& on_tick) {
+  sink_.on_tick = &on_tick;
+  emit_first();
+  // Samples belong to the block that moves (or dwells): a block without motion emits none,
+  // and the settling after the last move belongs to that move.
+  if (b.motion != Motion::kNone) sink_.block = source;
+  return interp_.add(b, sink_);
+}
+
+void MachineRun::finish(const TickFn& on_tick) {
+  sink_.on_tick = &on_tick;
+  emit_first();
+  interp_.finish(sink_);
+  servo::ServoSample s;
+  while (sink_.sim.flush(s)) sink_.emit(s);
+}
+
+RunStats run_program(const Model& model, const BlockSource& blocks, const Axes& start,
+                     const std::function<void(const Tick&)>& on_tick, std::uint64_t max_ticks) {
+  RunStats stats;
+  std::uint32_t first = 0;
+  while (first + 1 < blocks.count && blocks.at(first).motion == Motion::kNone) ++first;
+  MachineRun run(model, start, first, max_ticks);
+  auto finish_stats = [&] {
+    stats.ticks = run.ticks();
+    stats.saturated_ticks = run.saturated_ticks();
+    stats.interp = run.interp_stats();
+  };
   for (std::size_t i = 0; i < blocks.count; ++i) {
     const ResolvedBlock& b = blocks.at(i);
-    // Samples belong to the block that moves (or dwells): a block without motion emits none,
-    // and the settling after the last move belongs to that move.
-    if (b.motion != Motion::kNone) sink.block = static_cast<std::uint32_t>(i);
-    const auto r = interp.add(b, sink);
+    const auto r = run.add(b, static_cast<std::uint32_t>(i), on_tick);
     if (r.status != interpolate::InterpolateStatus::kOk) {
       stats.ok = false;
       stats.message = r.message;
@@ -187,21 +211,19 @@ RunStats run_program(const Model& model, const BlockSource& blocks, const Axes& 
       stats.failed_line = b.line;
       break;
     }
-    if (sink.over) {
+    if (run.over()) {
       char msg[160];
       std::snprintf(msg, sizeof msg, "the program runs longer than %.0f s of machine time (compensate.max_machine_time)",
                     static_cast<double>(max_ticks) * model.interp.period);
       stats.ok = false;
       stats.message = msg;
       stats.failed_line = b.line;
-      stats.interp = interp.stats();
+      finish_stats();
       return stats;
     }
   }
-  interp.finish(sink);
-  servo::ServoSample s;
-  while (sink.sim.flush(s)) sink.emit(s);
-  stats.interp = interp.stats();
+  run.finish(on_tick);
+  finish_stats();
   return stats;
 }
 

@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <limits>
 #include <optional>
@@ -80,6 +81,52 @@ struct BlockSource {
   static BlockSource of(std::span<const ResolvedBlock> blocks) {
     return {blocks.size(), [blocks](std::size_t i) -> const ResolvedBlock& { return blocks[i]; }};
   }
+};
+
+using TickFn = std::function<void(const Tick&)>;
+
+/// The machine model running one block at a time: interpolator (TCP per tick), acc/dec and the
+/// five drives. A copy is the whole machine state at that point (every part is vectors and
+/// numbers), from which a run can go on along another program: the compensation learns a window
+/// of the program from the state in which the nodes before it leave the machine. Ticks are
+/// numbered from the run's start and handed on as the drives finish them (their feed-forward
+/// reads a few ticks ahead, so the newest ticks come with the next block or finish()).
+class MachineRun {
+ public:
+  /// At rest at `start`; the first tick (tick 0) is handed on by the first add() or finish().
+  /// After `max_ticks` ticks no more are handed on and add() says so.
+  MachineRun(const Model& model, const Axes& start, std::uint32_t first_block, std::uint64_t max_ticks = UINT64_MAX);
+  /// Runs block `b`, which stands for program block `source` (Tick::block of its samples; a
+  /// block without motion makes none). Not kOk: the block cannot be run and made no tick.
+  interpolate::InterpolateResult add(const ResolvedBlock& b, std::uint32_t source, const TickFn& on_tick);
+  /// Holds the last position until acc/dec and drives have settled, handing on every tick.
+  void finish(const TickFn& on_tick);
+  /// `max_ticks` reached: later ticks were simulated but not handed on.
+  bool over() const { return sink_.over; }
+  std::uint64_t ticks() const { return sink_.n; }
+  const interpolate::InterpolateStats& interp_stats() const { return interp_.stats(); }
+  const std::array<std::uint64_t, kNumAxes>& saturated_ticks() const { return sink_.saturated; }
+
+ private:
+  struct Sink final : interpolate::SampleSink {
+    servo::ServoSimulator sim;
+    std::deque<std::pair<Axes, std::uint32_t>> raw;  // raw samples whose drive tick is still to come
+    std::uint32_t block = 0;
+    std::uint64_t n = 0;
+    std::uint64_t max_ticks = UINT64_MAX;
+    bool over = false;
+    bool first_pending = true;  // tick 0 (at rest) not yet handed on
+    std::array<std::uint64_t, kNumAxes> saturated{};
+    const TickFn* on_tick = nullptr;  // of the add() or finish() running
+    Sink(const Model& m) : sim(m.drives, m.interp.period) {}
+    void raw_sample(const Axes& r) override { raw.emplace_back(r, block); }
+    void sample(const Axes& c) override;
+    void emit(const servo::ServoSample& s);
+  };
+  void emit_first();
+  interpolate::Interpolator interp_;
+  Sink sink_;
+  servo::ServoSample first_{};
 };
 
 /// Interpolates `blocks` (from rest at `start`) at the model's period, runs the five drives and
