@@ -19,8 +19,10 @@ namespace gcpipe::simulate {
 /// never held. The search gets the same points at the same calls as over a whole polyline.
 class NominalPolyline {
  public:
-  NominalPolyline(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program, ContourSearch& search)
-      : model_(model), nom_(nom), program_(program), search_(search) {}
+  /// From raw tick `first_tick` on (a window of a run that began earlier).
+  NominalPolyline(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program, ContourSearch& search,
+                  std::size_t first_tick = 0)
+      : model_(model), nom_(nom), program_(program), search_(search), walked_(first_tick), first_tick_(first_tick) {}
 
   /// The polyline index of raw tick k (clamped to the last); k never decreases between calls.
   std::size_t index_of_tick(std::size_t k) {
@@ -49,7 +51,7 @@ class NominalPolyline {
   const Nominal& nom_;
   std::span<const ResolvedBlock> program_;
   ContourSearch& search_;
-  std::size_t walked_ = 0;               // raw ticks turned into points so far
+  std::size_t walked_ = 0;               // raw ticks turned into points so far (from first_tick_)
   Vec3 last_{};                          // the newest point
   std::deque<std::uint32_t> index_;      // polyline index of raw ticks first_tick_ .. walked_ - 1
   std::size_t first_tick_ = 0;

@@ -531,33 +531,59 @@ void give_back_freed_memory() {
 #endif
 }
 
+namespace {
+// How far back from where the nominal has got a window's search starts [raw ticks]: the search
+// of a whole run looks back ContourSearch::kLookBack points, about as many ticks.
+constexpr std::uint64_t kWindowLookBack = ContourSearch::kLookBack + 500;
+// A node program's actual may run slightly ahead of its reference's progress [raw ticks].
+constexpr std::size_t kAheadOfProgress = 300;
+
+std::size_t first_raw_tick(const Nominal& nom, bool on_reference_clock, std::uint64_t first_tick) {
+  if (first_tick == 0) return 0;
+  std::uint64_t raw = first_tick;
+  if (on_reference_clock && !nom.progress.empty()) raw = nom.progress[std::min<std::size_t>(first_tick, nom.progress.size() - 1)];
+  return static_cast<std::size_t>(raw > kWindowLookBack ? raw - kWindowLookBack : 0);
+}
+}  // namespace
+
+ContourMeter::ContourMeter(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
+                           bool on_reference_clock, std::uint64_t first_tick)
+    : model_(model), nom_(nom), on_reference_clock_(on_reference_clock),
+      path_(std::make_unique<NominalPolyline>(model, nom, program, search_, first_raw_tick(nom, on_reference_clock, first_tick))) {}
+
+ContourMeter::~ContourMeter() = default;
+
+double ContourMeter::distance(const Tick& t, const ResolvedBlock& b, Vec3& tip, Vec3& nearest) {
+  tip = forward_kinematics(model_.kin, t.actual, tool_length_of(model_, b)).tip;
+  const std::size_t n = static_cast<std::size_t>(t.n);
+  // The raw tick the nominal has reached: the tick itself for the program's own run; for a
+  // node program, which follows the planned reference, the reference's progress plus a
+  // margin for an actual that runs slightly ahead.
+  std::size_t raw_tick = n;
+  if (on_reference_clock_ && !nom_.progress.empty())
+    raw_tick = static_cast<std::size_t>(nom_.progress[std::min(n, nom_.progress.size() - 1)]) + kAheadOfProgress;
+  const std::size_t limit = path_->index_of_tick(raw_tick);
+  // The points up to the segment that ends at `limit` (at least the first segment), as the
+  // search over a whole polyline takes them.
+  path_->fill(std::max<std::size_t>(limit, 1) + 1);
+  return search_.distance(tip, limit, nearest);
+}
+
 Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
                     const BlockSource& blocks, const Axes& start,
                     const std::function<std::uint32_t(std::uint32_t)>& source_block,
                     const std::function<void(const Tick&)>& also, bool on_reference_clock) {
-  ContourSearch contour;
-  NominalPolyline path(model, nom, program, contour);
+  ContourMeter meter(model, nom, program, on_reference_clock);
   RunAccumulator acc(model, nom.segments.size());
   const Axes& ref_end = nom.reference.empty() ? start : nom.reference.back();
   const RunStats stats = run_program(model, blocks, start, [&](const Tick& t) {
     const std::uint32_t src = source_block(t.block);
     const ResolvedBlock& b = program[std::min<std::size_t>(src, program.size() - 1)];
-    const Vec3 tip = forward_kinematics(model.kin, t.actual, tool_length_of(model, b)).tip;
-    const std::size_t n = static_cast<std::size_t>(t.n);
-    // The raw tick the nominal has reached: the tick itself for the program's own run; for a
-    // node program, which follows the re-timed reference, the reference's progress plus a
-    // margin for an actual that runs slightly ahead.
-    std::size_t raw_tick = n;
-    if (on_reference_clock && !nom.progress.empty())
-      raw_tick = static_cast<std::size_t>(nom.progress[std::min(n, nom.progress.size() - 1)]) + 300;
-    const std::size_t limit = path.index_of_tick(raw_tick);
-    // The points up to the segment that ends at `limit` (at least the first segment), as the
-    // search over a whole polyline takes them.
-    path.fill(std::max<std::size_t>(limit, 1) + 1);
-    Vec3 nearest;
-    const double e = contour.distance(tip, limit, nearest);
+    Vec3 tip, nearest;
+    const double e = meter.distance(t, b, tip, nearest);
     const std::uint32_t seg = nom.segment_of_block.empty() ? 0 : nom.segment_of_block[std::min<std::size_t>(src, nom.segment_of_block.size() - 1)];
     const bool cutting = acc.add(t, b, seg, e, tip, nearest);
+    const std::size_t n = static_cast<std::size_t>(t.n);
     acc.track(n < nom.reference.size() ? nom.reference[n] : ref_end, t.actual);
     hand_on(also, t, cutting, e, tip);
   });

@@ -10,6 +10,7 @@
 #include <deque>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -358,6 +359,31 @@ void plan_reference(const Model& model, std::span<const ResolvedBlock> program, 
 /// where a phase has freed its long series (the planner's, the learning's): the next phase's
 /// series seldom fit the holes they leave, and the holes would stay resident beside them.
 void give_back_freed_memory();
+
+class NominalPolyline;
+
+/// The contour metric of one run against the nominal path, tick by tick: what evaluate() measures.
+/// A run on the reference clock (a node program) may begin at reference tick `first_tick` (a
+/// window of the compensation, run from the machine state there): the search then starts far
+/// enough back to hold the points the actual may still be near.
+class ContourMeter {
+ public:
+  ContourMeter(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program, bool on_reference_clock,
+               std::uint64_t first_tick = 0);
+  ~ContourMeter();
+  ContourMeter(const ContourMeter&) = delete;
+  ContourMeter& operator=(const ContourMeter&) = delete;
+  /// The distance of tick `t`'s actual tool tip (for program block `b`) to the path; its tip and
+  /// the nearest point of the path go to `tip` and `nearest`.
+  double distance(const Tick& t, const ResolvedBlock& b, Vec3& tip, Vec3& nearest);
+
+ private:
+  const Model& model_;
+  const Nominal& nom_;
+  bool on_reference_clock_;
+  ContourSearch search_;
+  std::unique_ptr<NominalPolyline> path_;
+};
 
 /// Runs `blocks` and measures them against the nominal path. `source_block(i)` is the program
 /// block that block i of `blocks` stands for (its tool length and segment); `also` sees every tick.
