@@ -16,9 +16,12 @@
 //      path by more than linearisation_tolerance.
 //   4. Iterative learning control. u_{k+1} = u_k + gain * Q[L e_k], e_k = r - y_k per axis, with
 //      L a FIR inverse of the whole chain acc/dec + feed drive per axis, designed from the chain's
-//      simulated step response (chain_inverse.hpp); the start is u_0 = L r. Each iterate is simulated with the same interpolator
-//      and drives as the original; an iterate that would exceed an axis's velocity, acceleration,
-//      torque or travel is rejected and the gain halved.
+//      simulated step response (chain_inverse.hpp); the start is u_0 = L r. Each iterate is
+//      simulated with the same interpolator and drives as the original; an iterate that would
+//      exceed an axis's velocity, acceleration, torque or travel is rejected and the gain halved.
+//      The learning runs window by window (16 s and a 2 s margin): each window is learned from the
+//      machine state the committed nodes before it leave (simulate::MachineRun), its nodes are
+//      committed, and only a window's series are held and replayed.
 // The model comes from the config (machine file, interpolate section, drives file), so a drives
 // file calibrated from measured traces is compensated against with no code change.
 #pragma once

@@ -27,6 +27,7 @@ namespace {
 
 class NnoeCorrection final : public AxisEffect {
  public:
+  std::unique_ptr<AxisEffect> clone() const override { return std::make_unique<NnoeCorrection>(*this); }
   NnoeCorrection(const EffectSettings& s, const EffectContext& ctx)
       : d_(static_cast<int>(s.get("decimation", 1))),
         na_(static_cast<int>(s.get("na", 1))),

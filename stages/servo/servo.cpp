@@ -60,6 +60,7 @@ namespace {
 /// Play operator: the table stays put until the motor has taken up half the gap on either side.
 class Backlash final : public AxisEffect {
  public:
+  std::unique_ptr<AxisEffect> clone() const override { return std::make_unique<Backlash>(*this); }
   explicit Backlash(double half_gap) : half_(half_gap) {}
   std::string_view name() const override { return "backlash"; }
   double transmit(double x) override {
@@ -77,6 +78,7 @@ class Backlash final : public AxisEffect {
 /// `band` the model is viscous-like, which is where real stick-slip needs an identified model.
 class CoulombFriction final : public AxisEffect {
  public:
+  std::unique_ptr<AxisEffect> clone() const override { return std::make_unique<CoulombFriction>(*this); }
   CoulombFriction(double torque, double band) : torque_(torque), band_(band) {}
   std::string_view name() const override { return "coulomb_friction"; }
   double load_torque(double, double w) const override {
@@ -95,6 +97,7 @@ class CoulombFriction final : public AxisEffect {
 /// Position feedback sampled once per sub-step and used `n` sub-steps later.
 class FeedbackDelay final : public AxisEffect {
  public:
+  std::unique_ptr<AxisEffect> clone() const override { return std::make_unique<FeedbackDelay>(*this); }
   explicit FeedbackDelay(std::size_t n) : buf_(n + 1, 0.0) {}
   std::string_view name() const override { return "feedback_delay"; }
   bool alters_feedback() const override { return buf_.size() > 1; }
@@ -113,6 +116,7 @@ class FeedbackDelay final : public AxisEffect {
 /// Periodic lead error of the screw: table = x + a sin(2 pi x / p + phase).
 class LeadError final : public AxisEffect {
  public:
+  std::unique_ptr<AxisEffect> clone() const override { return std::make_unique<LeadError>(*this); }
   LeadError(double amp, double period, double phase) : a_(amp), k_(2 * kPi / period), ph_(phase) {}
   std::string_view name() const override { return "lead_error"; }
   double transmit(double x) override { return x + a_ * std::sin(k_ * x + ph_); }
@@ -124,6 +128,7 @@ class LeadError final : public AxisEffect {
 /// Constant geometric offset of the axis (e.g. a misplaced reference mark).
 class Offset final : public AxisEffect {
  public:
+  std::unique_ptr<AxisEffect> clone() const override { return std::make_unique<Offset>(*this); }
   explicit Offset(double v) : v_(v) {}
   std::string_view name() const override { return "offset"; }
   double transmit(double x) override { return x + v_; }
@@ -135,6 +140,7 @@ class Offset final : public AxisEffect {
 /// Scale (pitch) error of the screw or encoder in ppm, about the machine zero: x (1 + s 1e-6).
 class ScaleError final : public AxisEffect {
  public:
+  std::unique_ptr<AxisEffect> clone() const override { return std::make_unique<ScaleError>(*this); }
   explicit ScaleError(double ppm) : f_(1 + ppm * 1e-6) {}
   std::string_view name() const override { return "scale_error"; }
   double transmit(double x) override { return x * f_; }
@@ -149,6 +155,7 @@ class ScaleError final : public AxisEffect {
 /// position chain (put it last) and never in feedback().
 class MeasurementDelay final : public AxisEffect {
  public:
+  std::unique_ptr<AxisEffect> clone() const override { return std::make_unique<MeasurementDelay>(*this); }
   explicit MeasurementDelay(double substeps_delay)
       : n_(static_cast<std::size_t>(std::floor(substeps_delay))),
         frac_(substeps_delay - std::floor(substeps_delay)),
@@ -336,6 +343,24 @@ DriveSet load_drives(const Config& root) {
 // ---------------------------------------------------------------------------------------------
 // One axis
 
+namespace {
+// The effects of a drive, copied by cloning them: a drive is copied with its state.
+struct EffectList : std::vector<std::unique_ptr<AxisEffect>> {
+  EffectList() = default;
+  EffectList(EffectList&&) noexcept = default;
+  EffectList& operator=(EffectList&&) noexcept = default;
+  EffectList(const EffectList& other) {
+    reserve(other.size());
+    for (const auto& e : other) push_back(e->clone());
+  }
+  EffectList& operator=(const EffectList& other) {
+    EffectList copy(other);
+    swap(copy);
+    return *this;
+  }
+};
+}  // namespace
+
 struct AxisDrive::Impl {
   DriveParams p;
   double T = 0.001;        // period [s]
@@ -362,8 +387,8 @@ struct AxisDrive::Impl {
     std::array<std::uint64_t, 4> commands{};  //!< bits of c[0], c[1], c[m + 1], c[m + 2] (0 if unused)
     AxisState result;
   } rest;
-  std::vector<std::unique_ptr<AxisEffect>> effects;
-  std::vector<std::unique_ptr<AxisEffect>> outputs;  // output-only corrections, after the chain
+  EffectList effects;
+  EffectList outputs;  // output-only corrections, after the chain
 
   // The position at the end of the period [load units] with the output-only corrections.
   double corrected(double position, std::span<const double> c) {
@@ -526,6 +551,11 @@ AxisDrive::AxisDrive(const DriveParams& p, double period, int substeps, double m
 AxisDrive::~AxisDrive() = default;
 AxisDrive::AxisDrive(AxisDrive&&) noexcept = default;
 AxisDrive& AxisDrive::operator=(AxisDrive&&) noexcept = default;
+AxisDrive::AxisDrive(const AxisDrive& other) : impl_(std::make_unique<Impl>(*other.impl_)) {}
+AxisDrive& AxisDrive::operator=(const AxisDrive& other) {
+  if (this != &other) impl_ = std::make_unique<Impl>(*other.impl_);
+  return *this;
+}
 
 int AxisDrive::window() const { return impl_->win; }
 const DriveParams& AxisDrive::params() const { return impl_->p; }

@@ -105,6 +105,9 @@ class AxisEffect {
  public:
   virtual ~AxisEffect() = default;
   virtual std::string_view name() const = 0;
+  /// A copy with the same state (a drive is copied with its effects: a run's state is copied
+  /// where the compensation learns a window from it).
+  virtual std::unique_ptr<AxisEffect> clone() const = 0;
   /// Extra torque opposing the motor [N*m] at motor angle theta [rad] and speed w [rad/s].
   /// Called inside the integrator, so it must not change state.
   virtual double load_torque(double theta, double w) const {
@@ -180,6 +183,9 @@ class AxisDrive {
   ~AxisDrive();
   AxisDrive(AxisDrive&&) noexcept;
   AxisDrive& operator=(AxisDrive&&) noexcept;
+  /// The same drive in the same state, its effects cloned.
+  AxisDrive(const AxisDrive& other);
+  AxisDrive& operator=(const AxisDrive& other);
 
   /// Number of command samples step() needs: c[0] at the start of the period, c[1] at its end,
   /// the rest ahead for the Tp look-ahead.
