@@ -77,6 +77,48 @@ double worst_reference_deviation(const Model& model, const std::vector<ResolvedB
   return worst;
 }
 
+// The compensation learns each window from a copy of the machine run where the nodes before it
+// end (compensate.cpp, WindowedLearning): a copy must be the whole state, effects with memory
+// (backlash, friction) included, so that the copy runs on exactly as the original would.
+TEST(MachineRun, ACopyRunsOnExactlyAsTheOriginal) {
+  PipelineConfig pc = circle_config();
+  Model model = load_model(pc);
+  model.drives.axes[kX].effects.push_back({"backlash", {{"width", 0.01}}});
+  model.drives.axes[kY].effects.push_back({"coulomb_friction", {{"torque", 0.5}, {"velocity_band", 0.01}}});
+  const auto program = parse_text("G0 X0 Y0 Z10\nG1 X20 Y5 F3000\nG2 X30 Y15 I0 J10\nG1 X-5 Y-5 A-10 C30\nG1 X0 Y0 Z5\n", pc);
+  ASSERT_EQ(program.size(), 5u);
+  const Axes start = machine_start(model.kin, program[0], tool_length_of(model, program[0]));
+  std::vector<Tick> original, copied;
+  simulate::MachineRun run(model, start, 0);
+  auto keep = [](std::vector<Tick>& into) { return [&into](const Tick& t) { into.push_back(t); }; };
+  const simulate::TickFn to_original = keep(original);
+  for (std::uint32_t i = 0; i < 2; ++i) ASSERT_EQ(run.add(program[i], i, to_original).status, interpolate::InterpolateStatus::kOk);
+  simulate::MachineRun copy = run;
+  const std::size_t before_copy = original.size();
+  ASSERT_GT(before_copy, 100u);
+  const simulate::TickFn to_copied = keep(copied);
+  for (std::uint32_t i = 2; i < program.size(); ++i) {
+    ASSERT_EQ(run.add(program[i], i, to_original).status, interpolate::InterpolateStatus::kOk);
+    ASSERT_EQ(copy.add(program[i], i, to_copied).status, interpolate::InterpolateStatus::kOk);
+  }
+  run.finish(to_original);
+  copy.finish(to_copied);
+  ASSERT_EQ(original.size(), before_copy + copied.size());
+  for (std::size_t k = 0; k < copied.size(); ++k) {
+    const Tick& a = original[before_copy + k];
+    const Tick& b = copied[k];
+    ASSERT_EQ(a.n, b.n);
+    ASSERT_EQ(a.block, b.block);
+    for (std::size_t i = 0; i < kNumAxes; ++i) {
+      ASSERT_EQ(a.command[i], b.command[i]) << "tick " << a.n << " axis " << i;
+      ASSERT_EQ(a.actual[i], b.actual[i]) << "tick " << a.n << " axis " << i;
+    }
+  }
+  // And the run went on from where it was: the copy's first tick follows the original's last
+  // before the copy.
+  EXPECT_EQ(copied.front().n, original[before_copy - 1].n + 1);
+}
+
 TEST(Compensate, PlannedReferenceStaysWithinThePathToleranceWithoutStoppingAtCorners) {
   const PipelineConfig pc = circle_config();
   const Model model = load_model(pc);
