@@ -268,6 +268,13 @@ TEST(CompensateReport, BelowTenfoldTheReportNamesWhatLimitsIt) {
   EXPECT_NE(reduction_limited_by(in).find("floor of the points' joint-linear motion"), std::string::npos) << reduction_limited_by(in);
   result.linearisation_max_deviation = 0.0001;
   EXPECT_NE(reduction_limited_by(in).find("stopped gaining there after 7 iterations"), std::string::npos) << reduction_limited_by(in);
+  // Learned in windows: the iterations of the window that holds t 2.5 s, not the program's most.
+  result.windows = {{0, 2, 7}, {2, 16, 4}, {16, 20, 3}};
+  EXPECT_NE(reduction_limited_by(in).find("stopped gaining there after 4 iterations"), std::string::npos) << reduction_limited_by(in);
+  result.windows[1].out_of_iterations = true;
+  EXPECT_NE(reduction_limited_by(in).find("still gaining there when compensate.max_iterations (3 after the start) ran out"),
+            std::string::npos)
+      << reduction_limited_by(in);
   result.compensated = false;
   EXPECT_EQ(reduction_limited_by(in), "");
 }

@@ -446,6 +446,7 @@ class WindowedLearning {
     last_ = w.last;
     open(w);
     std::vector<WindowIteration> record;
+    bool out_of_iterations = false;
     for (int it = 0; it <= opt_.max_iterations; ++it) {
       std::vector<WindowLimits> lim;
       WindowIteration rec = measure(w, lim);
@@ -461,13 +462,19 @@ class WindowedLearning {
       rec.accepted = rec.rejected_because.empty();
       record.push_back(rec);
       blend_into_best(improved);
-      if (all_stalled(lim) || it == opt_.max_iterations) break;
+      if (all_stalled(lim)) break;
+      if (it == opt_.max_iterations) {
+        out_of_iterations = true;
+        break;
+      }
       nodes_ = best_;
       project_speed(nodes_, grid_, vbound_, T_);
       learning_step();
       project_speed(nodes_, grid_, vbound_, T_);
     }
     add_to_totals(record);
+    res_.windows.push_back({static_cast<double>(w.a) * T_, static_cast<double>(w.b) * T_, static_cast<int>(record.size()),
+                            out_of_iterations});
     for (bool learned : sub_learned_) any_learned_ = any_learned_ || learned;
   }
 

@@ -104,6 +104,13 @@ struct Node {
   std::uint32_t block = 0;   //!< source block index it belongs to (for N numbers and M words)
 };
 
+/// One window of the learning: the part of the compensated clock whose nodes it committed.
+struct LearningWindow {
+  double t_begin = 0, t_end = 0;  //!< [s]
+  int iterations = 0;             //!< learning iterations it ran (the start included)
+  bool out_of_iterations = false; //!< still gaining when compensate.max_iterations ran out
+};
+
 /// Result of the compensation.
 struct Result {
   bool compensated = false;
@@ -119,6 +126,13 @@ struct Result {
   /// that broke a limit in some iteration: the last limit it broke, e.g. "axis X acceleration
   /// 5062 > limit 5050 at t 28-29 s". Only such windows are kept.
   std::map<std::size_t, std::string> window_limits;
+  std::vector<LearningWindow> windows;  //!< in order
+  /// The window that committed time t [s] (the last one past the end), or null.
+  const LearningWindow* window_at(double t) const {
+    for (const LearningWindow& w : windows)
+      if (t < w.t_end) return &w;
+    return windows.empty() ? nullptr : &windows.back();
+  }
 };
 
 /// Computes the compensated nodes. `program` is the original, `nominal` its nominal run.

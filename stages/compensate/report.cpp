@@ -172,10 +172,20 @@ std::string reduction_limited_by(const ReportInput& in) {
                   after * 1e3, r.linearisation_max_deviation * 1e3, before * 1e3);
     return buf;
   }
+  // The iterations of the window that learned that time, not of the longest-learning window.
+  const LearningWindow* window = r.window_at(in.after->contour.t_at_max);
+  const std::size_t iterations = window ? static_cast<std::size_t>(window->iterations) : r.iterations.size();
+  if (window && window->out_of_iterations) {
+    std::snprintf(buf, sizeof buf,
+                  "no limit was broken near the largest error (t %.3f s); the learning was still gaining there when "
+                  "compensate.max_iterations (%zu after the start) ran out",
+                  in.after->contour.t_at_max, iterations > 0 ? iterations - 1 : 0);
+    return buf;
+  }
   std::snprintf(buf, sizeof buf,
                 "no limit was broken near the largest error (t %.3f s); the learning stopped gaining there after %zu "
                 "iterations",
-                in.after->contour.t_at_max, r.iterations.size());
+                in.after->contour.t_at_max, iterations);
   return buf;
 }
 
