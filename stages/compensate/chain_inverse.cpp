@@ -167,7 +167,7 @@ Axes apply_inverse(const ChainInverse& inv, const simulate::JointSeries& x, std:
   if (x.exact())
     return apply_all(inv, size, n, [&](std::int64_t m, std::size_t i) { return x.at(static_cast<std::size_t>(m), i); });
   // Compact: the arrays read directly (at() would test exact() at every tap; the model-inverse
-  // start reads the whole reference this way in every learning iteration).
+  // start reads the reference this way at every node of every window).
   const double* base = x.base_data();
   const float* offset = x.offset_data();
   constexpr auto kA = static_cast<std::int64_t>(kNumAxes);
