@@ -445,6 +445,10 @@ class WindowedLearning {
     c_ = w.c;
     last_ = w.last;
     open(w);
+    if (stopped_) {  // the machine state is unknown past a failed commit: nothing is learned
+      res_.windows.push_back({static_cast<double>(w.a) * T_, static_cast<double>(w.b) * T_, 0, false});
+      return;
+    }
     std::vector<WindowIteration> record;
     bool out_of_iterations = false;
     for (int it = 0; it <= opt_.max_iterations; ++it) {
@@ -735,8 +739,17 @@ class WindowedLearning {
       if (pre_error_.empty()) pre_first_ = t.n;
       pre_error_.push_back(err);
     };
+    if (stopped_) return;
     const std::string failed = run_nodes(state_, end, false, best_, on_tick);
-    if (!failed.empty()) last_rejection_ = failed;
+    if (!failed.empty()) {
+      // The state the next window would start from is not where the committed nodes end: the
+      // rest of the program keeps its model-inverse start, unlearned, and the note says why.
+      stopped_ = true;
+      char at[60];
+      std::snprintf(at, sizeof at, " (t %.3f s)", static_cast<double>(w.b) * T_);
+      last_rejection_ = "the committed nodes could not be run" + std::string(at) + ": " + failed +
+                        "; the program after that keeps the model-inverse start";
+    }
   }
 
   // A window's iterations added to the report's: iteration i of the program is each window at
@@ -821,6 +834,7 @@ class WindowedLearning {
   std::vector<WindowIteration> totals_;
   std::size_t iterations_run_ = 0;
   bool any_learned_ = false;
+  bool stopped_ = false;  // a commit failed: later windows are not learned
   std::string last_rejection_;
 };
 
