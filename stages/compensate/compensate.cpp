@@ -379,6 +379,10 @@ class WindowedLearning {
     bool last = false;
   };
 
+  // run_nodes' answer when every block ran but the interpolator slowed some (an iterate that is
+  // rejected, not a run that failed).
+  static constexpr const char* kSlowed = "points slowed by the interpolator's speed bound";
+
   static std::uint64_t round_up(std::uint64_t n, std::uint64_t m) { return (n + m - 1) / m * m; }
 
   Window window_from(std::uint64_t a) const {
@@ -515,7 +519,7 @@ class WindowedLearning {
       from = block.target;
     }
     if (settle) run.finish(on_tick);
-    if (run.interp_stats().velocity_limited_blocks > limited) return "points slowed by the interpolator's speed bound";
+    if (run.interp_stats().velocity_limited_blocks > limited) return kSlowed;
     return {};
   }
 
@@ -741,7 +745,9 @@ class WindowedLearning {
     };
     if (stopped_) return;
     const std::string failed = run_nodes(state_, end, false, best_, on_tick);
-    if (!failed.empty()) {
+    if (failed == kSlowed) {
+      last_rejection_ = failed;
+    } else if (!failed.empty()) {
       // The state the next window would start from is not where the committed nodes end: the
       // rest of the program keeps its model-inverse start, unlearned, and the note says why.
       stopped_ = true;
