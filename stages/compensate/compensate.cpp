@@ -716,10 +716,6 @@ class WindowedLearning {
   // the machine state moves on to b by running the committed nodes once, which also gives the
   // error just before b (the next window's operator reads back into it).
   void commit(const Window& w) {
-    // best_ blends iterates that were each projected onto the speed bound with weights that
-    // change from node to node, so a step of the blend may exceed it: projected again, the
-    // committed program is one the interpolator never slows.
-    project_speed(best_, grid_, vbound_, T_);
     std::size_t end = grid_.size() - 1;
     if (!w.last) end = static_cast<std::size_t>(std::find(grid_.begin(), grid_.end(), w.b) - grid_.begin());
     for (std::size_t k = 1; k <= end; ++k) res_.nodes.push_back(Node{grid_[k], best_.get(k), clock_.block_at(grid_[k])});
