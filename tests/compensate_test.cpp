@@ -164,6 +164,47 @@ TEST(Compensate, ReferenceLiesOnTheNominalPathAndStartsAndEndsAtRest) {
   EXPECT_TRUE(circle);
 }
 
+// The learning replays a window at a time, not the whole program: on the seed 002 circle test
+// (35.6 s planned: three windows) the windows follow each other without gap from the start to the
+// end of the compensated program, none longer than 16 s, and what the learning simulated is
+// bounded by each window's own iterations over its own span and margin, not by the program's
+// length times the iterations.
+TEST(Compensate, TheLearningReplaysAWindowNotTheWholeProgram) {
+  const PipelineConfig pc = circle_config();
+  const Model model = load_model(pc);
+  std::ifstream f(fs::path(GCPIPE_SOURCE_DIR) / "samples" / "circle_test_seed002.nc");
+  const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const auto program = parse_text(text, pc);
+  const Axes start = machine_start(model.kin, program[1], tool_length_of(model, program[1]));
+  const CompensateOptions opt;
+  const Nominal nom = build_nominal(model, program, start, opt.reference, opt.max_machine_time);
+  const Evaluation before = evaluate(model, nom, program, program, start, [](std::uint32_t i) { return i; });
+  const Result r = compensate(model, nom, program, start, before, opt, {});
+  ASSERT_TRUE(r.compensated) << r.note;
+  const double T = model.interp.period;
+  const double end = static_cast<double>(r.nodes.back().tick) * T;
+  ASSERT_GT(end, 32.0);
+  ASSERT_GE(r.windows.size(), 3u);
+  EXPECT_EQ(r.windows.front().t_begin, 0.0);
+  EXPECT_NEAR(r.windows.back().t_end, end, 1e-9);
+  double bound = 0;  // [s] of machine time: each iteration over the span, the margin and settling, and the commit
+  int most = 0;
+  for (std::size_t k = 0; k < r.windows.size(); ++k) {
+    const LearningWindow& w = r.windows[k];
+    if (k > 0) EXPECT_EQ(w.t_begin, r.windows[k - 1].t_end) << "window " << k;
+    const double span = w.t_end - w.t_begin;
+    EXPECT_GT(span, 0.0);
+    EXPECT_LE(span, 16.0 + 2.0 + 1e-9) << "window " << k;  // the last takes the rest when under a margin is left
+    bound += w.iterations * (span + 2.5) + span + 0.5;
+    most = std::max(most, w.iterations);
+  }
+  const double simulated = static_cast<double>(r.learning_ticks) * T;
+  std::printf("%zu windows, %.1f s of machine time simulated for %.1f s of program (at most %d iterations a window)\n",
+              r.windows.size(), simulated, end, most);
+  EXPECT_GT(simulated, end);
+  EXPECT_LE(simulated, bound);
+}
+
 TEST(Compensate, CircleTestAt2PiComesDownTenfoldWithinLimitsAndReadsBack) {
   const PipelineConfig pc = circle_config();
   const Model model = load_model(pc);

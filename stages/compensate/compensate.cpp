@@ -511,6 +511,13 @@ class WindowedLearning {
     ResolvedBlock block;
     Axes from = start_[0];
     const std::uint64_t limited = run.interp_stats().velocity_limited_blocks;
+    const std::uint64_t ticks_before = run.ticks();
+    struct Count {
+      Result& res;
+      const simulate::MachineRun& run;
+      std::uint64_t before;
+      ~Count() { res.learning_ticks += run.ticks() - before; }
+    } count{res_, run, ticks_before};
     for (std::size_t i = 0; i < last_node; ++i) {
       const std::uint32_t src = clock_.block_at(grid_[i + 1]);
       node_block(program_[src], from, nodes.get(i + 1), grid_[i + 1] - grid_[i], T_, block);

@@ -127,6 +127,7 @@ struct Result {
   /// 5062 > limit 5050 at t 28-29 s". Only such windows are kept.
   std::map<std::size_t, std::string> window_limits;
   std::vector<LearningWindow> windows;  //!< in order
+  std::uint64_t learning_ticks = 0;     //!< ticks the learning simulated (its runs and commits)
   /// The window that committed time t [s] (the last one past the end), or null.
   const LearningWindow* window_at(double t) const {
     for (const LearningWindow& w : windows)

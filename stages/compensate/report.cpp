@@ -1,5 +1,7 @@
 #include "report.hpp"
 
+#include <algorithm>
+
 #include <cstdio>
 
 #include <nlohmann/json.hpp>
@@ -82,6 +84,10 @@ void add_result(Json& j, const ReportInput& in) {
     iterations.push_back(std::move(i));
   }
   j["iterations"] = std::move(iterations);
+  // How much the learning replayed: by windows, a window's machine time per iteration it needs.
+  j["learning"] = {{"windows", r.windows.size()},
+                   {"simulated_machine_s", static_cast<double>(r.learning_ticks) * T},
+                   {"most_iterations_of_a_window", r.windows.empty() ? 0 : std::max_element(r.windows.begin(), r.windows.end(), [](const auto& a, const auto& b) { return a.iterations < b.iterations; })->iterations}};
 }
 
 Json kffp_json(const ReportInput& in) {
