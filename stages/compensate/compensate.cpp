@@ -333,7 +333,7 @@ struct WindowIteration {
 class WindowedLearning {
  public:
   // Measured on the shipped samples, LinuxCNC's programs and generated CAM programs (README
-  // beside this file, "Learning in windows"): 4 s windows with a 1 s margin lost up to 40 % of
+  // beside this file, "Learning in windows"): 4 s windows with a 1 s margin lost up to 44 % of
   // the after figure at the joins; 16 s with 2 s keeps every row of the top README within 5 % of
   // the whole-program learning (one generated program of eight lost 46 %, at its first join).
   static constexpr double kWindowSeconds = 16;
@@ -381,9 +381,16 @@ class WindowedLearning {
     bool last = false;
   };
 
-  // run_nodes' answer when every block ran but the interpolator slowed some (an iterate that is
-  // rejected, not a run that failed).
-  static constexpr const char* kSlowed = "points slowed by the interpolator's speed bound";
+  // How a run of node blocks went: a block the interpolator refused (the run stopped there), or
+  // every block run with some slowed by the speed bound (an iterate that is rejected, while the
+  // machine still ends where the nodes do).
+  struct NodeRun {
+    std::string refused;
+    bool slowed = false;
+    std::string why_rejected() const {
+      return !refused.empty() ? refused : slowed ? "points slowed by the interpolator's speed bound" : std::string();
+    }
+  };
 
   static std::uint64_t round_up(std::uint64_t n, std::uint64_t m) { return (n + m - 1) / m * m; }
 
@@ -447,9 +454,7 @@ class WindowedLearning {
   }
 
   void learn(const Window& w) {
-    a_ = w.a;
-    c_ = w.c;
-    last_ = w.last;
+    win_ = w;
     open(w);
     if (stopped_) {  // the machine state is unknown past a failed commit: nothing is learned
       res_.windows.push_back({static_cast<double>(w.a) * T_, static_cast<double>(w.b) * T_, 0, false});
@@ -496,30 +501,34 @@ class WindowedLearning {
   // model-inverse start after them.
   double taper(std::uint64_t tick) const {
     double w = 1.0;
-    if (!last_) w = std::clamp(static_cast<double>(c_ - std::min(tick, c_)) / static_cast<double>(taper_ticks_), 0.0, 1.0);
-    if (a_ > 0) w = std::min(w, std::clamp(static_cast<double>(std::max(tick, a_) - a_) / static_cast<double>(ramp_ticks_), 0.0, 1.0));
+    const std::uint64_t a = win_.a, c = win_.c;
+    if (!win_.last) w = std::clamp(static_cast<double>(c - std::min(tick, c)) / static_cast<double>(taper_ticks_), 0.0, 1.0);
+    if (a > 0) w = std::min(w, std::clamp(static_cast<double>(std::max(tick, a) - a) / static_cast<double>(ramp_ticks_), 0.0, 1.0));
     return w;
   }
 
   std::size_t sub_of(std::uint64_t tick) const {
-    return tick < a_ ? 0 : std::min<std::size_t>(static_cast<std::size_t>((tick - a_) / Wt_), nsub_ - 1);
+    return tick < win_.a ? 0 : std::min<std::size_t>(static_cast<std::size_t>((tick - win_.a) / Wt_), nsub_ - 1);
   }
   std::size_t segment_of_block(std::uint32_t b) const {
     return nom_.segment_of_block.empty() ? 0 : std::min<std::size_t>(nom_.segment_of_block[b], nseg_ - 1);
   }
 
   // The window's node program as it is now, block by block from node 0, into `run`; the last
-  // window's run settles after the program's end. Returns why a block could not be run, kSlowed,
-  // or empty. The ticks it simulates are counted for the report.
-  std::string run_nodes(simulate::MachineRun& run, std::size_t last_node, bool settle, const NodeJoints& nodes,
-                        const simulate::TickFn& on_tick) {
+  // window's run settles after the program's end. The ticks it simulates are counted for the
+  // report.
+  NodeRun run_nodes(simulate::MachineRun& run, std::size_t last_node, bool settle, const NodeJoints& nodes,
+                    const simulate::TickFn& on_tick) {
     const std::uint64_t ticks_before = run.ticks();
     const std::uint64_t limited = run.interp_stats().velocity_limited_blocks;
-    std::string why = run_node_blocks(run, last_node, nodes, on_tick);
-    if (why.empty() && settle) run.finish(on_tick);
-    if (why.empty() && run.interp_stats().velocity_limited_blocks > limited) why = kSlowed;
+    NodeRun out;
+    out.refused = run_node_blocks(run, last_node, nodes, on_tick);
+    if (out.refused.empty()) {
+      if (settle) run.finish(on_tick);
+      out.slowed = run.interp_stats().velocity_limited_blocks > limited;
+    }
     res_.learning_ticks += run.ticks() - ticks_before;
-    return why;
+    return out;
   }
 
   std::string run_node_blocks(simulate::MachineRun& run, std::size_t last_node, const NodeJoints& nodes,
@@ -577,7 +586,6 @@ class WindowedLearning {
   // acceleration and contour error per second, each second's error r - y to keep_if_improved as
   // the second ends, and the contour error on the ticks the window commits.
   WindowIteration measure(const Window& w, std::vector<WindowLimits>& lim) {
-    a_ = w.a;
     lim.assign(nsub_, WindowLimits{});
     WindowIteration rec;
     simulate::MachineRun run = state_;
@@ -599,7 +607,7 @@ class WindowedLearning {
       const ResolvedBlock& b = program_[std::min<std::size_t>(t.block, program_.size() - 1)];
       Vec3 tip, nearest;
       const double e = meter.distance(t, b, tip, nearest);
-      const double contour = b.motion != Motion::kRapid && b.motion != Motion::kNone ? e : 0.0;
+      const double contour = simulate::is_cutting(b) ? e : 0.0;
       WindowLimits& L0 = lim[s];
       if (!L0.seen) L0.segment = segment_of_block(t.block), L0.seen = true;
       L0.max_contour = std::max(L0.max_contour, contour);
@@ -623,7 +631,7 @@ class WindowedLearning {
       for (std::size_t i = 0; i < kNumAxes; ++i) err[i] = r[i] - t.actual[i];
       second_err_.push_back(err);
     };
-    rec.rejected_because = run_nodes(run, grid_.size() - 1, w.last, nodes_, on_tick);
+    rec.rejected_because = run_nodes(run, grid_.size() - 1, w.last, nodes_, on_tick).why_rejected();
     if (rec.rejected_because.empty()) keep_if_improved(current, lim[current]);
     return rec;
   }
@@ -757,16 +765,15 @@ class WindowedLearning {
       pre_error_.push_back(err);
     };
     if (stopped_) return;
-    const std::string failed = run_nodes(state_, end, false, best_, on_tick);
-    if (failed == kSlowed) {
-      last_rejection_ = failed;
-    } else if (!failed.empty()) {
+    const NodeRun committed = run_nodes(state_, end, false, best_, on_tick);
+    if (committed.slowed) last_rejection_ = committed.why_rejected();
+    if (!committed.refused.empty()) {
       // The state the next window would start from is not where the committed nodes end: the
       // rest of the program keeps its model-inverse start, unlearned, and the note says why.
       stopped_ = true;
       char at[60];
       std::snprintf(at, sizeof at, " (t %.3f s)", static_cast<double>(w.b) * T_);
-      last_rejection_ = "the committed nodes could not be run" + std::string(at) + ": " + failed +
+      last_rejection_ = "the committed nodes could not be run" + std::string(at) + ": " + committed.refused +
                         "; the program after that keeps the model-inverse start";
     }
   }
@@ -836,8 +843,7 @@ class WindowedLearning {
   std::vector<SecondState> carry_seconds_;
   std::vector<AxesF> carry_error_;  // best error from the next window's first tick on
   // The window being learned.
-  std::uint64_t a_ = 0, c_ = 0; // its first and last tick
-  bool last_ = false;           // it ends with the program
+  Window win_;
   std::vector<std::uint64_t> grid_;
   std::vector<Axes> start_;     // its first iterate
   NodeJoints nodes_, best_;     // the current iterate and the best per second, on grid_

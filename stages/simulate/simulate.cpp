@@ -336,8 +336,7 @@ class RunAccumulator {
   /// Returns whether the tick is on a cutting move (where the contour error counts).
   bool add(const Tick& t, const ResolvedBlock& b, std::uint32_t seg, double e, const Vec3& tip, const Vec3& nearest) {
     const double time = static_cast<double>(t.n) * model_.interp.period;
-    // Rapids position the tool and do not cut: the contour error counts on feed moves and dwells.
-    const bool cutting = b.motion != Motion::kRapid && b.motion != Motion::kNone;
+    const bool cutting = is_cutting(b);
     if (cutting) add_error(ev_.contour, sum_sq_, count_, e, time, b.line);
     else if (b.motion == Motion::kRapid) add_error(ev_.rapid, rapid_sq_, rapid_count_, e, time, b.line);
     if (cutting && seg < ev_.per_segment.size()) add_error(ev_.per_segment[seg], seg_sq_[seg], seg_n_[seg], e, time, b.line);

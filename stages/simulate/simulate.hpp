@@ -37,6 +37,10 @@ inline Axes lerp(const Axes& a, const Axes& b, double s) {
   return r;
 }
 
+/// A block whose contour error counts: feed moves and dwells cut (or stand in the cut); rapids
+/// position the tool and are reported apart.
+inline bool is_cutting(const ResolvedBlock& b) { return b.motion != Motion::kRapid && b.motion != Motion::kNone; }
+
 /// The machine as the simulation (and the compensation) sees it. Every part comes from the config.
 struct Model {
   MachineKinematics kin;
