@@ -161,8 +161,8 @@ std::string reduction_limited_by(const ReportInput& in) {
   if (!(after > 0) || before >= kTargetReduction * after) return {};
   const Result& r = *in.result;
   char buf[400];
-  // The windows are one second of the compensated clock and their decisions are blended over
-  // +-0.1 s, so the window of the largest error and its two neighbours are the ones to ask.
+  // The limits are kept per second of the compensated clock and the decisions are blended over
+  // +-0.1 s, so the second of the largest error and its two neighbours are the ones to ask.
   const auto w = static_cast<std::size_t>(std::max(0.0, in.after->contour.t_at_max));
   for (std::size_t k : {w, w + 1, w == 0 ? w : w - 1}) {
     if (auto it = r.window_limits.find(k); it != r.window_limits.end()) {
