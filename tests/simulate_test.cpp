@@ -121,4 +121,75 @@ TEST(ContourSearch, EqualsBruteForceOverTheWindowOnALoopingPath) {
   }
 }
 
+// distance_beyond(bound) on the trochoid, the actual trailing with noise: beyond the bound it is
+// the least distance exactly (brute force over the window); within it, never less than the least
+// and never beyond the bound. Bounds from 0 (always searched) to far above every distance.
+TEST(ContourSearch, DistanceBeyondABoundIsExactBeyondItAndABoundOfTheLeastWithin) {
+  std::vector<Vec3> pts;
+  for (int k = 0; k < 9000; ++k) {
+    const double t = k * 0.002;
+    pts.push_back({3 * std::cos(8 * t) + 0.8 * t, 3 * std::sin(8 * t), 0.01 * std::sin(t)});
+  }
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> noise(0.0, 0.3);
+  std::size_t beyond = 0, within = 0, not_least = 0;
+  for (const double bound : {0.0, 0.05, 0.2, 1e9}) {
+    simulate::ContourSearch search;
+    Vec3 c;
+    for (std::size_t k = 0; k < pts.size(); ++k) {
+      search.push(pts[k]);
+      if (k == 0) continue;
+      const Vec3& q = pts[k > 20 ? k - 20 : 0];
+      const Vec3 p{q[0] + noise(rng), q[1] + noise(rng), q[2] + 0.1 * noise(rng)};
+      const double d = search.distance_beyond(p, k, bound, c);
+      const std::size_t lo = k > simulate::ContourSearch::kLookBack ? k - simulate::ContourSearch::kLookBack : 0;
+      const double least = brute_force(pts, lo, k, p);
+      ASSERT_NEAR(simulate::dist3(c, p), d, 1e-9) << "at tick " << k;
+      if (least > bound) {
+        ASSERT_EQ(d, least) << "at tick " << k << ", bound " << bound;
+        ++beyond;
+      } else {
+        ASSERT_GE(d, least) << "at tick " << k;
+        ASSERT_LE(d, bound) << "at tick " << k;
+        ++within;
+        not_least += d != least;
+      }
+    }
+  }
+  EXPECT_GT(beyond, 1000u);
+  EXPECT_GT(within, 1000u);
+  EXPECT_GT(not_least, 0u);  // the window was not searched for some: the bound is used
+}
+
+// A search that keeps its points and is rewound measures a second run exactly as a new search
+// over the same points does (the compensation's learning measures every run of a window so).
+TEST(ContourSearch, ARewoundSearchMeasuresAsANewOne) {
+  std::vector<Vec3> pts;
+  for (int k = 0; k < 12000; ++k) {
+    const double t = k * 0.002;
+    pts.push_back({3 * std::cos(8 * t) + 0.8 * t, 3 * std::sin(8 * t), 0.01 * std::sin(t)});
+  }
+  auto actual = [&](std::size_t k, double off) {
+    const Vec3& q = pts[k > 20 ? k - 20 : 0];
+    return Vec3{q[0] + off * std::sin(0.01 * static_cast<double>(k)), q[1] + off, q[2]};
+  };
+  simulate::ContourSearch kept;
+  kept.keep_all_points();
+  Vec3 c1, c2;
+  for (std::size_t k = 0; k < pts.size(); ++k) {  // the first run pushes the points
+    kept.push(pts[k]);
+    if (k > 0) kept.distance(actual(k, 0.2), c1);
+  }
+  kept.rewind();
+  simulate::ContourSearch fresh;
+  for (std::size_t k = 0; k < pts.size(); ++k) {
+    fresh.push(pts[k]);
+    if (k == 0) continue;
+    const double a = kept.distance(actual(k, 0.05), k, c1);
+    const double b = fresh.distance(actual(k, 0.05), k, c2);
+    ASSERT_EQ(a, b) << "at tick " << k;
+    ASSERT_EQ(c1, c2) << "at tick " << k;
+  }
+}
+
 }  // namespace

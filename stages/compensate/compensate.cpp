@@ -4,7 +4,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <deque>
 #include <limits>
 #include <memory>
 #include <stdexcept>
@@ -216,35 +215,17 @@ class WindowAverage {
   double sum_ = 0, current_ = 0;
 };
 
-// A series made one value at a time, in order, of which only the last few are kept: the learning
-// update and its two smoothing passes are chained through these instead of held as node series
-// (the smoothing reads one node ahead, so a pass runs one node ahead of the next).
-class InOrder {
- public:
-  explicit InOrder(std::function<Axes(std::size_t)> make) : make_(std::move(make)) {}
-
-  /// Value k; k may go back by at most kKept - 1 from the largest asked for.
-  Axes at(std::size_t k) {
-    while (first_ + kept_.size() <= k) kept_.push_back(make_(first_ + kept_.size()));
-    while (first_ + kKept <= k) kept_.pop_front(), ++first_;
-    if (k < first_) throw std::logic_error("InOrder: a value no longer kept");
-    return kept_[k - first_];
+// One zero-phase [1 2 1]/4 pass over a window's series, the two end values kept.
+void smooth_121(const std::vector<Axes>& in, std::vector<Axes>& out) {
+  const std::size_t n = in.size();
+  out.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    if (k == 0 || k + 1 >= n) {
+      out[k] = in[k];
+      continue;
+    }
+    for (std::size_t i = 0; i < kNumAxes; ++i) out[k][i] = 0.25 * in[k - 1][i] + 0.5 * in[k][i] + 0.25 * in[k + 1][i];
   }
-
- private:
-  static constexpr std::size_t kKept = 4;
-  std::function<Axes(std::size_t)> make_;
-  std::deque<Axes> kept_;
-  std::size_t first_ = 0;  // index of kept_.front()
-};
-
-// One zero-phase [1 2 1]/4 pass at node k of n, the two end nodes kept.
-Axes smoothed_121(InOrder& in, std::size_t k, std::size_t n) {
-  if (k == 0 || k + 1 >= n) return in.at(k);
-  const Axes before = in.at(k - 1), at = in.at(k), after = in.at(k + 1);
-  Axes out;
-  for (std::size_t i = 0; i < kNumAxes; ++i) out[i] = 0.25 * before[i] + 0.5 * at[i] + 0.25 * after[i];
-  return out;
 }
 
 // The joints of every node of the grid, as float offsets from the reference at the node's tick.
@@ -402,6 +383,9 @@ class WindowedLearning {
 
   // The window's grid, start iterate and learning state, before its first iteration.
   void open(const Window& w) {
+    // Every run of the window is measured against the same stretch of the nominal path: it is
+    // made once, on the first run, and searched again by the others.
+    meter_ = std::make_unique<simulate::ContourMeter>(model_, nom_, program_, true, w.a, true);
     grid_ = linearised_grid(clock_, m_, opt_.linearisation_tolerance, w.a, w.c, w.last ? w.c + 1 : w.b, res_);
     nodes_ = NodeJoints(nom_.reference, grid_);
     start_iterate();
@@ -589,7 +573,8 @@ class WindowedLearning {
     lim.assign(nsub_, WindowLimits{});
     WindowIteration rec;
     simulate::MachineRun run = state_;
-    simulate::ContourMeter meter(model_, nom_, program_, true, w.a);
+    simulate::ContourMeter& meter = *meter_;
+    meter.rewind();
     Axes c1 = c1_, c2 = c2_;
     std::uint64_t seen = seen_;
     std::size_t current = 0;
@@ -605,10 +590,17 @@ class WindowedLearning {
         current = s;
       }
       const ResolvedBlock& b = program_[std::min<std::size_t>(t.block, program_.size() - 1)];
-      Vec3 tip, nearest;
-      const double e = meter.distance(t, b, tip, nearest);
-      const double contour = simulate::is_cutting(b) ? e : 0.0;
       WindowLimits& L0 = lim[s];
+      // The verdicts read the largest error of each second and of the committed ticks: a tick
+      // that cannot raise either is measured only near its previous match (an upper bound of
+      // its distance, usually the distance itself), not searched over the whole window.
+      const bool cutting = simulate::is_cutting(b);
+      const bool counted = t.n >= counted_from && t.n < counted_to;
+      const double bound = !cutting ? std::numeric_limits<double>::infinity()
+                                    : std::min(L0.max_contour, counted ? rec.max_contour : std::numeric_limits<double>::infinity());
+      Vec3 tip, nearest;
+      const double e = meter.distance_beyond(t, b, bound, tip, nearest);
+      const double contour = cutting ? e : 0.0;
       if (!L0.seen) L0.segment = segment_of_block(t.block), L0.seen = true;
       L0.max_contour = std::max(L0.max_contour, contour);
       for (std::size_t i = 0; i < kNumAxes; ++i) {
@@ -621,7 +613,7 @@ class WindowedLearning {
       c2 = c1;
       c1 = t.command;
       ++seen;
-      if (t.n >= counted_from && t.n < counted_to) {
+      if (counted) {
         rec.max_contour = std::max(rec.max_contour, contour);
         rec.sum_sq += contour * contour;
         ++rec.count;
@@ -710,19 +702,22 @@ class WindowedLearning {
   void learning_step() {
     WindowAverage gain_at = over_nodes([&](std::size_t s) { return sub_learned_[s] ? sub_gain_[s] : 0.0; });
     const std::size_t n = grid_.size();
-    InOrder raw_update([&](std::size_t k) {
+    // A window's update is a few thousand nodes: held whole, it is smoothed in two plain passes
+    // (the same sums in the same order as node by node, without a call per value).
+    update_.resize(n);
+    for (std::size_t k = 0; k < n; ++k) {
       Axes du{};
       const double gain_k = k == 0 ? 0.0 : gain_at.at(k) * taper(grid_[k]);
       if (gain_k > 0) {
         du = apply_inverse(chain_inverse_, best_error_, static_cast<std::int64_t>(grid_[k] - e0_));
         for (std::size_t i = 0; i < kNumAxes; ++i) du[i] *= gain_k;
       }
-      return du;
-    });
-    InOrder once([&](std::size_t k) { return smoothed_121(raw_update, k, n); });
-    InOrder twice([&](std::size_t k) { return smoothed_121(once, k, n); });
+      update_[k] = du;
+    }
+    smooth_121(update_, smoothed_);
+    smooth_121(smoothed_, update_);
     for (std::size_t k = 1; k + 1 < n; ++k) {
-      const Axes du = twice.at(k);
+      const Axes& du = update_[k];
       const Axes r = nodes_.reference(k);
       Axes j = nodes_.get(k, r);
       for (std::size_t i = 0; i < kNumAxes; ++i) {
@@ -853,7 +848,9 @@ class WindowedLearning {
   std::vector<bool> sub_learned_;
   std::uint64_t e0_ = 0;        // tick of best_error_[0]
   std::vector<AxesF> best_error_;  // r - y per tick, each second from its best run
+  std::vector<Axes> update_, smoothed_;  // the learning update of the window's nodes, and a pass of its smoothing
   std::vector<Axes> second_err_;   // the current second's r - y, while a run is measured
+  std::unique_ptr<simulate::ContourMeter> meter_;  // the window's contour metric, rewound for each run
   std::uint64_t second_first_ = 0;
   // The report.
   std::vector<WindowIteration> totals_;

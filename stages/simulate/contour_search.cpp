@@ -130,7 +130,7 @@ void ContourSearch::add_step(const Vec3& a, const Vec3& b) {
 // whole super-groups, so that the boxes of the points kept stay as they were.
 void ContourSearch::drop_old_points() {
   constexpr std::size_t kKeep = 2 * (kLookBack + kSuperSpan);
-  if (win_.size() < kKeep) return;
+  if (keep_all_ || win_.size() < kKeep) return;
   const std::size_t newest = size() - 1;
   const std::size_t new_first = (newest - kLookBack - kSuperSpan) / kSuperSpan * kSuperSpan;
   const std::size_t drop = new_first - first_;
@@ -207,24 +207,64 @@ void ContourSearch::add_motion(const Vec3& actual) {
   std::fill(capsules_.far.begin(), capsules_.far.end(), kUnknown);
 }
 
-double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& closest) {
-  if (source_ != nullptr) {  // take the whole polyline's points up to the last segment's end
+void ContourSearch::rewind() {
+  motion_ = 0;
+  last_actual_.reset();
+  j_ = 0;
+  std::fill(super_far_.begin(), super_far_.end(), kUnknown);
+  std::fill(capsules_.far.begin(), capsules_.far.end(), kUnknown);
+}
+
+void ContourSearch::begin_search(const Vec3& actual, std::size_t limit, std::size_t& lo, std::size_t& hi, Range& warm,
+                                 Match& m) {
+  hi = std::min(std::max<std::size_t>(limit, 1), size() - 1);  // last segment end
+  lo = std::max(first_, hi > kLookBack ? hi - kLookBack : 0);
+  add_motion(actual);
+  // Start near the previous match: a tight bound makes the tests below skip most groups. The match
+  // moves about one segment per tick, as the nominal does.
+  warm = {0, 0};
+  if (j_ >= lo && j_ < hi) warm = {j_ > lo + 2 ? j_ - 2 : lo, std::min(hi, j_ + 8)}, scan(warm.a, warm.b, actual, m);
+}
+
+// Takes the whole polyline's points up to the last segment's end (whole-polyline form); false
+// when there is no segment to search yet (`closest` and the distance are then the first point's).
+bool ContourSearch::take_points(const Vec3& actual, std::size_t limit, Vec3& closest, double& distance) {
+  if (source_ != nullptr) {
     const std::size_t want = std::min(std::max<std::size_t>(limit, 1) + 1, source_->size());
     while (size() < want) push((*source_)[size()]);
   }
+  if (size() >= 2) return true;
   closest = win_.empty() ? actual : win_.front();
-  if (size() < 2) return win_.empty() ? 0.0 : dist3(win_.front(), actual);
-  const std::size_t hi = std::min(std::max<std::size_t>(limit, 1), size() - 1);  // last segment end
-  const std::size_t lo = std::max(first_, hi > kLookBack ? hi - kLookBack : 0);
-  add_motion(actual);
-  Match m;
-  // Start near the previous match: a tight bound makes the tests below skip most groups. The match
-  // moves about one segment per tick, as the nominal does.
+  distance = win_.empty() ? 0.0 : dist3(win_.front(), actual);
+  return false;
+}
+
+double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& closest) {
+  double d = 0;
+  if (!take_points(actual, limit, closest, d)) return d;
+  std::size_t lo = 0, hi = 0;
   Range warm{0, 0};
-  if (j_ >= lo && j_ < hi) warm = {j_ > lo + 2 ? j_ - 2 : lo, std::min(hi, j_ + 8)}, scan(warm.a, warm.b, actual, m);
-  // Two levels: a super-group of 64 segments (its box), a group of 8 (its capsule); one farther
-  // than the best match so far cannot hold a closer segment. One whose earlier distance, less the
-  // motion since, still exceeds the best match is passed over; the others are measured again.
+  Match m;
+  begin_search(actual, limit, lo, hi, warm, m);
+  return search_window(actual, lo, hi, warm, m, closest);
+}
+
+double ContourSearch::distance_beyond(const Vec3& actual, std::size_t limit, double bound, Vec3& closest) {
+  double d = 0;
+  if (!take_points(actual, limit, closest, d)) return d;
+  std::size_t lo = 0, hi = 0;
+  Range warm{0, 0};
+  Match m;
+  begin_search(actual, limit, lo, hi, warm, m);
+  if (warm.b > warm.a && m.dist <= bound) return finish(m, closest);
+  return search_window(actual, lo, hi, warm, m, closest);
+}
+
+// Two levels: a super-group of 64 segments (its box), a group of 8 (its capsule); one farther
+// than the best match so far cannot hold a closer segment. One whose earlier distance, less the
+// motion since, still exceeds the best match is passed over; the others are measured again.
+double ContourSearch::search_window(const Vec3& actual, std::size_t lo, std::size_t hi, const Range& warm, Match& m,
+                                    Vec3& closest) {
   const std::size_t s0 = first_ / kSuperSpan;
   const std::size_t sa = lo / kSuperSpan - s0, sb = std::min(supers_.size(), (hi + kSuperSpan - 1) / kSuperSpan - s0);
   // far - motion_ > best + kSlack as far > reach: one comparison per super-group passed over (the

@@ -19,19 +19,31 @@ namespace gcpipe::simulate {
 /// never held. The search gets the same points at the same calls as over a whole polyline.
 class NominalPolyline {
  public:
-  /// From raw tick `first_tick` on (a window of a run that began earlier).
+  /// From raw tick `first_tick` on (a window of a run that began earlier). `keep_all`: every
+  /// tick's index is kept, so that rewind() can start a new run over the same points.
   NominalPolyline(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program, ContourSearch& search,
-                  std::size_t first_tick = 0)
-      : model_(model), nom_(nom), program_(program), search_(search), walked_(first_tick), first_tick_(first_tick) {}
+                  std::size_t first_tick = 0, bool keep_all = false)
+      : model_(model), nom_(nom), program_(program), search_(search), walked_(first_tick), first_tick_(first_tick),
+        origin_(first_tick), asked_(first_tick), keep_all_(keep_all) {}
 
-  /// The polyline index of raw tick k (clamped to the last); k never decreases between calls.
+  /// The polyline index of raw tick k (clamped to the last); k never decreases between calls
+  /// (between rewinds).
   std::size_t index_of_tick(std::size_t k) {
     if (nom_.raw.empty()) return 0;
     k = std::min(k, nom_.raw.size() - 1);
-    if (k < first_tick_) throw std::logic_error("NominalPolyline: raw ticks asked for out of order");
+    if (k < asked_) throw std::logic_error("NominalPolyline: raw ticks asked for out of order");
+    asked_ = k;
     while (walked_ <= k) walk();
-    while (first_tick_ < k) index_.pop_front(), ++first_tick_;
+    if (!keep_all_)
+      while (first_tick_ < k) index_.pop_front(), ++first_tick_;
     return index_[k - first_tick_];
+  }
+
+  /// A new run over the points made so far (keep_all only): raw ticks are asked for from the
+  /// first again.
+  void rewind() {
+    if (!keep_all_) throw std::logic_error("NominalPolyline: rewind() needs keep_all");
+    asked_ = origin_;
   }
 
   /// Makes points until the search holds `count` of them or the polyline ends.
@@ -54,7 +66,10 @@ class NominalPolyline {
   std::size_t walked_ = 0;               // raw ticks turned into points so far (from first_tick_)
   Vec3 last_{};                          // the newest point
   std::deque<std::uint32_t> index_;      // polyline index of raw ticks first_tick_ .. walked_ - 1
-  std::size_t first_tick_ = 0;
+  std::size_t first_tick_ = 0;           // raw tick of index_.front()
+  std::size_t origin_ = 0;               // the first raw tick of the polyline
+  std::size_t asked_ = 0;                // the raw tick asked for last (since the last rewind)
+  bool keep_all_ = false;
 };
 
 }  // namespace gcpipe::simulate

@@ -279,7 +279,10 @@ class Excursions {
     const std::size_t limit = path_.index_of_tick(k + h_ + 2);
     path_.fill(std::max<std::size_t>(limit, 1) + 1);  // as the search over a whole polyline takes them
     Vec3 c;
-    const double e = search_.distance(tip, limit, c);
+    // Only the ticks beyond the tolerance matter, with their distance: most are found within it
+    // near the previous match, without searching the whole window (the same ticks, the same
+    // distances beyond it).
+    const double e = search_.distance_beyond(tip, limit, tolerance_, c);
     if (e > tolerance_) over_.emplace_back(k, e);
   }
   std::vector<std::pair<std::size_t, double>>& over() { return over_; }

@@ -546,13 +546,25 @@ std::size_t first_raw_tick(const Nominal& nom, bool on_reference_clock, std::uin
 }  // namespace
 
 ContourMeter::ContourMeter(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
-                           bool on_reference_clock, std::uint64_t first_tick)
+                           bool on_reference_clock, std::uint64_t first_tick, bool reusable)
     : model_(model), nom_(nom), on_reference_clock_(on_reference_clock),
-      path_(std::make_unique<NominalPolyline>(model, nom, program, search_, first_raw_tick(nom, on_reference_clock, first_tick))) {}
+      path_(std::make_unique<NominalPolyline>(model, nom, program, search_, first_raw_tick(nom, on_reference_clock, first_tick),
+                                              reusable)) {
+  if (reusable) search_.keep_all_points();
+}
+
+void ContourMeter::rewind() {
+  path_->rewind();
+  search_.rewind();
+}
 
 ContourMeter::~ContourMeter() = default;
 
 double ContourMeter::distance(const Tick& t, const ResolvedBlock& b, Vec3& tip, Vec3& nearest) {
+  return distance_beyond(t, b, -1.0, tip, nearest);
+}
+
+double ContourMeter::distance_beyond(const Tick& t, const ResolvedBlock& b, double bound, Vec3& tip, Vec3& nearest) {
   tip = forward_kinematics(model_.kin, t.actual, tool_length_of(model_, b)).tip;
   const std::size_t n = static_cast<std::size_t>(t.n);
   // The raw tick the nominal has reached: the tick itself for the program's own run; for a
@@ -565,7 +577,7 @@ double ContourMeter::distance(const Tick& t, const ResolvedBlock& b, Vec3& tip, 
   // The points up to the segment that ends at `limit` (at least the first segment), as the
   // search over a whole polyline takes them.
   path_->fill(std::max<std::size_t>(limit, 1) + 1);
-  return search_.distance(tip, limit, nearest);
+  return bound < 0 ? search_.distance(tip, limit, nearest) : search_.distance_beyond(tip, limit, bound, nearest);
 }
 
 Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,

@@ -181,8 +181,20 @@ class ContourSearch {
   /// decreases from call to call. Returns the distance [mm]; `closest` receives the nearest
   /// point of the path.
   double distance(const Vec3& actual, std::size_t limit, Vec3& closest);
+  /// As distance(), where the distance exceeds `bound`. Where it does not, returns a distance
+  /// to a segment near the previous match when that is within `bound` already (an upper bound of
+  /// the least: the search of the whole window is left out), else the least. A caller that only
+  /// needs to know the ticks beyond `bound`, and by how much, gets the same answers faster.
+  double distance_beyond(const Vec3& actual, std::size_t limit, double bound, Vec3& closest);
   /// Streaming form: up to the newest point pushed.
   double distance(const Vec3& actual, Vec3& closest) { return distance(actual, size() == 0 ? 0 : size() - 1, closest); }
+  /// Keeps every point pushed from now on, instead of the last kLookBack and some: a window's
+  /// polyline, searched again by run after run (rewind()).
+  void keep_all_points() { keep_all_ = true; }
+  /// Forgets the run measured so far (its last match and the bounds kept from it) and keeps the
+  /// points: the next distance() calls measure a new run from the first point, as a new search
+  /// given the same points would.
+  void rewind();
 
  private:
   /// The bounding boxes of the super-groups, structure of arrays.
@@ -231,6 +243,11 @@ class ContourSearch {
   void scan_except(std::size_t a, std::size_t b, const Range& done, const Vec3& p, Match& m) const;
   void measure(std::size_t a, std::size_t n, const Vec3& p, double* sq, double* s) const;
   double finish(const Match& m, Vec3& closest);  //!< remembers the match, returns its distance
+  bool take_points(const Vec3& actual, std::size_t limit, Vec3& closest, double& distance);
+  /// Adds the motion; the window [lo, hi) of segments to search and the warm start near the
+  /// previous match, measured into `m`.
+  void begin_search(const Vec3& actual, std::size_t limit, std::size_t& lo, std::size_t& hi, Range& warm, Match& m);
+  double search_window(const Vec3& actual, std::size_t lo, std::size_t hi, const Range& warm, Match& m, Vec3& closest);
   void scan_super(std::size_t sg, std::size_t lo, std::size_t hi, const Range& warm, const Vec3& p, Match& m);
 
   const std::vector<Vec3>* source_ = nullptr;
@@ -248,6 +265,7 @@ class ContourSearch {
   double motion_ = 0;  //!< [mm] path of the actual since the last rebase, rounded up
   std::optional<Vec3> last_actual_;
   std::size_t j_ = 0;              //!< segment of the previous match (global index)
+  bool keep_all_ = false;          //!< no point is dropped (keep_all_points())
 };
 
 /// Joints at which the machine starts, at rest, for the program's first moving block: where the
@@ -372,14 +390,22 @@ class NominalPolyline;
 /// enough back to hold the points the actual may still be near.
 class ContourMeter {
  public:
+  /// `reusable`: the points are kept for runs after the first (rewind()), as the compensation's
+  /// learning measures run after run of one window against the same stretch of the path.
   ContourMeter(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program, bool on_reference_clock,
-               std::uint64_t first_tick = 0);
+               std::uint64_t first_tick = 0, bool reusable = false);
   ~ContourMeter();
   ContourMeter(const ContourMeter&) = delete;
   ContourMeter& operator=(const ContourMeter&) = delete;
   /// The distance of tick `t`'s actual tool tip (for program block `b`) to the path; its tip and
   /// the nearest point of the path go to `tip` and `nearest`.
   double distance(const Tick& t, const ResolvedBlock& b, Vec3& tip, Vec3& nearest);
+  /// As distance() where the distance exceeds `bound` (>= 0); below it, possibly an upper bound
+  /// of the distance (ContourSearch::distance_beyond).
+  double distance_beyond(const Tick& t, const ResolvedBlock& b, double bound, Vec3& tip, Vec3& nearest);
+  /// Starts measuring a new run from `first_tick` (a reusable meter): the same distances as a
+  /// new meter, without making the path's points again.
+  void rewind();
 
  private:
   const Model& model_;
