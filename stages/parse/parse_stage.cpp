@@ -32,8 +32,8 @@ class ParseStage final : public pipeline::Stage {
     j["lines_deleted"] = s.lines_deleted;
     j["bytes_read"] = s.bytes_read;
     j["blocks_out"] = s.blocks_out;  // >= blocks_emitted: cycles and calls give several per line
-    char buf[200];
-    std::snprintf(buf, sizeof buf, "  lines:    %llu read = %llu emitted + %llu rejected + %llu skipped (block delete)\n",
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "  lines:    %llu read = %llu emitted + %llu rejected + %llu skipped (block delete, subroutine bodies, flow control)\n",
                   static_cast<unsigned long long>(s.lines_read), static_cast<unsigned long long>(s.blocks_emitted),
                   static_cast<unsigned long long>(s.lines_rejected), static_cast<unsigned long long>(s.lines_deleted));
     *r.text += buf;
