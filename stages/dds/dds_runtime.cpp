@@ -5,6 +5,7 @@
 
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/dds/domain/DomainParticipantListener.hpp>
 #include <fastdds/dds/log/Log.hpp>
 #include <fastdds/dds/publisher/DataWriter.hpp>
 #include <fastdds/dds/publisher/DataWriterListener.hpp>
@@ -16,12 +17,17 @@
 #include <fastdds/dds/topic/Topic.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <charconv>
 #include <chrono>
 #include <csignal>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <map>
@@ -150,8 +156,22 @@ bool stop_requested() { return pipeline::stop_requested(); }
 
 // ---------------------------------------------------------------------------------------------
 
+// Participants dropped because their discovery lease ran out (their process died or froze), as
+// opposed to those that left in good order: a reader that went away with one of them died.
+class DroppedParticipants : public fdds::DomainParticipantListener {
+ public:
+  void on_participant_discovery(fdds::DomainParticipant*, eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) override {
+    if (info.status == eprosima::fastrtps::rtps::ParticipantDiscoveryInfo::DROPPED_PARTICIPANT) ++dropped_;
+  }
+  int count() const { return dropped_.load(); }
+
+ private:
+  std::atomic<int> dropped_{0};
+};
+
 struct Participant::Impl {
   DdsOptions options;
+  DroppedParticipants dropped;
   double start_time = 0;  // [s since the Unix epoch]
   fdds::DomainParticipant* participant = nullptr;
   fdds::Publisher* publisher = nullptr;
@@ -256,7 +276,9 @@ Participant::Participant(const DdsOptions& options) : impl_(std::make_unique<Imp
   if (!ok(factory->get_participant_qos_from_profile(profile, qos)))
     throw std::runtime_error("'" + file + "' has no participant profile '" + profile + "'");
   if (!options.identity.empty()) add_security(qos, options.identity);
-  impl_->participant = factory->create_participant(static_cast<fdds::DomainId_t>(options.domain), qos);
+  // The listener hears discovery only: no status of the entities (they have their own listeners).
+  impl_->participant =
+      factory->create_participant(static_cast<fdds::DomainId_t>(options.domain), qos, &impl_->dropped, fdds::StatusMask::none());
   if (impl_->participant == nullptr)
     throw std::runtime_error("cannot create the DDS participant from profile '" + std::string(profile) + "' of '" +
                              file + "' on domain " + std::to_string(options.domain) +
@@ -267,11 +289,77 @@ Participant::Participant(const DdsOptions& options) : impl_(std::make_unique<Imp
     throw std::runtime_error("cannot create the DDS publisher/subscriber");
 }
 
-Participant::~Participant() {
-  if (impl_->participant != nullptr) {
-    impl_->participant->delete_contained_entities();
-    fdds::DomainParticipantFactory::get_instance()->delete_participant(impl_->participant);
+void shm_files_mapped_by(int pid, std::set<std::string>& out) {
+  std::ifstream maps("/proc/" + std::to_string(pid) + "/maps");
+  for (std::string line; std::getline(maps, line);) {
+    const auto at = line.find("/dev/shm/");
+    if (at == std::string::npos || line.find("fastrtps", at) == std::string::npos) continue;
+    if (line.size() >= 10 && line.compare(line.size() - 10, 10, " (deleted)") == 0) continue;
+    out.insert(line.substr(at));
   }
+}
+
+// A killed process's port queue stays mapped by nobody and `fastdds shm clean` leaves it (it has
+// no lock file).
+void remove_unmapped_shm_files(const std::set<std::string>& files) {
+  std::set<std::string> live;
+  for (const auto& entry : std::filesystem::directory_iterator("/proc")) {
+    const std::string name = entry.path().filename().string();
+    if (name.empty() || name.find_first_not_of("0123456789") != std::string::npos) continue;
+    shm_files_mapped_by(std::stoi(name), live);
+  }
+  std::error_code ec;
+  for (const auto& f : files) {
+    if (live.count(f) != 0) continue;
+    std::filesystem::remove(f, ec);
+    // Its lock file, and a port queue's named semaphore (sem_open maps it only while in use).
+    const std::string name = std::filesystem::path(f).filename().string();
+    std::filesystem::remove(f + "_el", ec);
+    if (name.rfind("fastrtps_port", 0) == 0) std::filesystem::remove("/dev/shm/sem." + name + "_mutex", ec);
+  }
+}
+
+namespace {
+
+// The port queues this process owns: /dev/shm/fastrtps_portN whose lock file (`_el`) it holds.
+std::set<std::string> own_shm_ports() {
+  std::set<std::string> inodes;  // "dev:inode" of the files this process holds a lock on
+  std::ifstream locks("/proc/locks");
+  const std::string me = std::to_string(::getpid());
+  for (std::string line; std::getline(locks, line);) {
+    std::istringstream in(line);
+    std::vector<std::string> f;
+    for (std::string w; in >> w;) f.push_back(w);
+    if (f.size() >= 6 && f[1] != "->" && f[4] == me) inodes.insert(f[5].substr(f[5].rfind(':') + 1));
+  }
+  std::set<std::string> own;
+  if (inodes.empty()) return own;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator("/dev/shm", ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind("fastrtps_port", 0) != 0 || name.size() < 4 || name.compare(name.size() - 3, 3, "_el") != 0) continue;
+    struct stat st {};
+    if (::stat(e.path().c_str(), &st) == 0 && inodes.count(std::to_string(st.st_ino)) != 0)
+      own.insert(e.path().string().substr(0, e.path().string().size() - 3));
+  }
+  return own;
+}
+
+}  // namespace
+
+Participant::~Participant() {
+  if (impl_->participant == nullptr) return;
+  // Fast DDS removes this process's port queue as the participant goes, except when a process
+  // that sent to it was killed meanwhile (its reference to the queue is never given back): the
+  // queue is then left behind, mapped by nobody (a feed whose parse node was killed mid-program,
+  // Launch.ARestartedStage...). Such a queue of our own is removed here.
+  const std::set<std::string> own = own_shm_ports();
+  impl_->participant->delete_contained_entities();
+  fdds::DomainParticipantFactory::get_instance()->delete_participant(impl_->participant);
+  std::set<std::string> left;
+  for (const auto& f : own)
+    if (std::filesystem::exists(f)) left.insert(f);
+  if (!left.empty()) remove_unmapped_shm_files(left);
 }
 
 const DdsOptions& Participant::options() const { return impl_->options; }
@@ -311,6 +399,7 @@ struct RawWriter::Impl {
   fdds::DataWriter* writer = nullptr;
   LostReaders listener;
   int lost_before_first_sample = -1;  // -1: nothing published yet
+  int dropped_before_first_sample = 0;  // participants dropped on this domain before it
   // A reader left since the first sample (for one-program writers). Checked while samples are
   // still to be written only: a reader that took the end marker and left is done, not lost.
   bool reader_left_mid_program() const {
@@ -381,7 +470,10 @@ bool RawWriter::publish(const void* sample) {
   // A reader that matched and is gone now (its process died, or stopped announcing itself for
   // the discovery lease) will never take the rest: say so at once instead of filling the history
   // and waiting out write_timeout.
-  if (impl_->lost_before_first_sample < 0) impl_->lost_before_first_sample = impl_->listener.lost();
+  if (impl_->lost_before_first_sample < 0) {
+    impl_->lost_before_first_sample = impl_->listener.lost();
+    impl_->dropped_before_first_sample = impl_->owner->dropped.count();
+  }
   auto check_readers = [&] {
     if (const int left = o.fail_on_lost_reader ? matched_readers() : subscribers_; left < subscribers_)
       throw std::runtime_error(std::string("writing to ") + topic_ + ": a reader went away (" + std::to_string(left) +
@@ -418,6 +510,10 @@ bool RawWriter::wait_acknowledged(double limit) {
     if (ok(impl_->writer->wait_for_acknowledgments(duration(std::min(limit, kPollPeriod))))) return true;
     if (stop_requested() || seconds_since(t0) > limit) return false;
   }
+}
+
+bool RawWriter::reader_died_mid_program() const {
+  return impl_->reader_left_mid_program() && impl_->owner->dropped.count() > impl_->dropped_before_first_sample;
 }
 
 // ---------------------------------------------------------------------------------------------

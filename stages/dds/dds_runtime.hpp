@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -152,6 +153,11 @@ class RawWriter {
   bool wait_acknowledged();
   /// The same within `limit` [s] instead of ack_timeout.
   bool wait_acknowledged(double limit);
+  /// A reader left after the first sample, and a participant of the domain was dropped for a
+  /// lapsed discovery lease meanwhile (a process died): wait_acknowledged() then ends because the
+  /// dead reader was dropped, not because it took the samples. A reader that left in good order
+  /// (its stage took the program and exited) is not counted.
+  bool reader_died_mid_program() const;
   const std::string& topic() const { return topic_; }
   /// How often write() returned false (history full, a reader behind) and was retried.
   std::uint64_t blocked_writes() const { return blocked_writes_; }
@@ -223,6 +229,12 @@ enum class Taken : std::uint8_t {
   kHandled,     //!< a sample was handled, the program goes on
   kProgramEnd,  //!< a sample was handled and it completed a program
 };
+
+/// The Fast DDS shared-memory files (segments, port queues) process `pid` maps now, into `out`.
+void shm_files_mapped_by(int pid, std::set<std::string>& out);
+/// Removes those of `files` that no live process on this host maps any more, with their lock
+/// files and a port queue's semaphore. A file some process still maps is left alone.
+void remove_unmapped_shm_files(const std::set<std::string>& files);
 
 /// Writes `line` and a newline to stderr in one write, so that lines of threads do not mix.
 void say_line(const std::string& line);

@@ -144,6 +144,13 @@ int run_feed(Participant& participant, const FeedOptions& o, std::ostream& log) 
         << "\n";
     return 1;
   }
+  // Every chunk written, but a reader died mid-program: the wait for acknowledgements ended when
+  // it was dropped (its discovery lease), not because it took the chunks.
+  if (writer.reader_died_mid_program()) {
+    log << "gcpipe feed: a reader of " << o.topic << " went away mid-program (its stage stopped or died; a restarted "
+        << "stage does not take a program in flight): the program was not delivered\n";
+    return 1;
+  }
   return 0;
 }
 

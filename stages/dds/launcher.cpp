@@ -51,38 +51,6 @@ std::string describe(int status) {
   return "exit status " + std::to_string(status);
 }
 
-// The Fast DDS shared-memory files (segments, port queues, their semaphores) `pid` has mapped.
-void add_shm_files_of(int pid, std::set<std::string>& out) {
-  std::ifstream maps("/proc/" + std::to_string(pid) + "/maps");
-  for (std::string line; std::getline(maps, line);) {
-    const auto at = line.find("/dev/shm/");
-    if (at == std::string::npos || line.find("fastrtps", at) == std::string::npos) continue;
-    if (line.size() >= 10 && line.compare(line.size() - 10, 10, " (deleted)") == 0) continue;
-    out.insert(line.substr(at));
-  }
-}
-
-// Removes those of `files` that no live process on this host maps any more. A killed process's
-// port queue stays mapped by nobody and `fastdds shm clean` leaves it (it has no lock file);
-// a file some process still maps (another pipeline, a monitor) is left alone.
-void remove_unmapped(const std::set<std::string>& files) {
-  std::set<std::string> live;
-  for (const auto& entry : std::filesystem::directory_iterator("/proc")) {
-    const std::string name = entry.path().filename().string();
-    if (name.empty() || name.find_first_not_of("0123456789") != std::string::npos) continue;
-    add_shm_files_of(std::stoi(name), live);
-  }
-  std::error_code ec;
-  for (const auto& f : files) {
-    if (live.count(f) != 0) continue;
-    std::filesystem::remove(f, ec);
-    // Its lock file, and a port queue's named semaphore (sem_open maps it only while in use).
-    const std::string name = std::filesystem::path(f).filename().string();
-    std::filesystem::remove(f + "_el", ec);
-    if (name.rfind("fastrtps_port", 0) == 0) std::filesystem::remove("/dev/shm/sem." + name + "_mutex", ec);
-  }
-}
-
 }  // namespace
 
 namespace {
@@ -153,8 +121,8 @@ LaunchPlan load_launch_plan(const std::filesystem::path& file) {
   const Config root = Config::load_file(file);
   root.reject_unknown({"pipeline", "nodes", "groups"});
   const Config p = root.section("pipeline");
-  p.reject_unknown({"name", "domain", "config", "profiles", "network", "identity", "on_crash", "max_restarts", "ready_timeout", "stop_timeout",
-                    "timeout", "monitor_history"});
+  p.reject_unknown({"name", "domain", "config", "profiles", "network", "identity", "on_crash", "max_restarts", "restart_delay",
+                    "ready_timeout", "stop_timeout", "timeout", "monitor_history"});
   LaunchPlan plan;
   plan.name = p.string("name", file.stem().string());
   plan.domain = static_cast<int>(p.integer("domain", 0, 0, 232));
@@ -165,6 +133,7 @@ LaunchPlan load_launch_plan(const std::filesystem::path& file) {
   if (p.has("identity")) plan.identity = p.dir_path("identity", "the nodes' DDS Security identity folder");
   plan.restart = p.choice("on_crash", "stop", {"stop", "restart"}) == "restart";
   plan.max_restarts = static_cast<int>(p.integer("max_restarts", 3, 0, 100));
+  plan.restart_delay = p.number("restart_delay", 9, "s", 0, 600);
   plan.ready_timeout = p.number("ready_timeout", 30, "s", 0.1, 3600);
   plan.stop_timeout = p.number("stop_timeout", 5, "s", 0.1, 600);
   plan.timeout = p.number("timeout", 30, "s", 0.1, 1e6);
@@ -358,12 +327,24 @@ bool Supervisor::reap(Child& c, bool& fatal) {
   for (const auto& l : c.tail) log_ << "    | " << l << "\n";
   if (plan_.restart && c.restarts < plan_.max_restarts && !c.spec.one_shot) {
     ++c.restarts;
-    status_line(c, "restarting (" + std::to_string(c.restarts) + " of " + std::to_string(plan_.max_restarts) + ")");
-    if (spawn(c)) return true;
+    char when[96];
+    std::snprintf(when, sizeof when, " in %.1f s, once its peers have dropped the dead participant", plan_.restart_delay);
+    status_line(c, "restarting (" + std::to_string(c.restarts) + " of " + std::to_string(plan_.max_restarts) + ")" + when);
+    c.restart_at = now() + plan_.restart_delay;
+    return true;
   }
   fatal = true;
   message_ = "stage " + c.spec.name + " stopped (" + describe(c.status) + "); the pipeline was stopped";
   return true;
+}
+
+// Starts a crashed process again when its delay is over; false when it cannot be started.
+bool Supervisor::restart_due(Child& c) {
+  if (c.restart_at < 0 || now() < c.restart_at) return true;
+  c.restart_at = -1;
+  if (spawn(c)) return true;
+  message_ = "stage " + c.spec.name + " could not be started again";
+  return false;
 }
 
 int Supervisor::run() {
@@ -378,6 +359,7 @@ int Supervisor::run() {
     for (Child& c : children_) {
       read_output(c, false);
       reap(c, fatal);
+      if (!fatal && !restart_due(c)) fatal = true;
       if (fatal) break;
     }
     if (fatal) {
@@ -415,7 +397,7 @@ int Supervisor::run() {
 void Supervisor::sample_shm() {
   next_shm_sample_ = now() + 0.5;
   for (const Child& c : children_)
-    if (c.pid > 0) add_shm_files_of(c.pid, shm_seen_);
+    if (c.pid > 0) shm_files_mapped_by(c.pid, shm_seen_);
 }
 
 void Supervisor::stop_all() {
@@ -456,7 +438,7 @@ void Supervisor::stop_all() {
   // participant that is starting at that moment (created, not yet locked) for a zombie; the
   // files our own processes mapped are all this pipeline may remove.
   any_killed_ = false;
-  remove_unmapped(shm_seen_);
+  remove_unmapped_shm_files(shm_seen_);
   shm_seen_.clear();
 }
 

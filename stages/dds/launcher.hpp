@@ -28,6 +28,10 @@ struct LaunchPlan {
   std::filesystem::path identity;   //!< DDS Security identity of the nodes; empty: no security
   bool restart = false;             //!< on a crash: start the stage again (else stop the pipeline)
   int max_restarts = 3;             //!< per stage, then the pipeline stops
+  /// [s] between a crash and the restart: the crashed process's participant must be gone from
+  /// its peers first (the discovery lease, 8 s), or the restarted one, which takes the same
+  /// ports, can stay deaf to them (see stages/dds/README.md, "Crash")
+  double restart_delay = 9;
   double ready_timeout = 30;        //!< [s] every process must say it is ready by then
   double stop_timeout = 5;          //!< [s] after SIGTERM, then SIGKILL
   double timeout = 30;              //!< [s] the nodes' --timeout: longest wait for readers, a blocked
@@ -94,6 +98,7 @@ class Supervisor {
     int status = -1;
     int restarts = 0;
     double started_at = 0;
+    double restart_at = -1;         //!< [s] when a crashed process is started again (-1: none due)
   };
   bool spawn(Child& c);
   void await_up(Child& c);
@@ -101,6 +106,7 @@ class Supervisor {
   void read_output(Child& c, bool drain);
   void on_line(Child& c, const std::string& line);
   bool reap(Child& c, bool& fatal);
+  bool restart_due(Child& c);
   void stop_all();
   void sample_shm();
   void status_line(const Child& c, const std::string& what);
