@@ -145,7 +145,11 @@ int run_feed(Participant& participant, const FeedOptions& o, std::ostream& log) 
     return 1;
   }
   // Every chunk written, but a reader died mid-program: the wait for acknowledgements ended when
-  // it was dropped (its discovery lease), not because it took the chunks.
+  // it was dropped (its discovery lease), not because it took the chunks. Fast DDS reports the
+  // dropped participant just after the unmatch that ended the wait: with a reader gone, that
+  // report is given a second to come.
+  for (int i = 0; i < 20 && !writer.reader_died_mid_program() && writer.matched_readers() < writer.subscribers(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
   if (writer.reader_died_mid_program()) {
     log << "gcpipe feed: a reader of " << o.topic << " went away mid-program (its stage stopped or died; a restarted "
         << "stage does not take a program in flight): the program was not delivered\n";
