@@ -275,7 +275,13 @@ class Excursions {
   /// Reference tick n (in order) is at joints r, with raw index k its progress.
   void add(const Axes& r, std::size_t k) {
     k = std::min(k, nom_.raw.size() - 1);
-    const Vec3 tip = forward_kinematics(model_.kin, r, tool_length_of(model_, program_[nom_.block[k]])).tip;
+    const double length = tool_length_of(model_, program_[nom_.block[k]]);
+    // Where the tool length changes (G43 H, G49, a tool change) the nominal tool tip jumps by the
+    // change while the joints move on smoothly: a reference blended across the change has no tip
+    // on either side's path, and measuring it would slow the plan there without end (a 14 s
+    // program planned to 2600 s). Those ticks are not measured; the joints stay the blend's.
+    if (tool_length_changes_near(k, length)) return;
+    const Vec3 tip = forward_kinematics(model_.kin, r, length).tip;
     const std::size_t limit = path_.index_of_tick(k + h_ + 2);
     path_.fill(std::max<std::size_t>(limit, 1) + 1);  // as the search over a whole polyline takes them
     Vec3 c;
@@ -286,6 +292,15 @@ class Excursions {
     if (e > tolerance_) over_.emplace_back(k, e);
   }
   std::vector<std::pair<std::size_t, double>>& over() { return over_; }
+
+  // The tool length at raw samples k - h and k + h + 2 (the reach of the blend and the search
+  // around the reference's progress) differs from `length`, the one at k.
+  bool tool_length_changes_near(std::size_t k, double length) const {
+    const std::size_t last = nom_.raw.size() - 1;
+    for (const std::size_t j : {k > h_ ? k - h_ : 0, std::min(k + h_ + 2, last)})
+      if (tool_length_of(model_, program_[nom_.block[j]]) != length) return true;
+    return false;
+  }
 
  private:
   const Model& model_;
