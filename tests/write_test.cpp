@@ -17,11 +17,17 @@ namespace {
 // the start, and start + (centre - start) need not give back the same double.
 constexpr double kTol = 1e-9;
 
+// A straight move that ends where it starts: `G91 G28 Z0` at the reference position already
+// (a post's first line) is written as a bare `G0`, which moves nothing either.
+bool standing_still(const ResolvedBlock& b) {
+  return (b.motion == Motion::kRapid || b.motion == Motion::kLinear) && b.start == b.target;
+}
+
 // The blocks that make the machine do something; state is compared inside each of them.
 std::vector<ResolvedBlock> active(const Parsed& p) {
   std::vector<ResolvedBlock> out;
   for (const auto& b : p.blocks)
-    if (b.motion != Motion::kNone || b.stop != ProgramStop::kNone || b.tool_change) out.push_back(b);
+    if ((b.motion != Motion::kNone && !standing_still(b)) || b.stop != ProgramStop::kNone || b.tool_change) out.push_back(b);
   return out;
 }
 
