@@ -40,6 +40,8 @@ TEST(GoldenOutputs, EverySampleWritesTheRecordedBytes) {
       {"circle_test_seed002.nc", "pipeline_configs/circle_test.yaml", true},
       {"trochoid_slot_f3000.nc", "", false},
       {"trochoid_slot_seed000.nc", "", false},
+      {"shop_pocket_inch.nc", "", true},
+      {"fanuc_post_pocket.nc", "", true},
   };
   const bool update = std::getenv("GCPIPE_UPDATE_GOLDEN") != nullptr;
   std::map<std::string, std::string> golden = read_golden(), now;
