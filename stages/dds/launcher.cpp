@@ -339,7 +339,7 @@ bool Supervisor::reap(Child& c, bool& fatal) {
 }
 
 // Starts a crashed process again when its delay is over; false when it cannot be started.
-bool Supervisor::restart_due(Child& c) {
+bool Supervisor::restart_if_due(Child& c) {
   if (c.restart_at < 0 || now() < c.restart_at) return true;
   c.restart_at = -1;
   if (spawn(c)) return true;
@@ -359,7 +359,7 @@ int Supervisor::run() {
     for (Child& c : children_) {
       read_output(c, false);
       reap(c, fatal);
-      if (!fatal && !restart_due(c)) fatal = true;
+      if (!fatal && !restart_if_due(c)) fatal = true;
       if (fatal) break;
     }
     if (fatal) {

@@ -106,7 +106,7 @@ class Supervisor {
   void read_output(Child& c, bool drain);
   void on_line(Child& c, const std::string& line);
   bool reap(Child& c, bool& fatal);
-  bool restart_due(Child& c);
+  bool restart_if_due(Child& c);
   void stop_all();
   void sample_shm();
   void status_line(const Child& c, const std::string& what);
