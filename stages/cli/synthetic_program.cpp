@@ -56,7 +56,9 @@ std::string cam_like_program(std::uint64_t seed, int segments) {
   p.setf(std::ios::fixed);
   p.precision(4);
   p << "%\nO1200 (generated CAM-like program, seed " << seed << ")\nG17 G21 G90 G94 G54\n";
-  p << "G0 X0 Y0 Z5\nG1 Z0 F500\n";
+  // A post's header: the tool, the spindle, then the tool length switched on with the move down
+  // (9465c2f: the planner used to stall on this G43).
+  p << "T1 M6\nS9000 M3\nG0 X0 Y0\nG43 H1 Z5\nG1 Z0 F500\n";
   double x = 0, y = 0, heading = 0;
   for (int k = 0; k < segments; ++k) {
     if (k % 40 == 0) p << "F" << std::round(500 + 5500 * unit(rng)) << "\n";
@@ -79,7 +81,7 @@ std::string cam_like_program(std::uint64_t seed, int segments) {
     x += l * std::cos(heading), y += l * std::sin(heading);
     p << "G1 X" << x << " Y" << y << "\n";
   }
-  p << "G0 Z5\nM30\n%\n";
+  p << "G0 Z5\nM5\nG49\nM30\n%\n";
   return p.str();
 }
 
