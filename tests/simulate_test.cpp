@@ -40,6 +40,16 @@ TEST(ContourSearch, TrailingOnThePathIsNotAnErrorButLeavingItIs) {
   EXPECT_GT(worst_time_matched, 3.0);
 }
 
+// A trochoid of n points 2 ms apart: loops that cross each other and the earlier loops.
+std::vector<Vec3> trochoid(int n) {
+  std::vector<Vec3> pts;
+  for (int k = 0; k < n; ++k) {
+    const double t = k * 0.002;
+    pts.push_back({3 * std::cos(8 * t) + 0.8 * t, 3 * std::sin(8 * t), 0.01 * std::sin(t)});
+  }
+  return pts;
+}
+
 // The minimum over segments [lo, hi) by measuring every one of them.
 double brute_force(const std::vector<Vec3>& pts, std::size_t lo, std::size_t hi, const Vec3& p) {
   double best = 1e300;
@@ -83,11 +93,7 @@ TEST(ContourSearch, EqualsBruteForceOnAMultiTurnCircle) {
 // A trochoid (loops that cross each other and the earlier loops) streamed tick by tick, the
 // actual trailing with noise, and points far from the path.
 TEST(ContourSearch, EqualsBruteForceOnATrochoidStreamed) {
-  std::vector<Vec3> pts;
-  for (int k = 0; k < 9000; ++k) {
-    const double t = k * 0.002;
-    pts.push_back({3 * std::cos(8 * t) + 0.8 * t, 3 * std::sin(8 * t), 0.01 * std::sin(t)});
-  }
+  const std::vector<Vec3> pts = trochoid(9000);
   std::mt19937_64 rng(5);
   std::normal_distribution<double> noise(0.0, 0.3);
   expect_streaming_equals_brute_force(pts, [&](std::size_t k) {
@@ -101,11 +107,7 @@ TEST(ContourSearch, EqualsBruteForceOnATrochoidStreamed) {
 // The box search returns the minimum over the window [limit - 3000, limit] exactly, on a
 // looping path (a trochoid-like curve) with random actual points near it.
 TEST(ContourSearch, EqualsBruteForceOverTheWindowOnALoopingPath) {
-  std::vector<Vec3> pts;
-  for (int k = 0; k < 20000; ++k) {
-    const double t = k * 0.002;
-    pts.push_back({3 * std::cos(8 * t) + 0.8 * t, 3 * std::sin(8 * t), 0.01 * std::sin(t)});
-  }
+  const std::vector<Vec3> pts = trochoid(20000);
   simulate::ContourSearch search(pts);
   std::mt19937_64 rng(7);
   std::normal_distribution<double> noise(0.0, 0.5);
@@ -125,11 +127,7 @@ TEST(ContourSearch, EqualsBruteForceOverTheWindowOnALoopingPath) {
 // the least distance exactly (brute force over the window); within it, never less than the least
 // and never beyond the bound. Bounds from 0 (always searched) to far above every distance.
 TEST(ContourSearch, DistanceBeyondABoundIsExactBeyondItAndABoundOfTheLeastWithin) {
-  std::vector<Vec3> pts;
-  for (int k = 0; k < 9000; ++k) {
-    const double t = k * 0.002;
-    pts.push_back({3 * std::cos(8 * t) + 0.8 * t, 3 * std::sin(8 * t), 0.01 * std::sin(t)});
-  }
+  const std::vector<Vec3> pts = trochoid(9000);
   std::mt19937_64 rng(3);
   std::normal_distribution<double> noise(0.0, 0.3);
   std::size_t beyond = 0, within = 0, not_least = 0;
@@ -164,11 +162,7 @@ TEST(ContourSearch, DistanceBeyondABoundIsExactBeyondItAndABoundOfTheLeastWithin
 // A search that keeps its points and is rewound measures a second run exactly as a new search
 // over the same points does (the compensation's learning measures every run of a window so).
 TEST(ContourSearch, ARewoundSearchMeasuresAsANewOne) {
-  std::vector<Vec3> pts;
-  for (int k = 0; k < 12000; ++k) {
-    const double t = k * 0.002;
-    pts.push_back({3 * std::cos(8 * t) + 0.8 * t, 3 * std::sin(8 * t), 0.01 * std::sin(t)});
-  }
+  const std::vector<Vec3> pts = trochoid(12000);
   auto actual = [&](std::size_t k, double off) {
     const Vec3& q = pts[k > 20 ? k - 20 : 0];
     return Vec3{q[0] + off * std::sin(0.01 * static_cast<double>(k)), q[1] + off, q[2]};

@@ -74,6 +74,23 @@ void wait_for_pace(Clock::time_point start, std::uint64_t bytes, double rate) {
 
 // ---------------------------------------------------------------------------------------------
 
+namespace {
+
+// After every chunk was acknowledged: whether a reader died mid-program instead (the wait for
+// acknowledgements ended when it was dropped for its discovery lease, not because it took the
+// chunks), said in `log`. Fast DDS reports the dropped participant just after the unmatch that
+// ended the wait: with a reader gone, that report is given a second to come.
+bool reader_died(const Writer<msg::ProgramChunk>& writer, const std::string& topic, std::ostream& log) {
+  for (int i = 0; i < 20 && !writer.reader_died_mid_program() && writer.matched_readers() < writer.subscribers(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  if (!writer.reader_died_mid_program()) return false;
+  log << "gcpipe feed: a reader of " << topic << " went away mid-program (its stage stopped or died; a restarted "
+      << "stage does not take a program in flight): the program was not delivered\n";
+  return true;
+}
+
+}  // namespace
+
 int run_feed(Participant& participant, const FeedOptions& o, std::ostream& log) {
   // "-" is standard input, named "<stdin>" in diagnostics as batch mode names it.
   const bool stdin_input = o.input == "-";
@@ -144,18 +161,7 @@ int run_feed(Participant& participant, const FeedOptions& o, std::ostream& log) 
         << "\n";
     return 1;
   }
-  // Every chunk written, but a reader died mid-program: the wait for acknowledgements ended when
-  // it was dropped (its discovery lease), not because it took the chunks. Fast DDS reports the
-  // dropped participant just after the unmatch that ended the wait: with a reader gone, that
-  // report is given a second to come.
-  for (int i = 0; i < 20 && !writer.reader_died_mid_program() && writer.matched_readers() < writer.subscribers(); ++i)
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  if (writer.reader_died_mid_program()) {
-    log << "gcpipe feed: a reader of " << o.topic << " went away mid-program (its stage stopped or died; a restarted "
-        << "stage does not take a program in flight): the program was not delivered\n";
-    return 1;
-  }
-  return 0;
+  return reader_died(writer, o.topic, log) ? 1 : 0;
 }
 
 // ---------------------------------------------------------------------------------------------

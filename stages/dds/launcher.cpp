@@ -9,7 +9,6 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <fstream>
 #include <chrono>
 #include <cstdio>
 #include <ostream>

@@ -239,16 +239,6 @@ bool ContourSearch::take_points(const Vec3& actual, std::size_t limit, Vec3& clo
   return false;
 }
 
-double ContourSearch::distance(const Vec3& actual, std::size_t limit, Vec3& closest) {
-  double d = 0;
-  if (!take_points(actual, limit, closest, d)) return d;
-  std::size_t lo = 0, hi = 0;
-  Range warm{0, 0};
-  Match m;
-  begin_search(actual, limit, lo, hi, warm, m);
-  return search_window(actual, lo, hi, warm, m, closest);
-}
-
 double ContourSearch::distance_beyond(const Vec3& actual, std::size_t limit, double bound, Vec3& closest) {
   double d = 0;
   if (!take_points(actual, limit, closest, d)) return d;
@@ -256,6 +246,7 @@ double ContourSearch::distance_beyond(const Vec3& actual, std::size_t limit, dou
   Range warm{0, 0};
   Match m;
   begin_search(actual, limit, lo, hi, warm, m);
+  // No bound (distance()): never true, the window is searched.
   if (warm.b > warm.a && m.dist <= bound) return finish(m, closest);
   return search_window(actual, lo, hi, warm, m, closest);
 }

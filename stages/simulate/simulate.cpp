@@ -561,7 +561,7 @@ void ContourMeter::rewind() {
 ContourMeter::~ContourMeter() = default;
 
 double ContourMeter::distance(const Tick& t, const ResolvedBlock& b, Vec3& tip, Vec3& nearest) {
-  return distance_beyond(t, b, -1.0, tip, nearest);
+  return distance_beyond(t, b, -std::numeric_limits<double>::infinity(), tip, nearest);
 }
 
 double ContourMeter::distance_beyond(const Tick& t, const ResolvedBlock& b, double bound, Vec3& tip, Vec3& nearest) {
@@ -577,7 +577,7 @@ double ContourMeter::distance_beyond(const Tick& t, const ResolvedBlock& b, doub
   // The points up to the segment that ends at `limit` (at least the first segment), as the
   // search over a whole polyline takes them.
   path_->fill(std::max<std::size_t>(limit, 1) + 1);
-  return bound < 0 ? search_.distance(tip, limit, nearest) : search_.distance_beyond(tip, limit, bound, nearest);
+  return search_.distance_beyond(tip, limit, bound, nearest);
 }
 
 Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,

@@ -180,7 +180,9 @@ class ContourSearch {
   /// `limit`: the newest polyline index the nominal has reached at this tick; it never
   /// decreases from call to call. Returns the distance [mm]; `closest` receives the nearest
   /// point of the path.
-  double distance(const Vec3& actual, std::size_t limit, Vec3& closest);
+  double distance(const Vec3& actual, std::size_t limit, Vec3& closest) {
+    return distance_beyond(actual, limit, -std::numeric_limits<double>::infinity(), closest);
+  }
   /// As distance(), where the distance exceeds `bound`. Where it does not, returns a distance
   /// to a segment near the previous match when that is within `bound` already (an upper bound of
   /// the least: the search of the whole window is left out), else the least. A caller that only
@@ -400,7 +402,7 @@ class ContourMeter {
   /// The distance of tick `t`'s actual tool tip (for program block `b`) to the path; its tip and
   /// the nearest point of the path go to `tip` and `nearest`.
   double distance(const Tick& t, const ResolvedBlock& b, Vec3& tip, Vec3& nearest);
-  /// As distance() where the distance exceeds `bound` (>= 0); below it, possibly an upper bound
+  /// As distance() where the distance exceeds `bound`; below it, possibly an upper bound
   /// of the distance (ContourSearch::distance_beyond).
   double distance_beyond(const Tick& t, const ResolvedBlock& b, double bound, Vec3& tip, Vec3& nearest);
   /// Starts measuring a new run from `first_tick` (a reusable meter): the same distances as a
