@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "compensate.hpp"
+#include "compensate_program.hpp"
 #include "contour.hpp"
 #include "compensate_plots.hpp"
 #include "gcpipe/config.hpp"
@@ -204,8 +205,10 @@ TEST(Compensate, TheLearningReplaysAWindowNotTheWholeProgram) {
   const Result r = compensate(model, nom, program, start, before, opt, {});
   ASSERT_TRUE(r.compensated) << r.note;
   const double T = model.interp.period;
-  const double end = static_cast<double>(r.nodes.back().tick) * T;
+  const double end = static_cast<double>(r.end_tick) * T;
   ASSERT_GT(end, 32.0);
+  ASSERT_EQ(r.points + 1, r.nodes.size());  // collected without a NodeSink
+  EXPECT_EQ(r.end_tick, r.nodes.back().tick);
   ASSERT_GE(r.windows.size(), 3u);
   EXPECT_EQ(r.windows.front().t_begin, 0.0);
   EXPECT_NEAR(r.windows.back().t_end, end, 1e-9);
@@ -225,6 +228,37 @@ TEST(Compensate, TheLearningReplaysAWindowNotTheWholeProgram) {
               r.windows.size(), simulated, end, most);
   EXPECT_GT(simulated, end);
   EXPECT_LE(simulated, bound);
+}
+
+// compensated.nc is handed on window by window as the learning commits its nodes, so that
+// neither the text nor the nodes of a long program are held whole; the pieces are the text a
+// whole collection writes, and each timed point comes with the program block it stands for.
+TEST(Compensate, TheProgramIsWrittenWindowByWindowAsTheNodesAreCommitted) {
+  const PipelineConfig pc = circle_config();
+  const Model model = load_model(pc);
+  std::ifstream f(fs::path(GCPIPE_SOURCE_DIR) / "samples" / "circle_test_seed002.nc");
+  const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const CompensateOptions opt;
+  const auto run = simulate::simulate_program(model, parse_text(text, pc), run_bounds(opt));
+  const ProgramCompensation whole = compensate_program(model, opt, WriteOptions{}, run, {});
+  ASSERT_FALSE(whole.text.empty()) << whole.note;
+  std::string joined;
+  std::size_t pieces = 0, largest = 0, points = 0;
+  const ProgramCompensation streamed = compensate_program(
+      model, opt, WriteOptions{}, run, {}, [&](std::string& piece, const std::vector<std::uint32_t>& blocks) {
+        ++pieces;
+        largest = std::max(largest, piece.size());
+        joined += piece;
+        points += blocks.size();
+        for (const std::uint32_t b : blocks) ASSERT_LT(b, run.program.size());
+      });
+  ASSERT_TRUE(streamed.result && streamed.result->compensated) << streamed.note;
+  EXPECT_TRUE(streamed.text.empty());
+  EXPECT_TRUE(streamed.result->nodes.empty());  // handed on, not kept
+  EXPECT_EQ(joined, whole.text);
+  EXPECT_EQ(points, streamed.result->points);
+  EXPECT_GE(pieces, streamed.result->windows.size());
+  EXPECT_LT(largest, whole.text.size() / 2);
 }
 
 TEST(Compensate, CircleTestAt2PiComesDownTenfoldWithinLimitsAndReadsBack) {

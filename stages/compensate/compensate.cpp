@@ -68,22 +68,6 @@ void node_block(const ResolvedBlock& src, const Axes& from, const Axes& to, std:
   b.plane = src.plane;
 }
 
-/// A node program as the simulation reads it (no interleaved M words): block i is the move to
-/// node i + 1 from node i (from `start` for the first: node 0 is the start, at tick 0). Made
-/// block by block, not held (a block is 464 bytes, and a long program has a node every 4 ms).
-/// `nodes` and `program` must outlive the source; the block it gives is valid until the next one
-/// is asked for.
-simulate::BlockSource node_program(std::span<const ResolvedBlock> program, const std::vector<Node>& nodes,
-                                   const Axes& start, double period) {
-  auto buffer = std::make_shared<ResolvedBlock>();
-  return {nodes.empty() ? 0 : nodes.size() - 1, [program, &nodes, start, period, buffer](std::size_t i) -> const ResolvedBlock& {
-            const Node& nd = nodes[i + 1];
-            node_block(program[nd.block], i == 0 ? start : nodes[i].joints, nd.joints, nd.tick - nodes[i].tick, period,
-                       *buffer);
-            return *buffer;
-          }};
-}
-
 /// Forward projection onto the speed bound: a node that would need a faster axis than the bound
 /// is pulled back along that axis, so the interpolator never lengthens a point (which would
 /// shift every later point in time).
@@ -323,8 +307,8 @@ class WindowedLearning {
   static constexpr double kRampSeconds = 0.2;   // and in after the committed nodes
 
   WindowedLearning(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program, const Axes& start,
-                   const Evaluation& before, const CompensateOptions& opt, Result& res)
-      : model_(model), nom_(nom), program_(program), opt_(opt), res_(res), T_(nom.period), E_(nom.reference.size()),
+                   const Evaluation& before, const CompensateOptions& opt, Result& res, const NodeSink& sink)
+      : model_(model), nom_(nom), program_(program), opt_(opt), res_(res), sink_(sink), T_(nom.period), E_(nom.reference.size()),
         clock_{model, nom, program}, m_(static_cast<std::uint64_t>(std::max(1L, std::lround(opt.node_period / T_)))),
         chain_inverse_(design_chain_inverse(model)), vbound_(interpolate::speed_bound(model.interp)),
         Wt_(static_cast<std::uint64_t>(std::max(1L, std::lround(1.0 / T_)))),
@@ -338,7 +322,8 @@ class WindowedLearning {
         state_(model, start, clock_.block_at(0)), nodes_(nom.reference, grid_), best_(nom.reference, grid_),
         totals_(static_cast<std::size_t>(opt.max_iterations) + 1) {
     measure_source_joint_linear_deviation(model, program, opt.linearisation_tolerance, res);
-    res_.nodes.push_back(Node{0, start, clock_.block_at(0)});
+    last_committed_ = Node{0, start, clock_.block_at(0)};
+    committed_.push_back(last_committed_);
     // The operator's design is freed: its pages go back before the windows.
     simulate::give_back_freed_memory();
   }
@@ -422,7 +407,7 @@ class WindowedLearning {
   // program's end point at its end), each projected onto the speed bound against the one before.
   void start_iterate() {
     start_.assign(grid_.size(), Axes{});
-    start_[0] = res_.nodes.back().joints;
+    start_[0] = last_committed_.joints;
     std::size_t carried = 0;
     for (std::size_t k = 1; k < grid_.size(); ++k) {
       while (carried < carry_.size() && carry_[carried].first < grid_[k]) ++carried;
@@ -474,7 +459,6 @@ class WindowedLearning {
     add_to_totals(record);
     res_.windows.push_back({static_cast<double>(w.a) * T_, static_cast<double>(w.b) * T_, static_cast<int>(record.size()),
                             out_of_iterations});
-    for (bool learned : sub_learned_) any_learned_ = any_learned_ || learned;
   }
 
   // How much of the learning update a node takes: all of it, except over the first
@@ -734,7 +718,8 @@ class WindowedLearning {
   void commit(const Window& w) {
     std::size_t end = grid_.size() - 1;
     if (!w.last) end = static_cast<std::size_t>(std::find(grid_.begin(), grid_.end(), w.b) - grid_.begin());
-    for (std::size_t k = 1; k <= end; ++k) res_.nodes.push_back(Node{grid_[k], best_.get(k), clock_.block_at(grid_[k])});
+    for (std::size_t k = 1; k <= end; ++k) committed_.push_back(Node{grid_[k], best_.get(k), clock_.block_at(grid_[k])});
+    hand_on_committed();
     carry_.clear();
     for (std::size_t k = end + 1; k < grid_.size(); ++k) carry_.emplace_back(grid_[k], best_.get(k));
     carry_seconds_.clear();
@@ -771,6 +756,19 @@ class WindowedLearning {
       last_rejection_ = "the committed nodes could not be run" + std::string(at) + ": " + committed.refused +
                         "; the program after that keeps the model-inverse start";
     }
+  }
+
+  // The window's nodes go to the sink (or the result), and only the last is kept: the program's
+  // nodes are never all held where a sink takes them.
+  void hand_on_committed() {
+    for (bool learned : sub_learned_) any_learned_ = any_learned_ || learned;
+    last_committed_ = committed_.back();
+    handed_ += committed_.size();
+    res_.points = handed_ - 1;  // node 0 is the start, not a point
+    res_.end_tick = last_committed_.tick;
+    if (sink_) sink_(committed_, any_learned_);
+    else res_.nodes.insert(res_.nodes.end(), committed_.begin(), committed_.end());
+    committed_.clear();
   }
 
   // A window's iterations added to the report's: iteration i of the program is each window at
@@ -812,6 +810,10 @@ class WindowedLearning {
   std::span<const ResolvedBlock> program_;
   const CompensateOptions& opt_;
   Result& res_;
+  const NodeSink& sink_;
+  std::vector<Node> committed_;  // the nodes of the window being committed (node 0 with the first)
+  Node last_committed_;
+  std::uint64_t handed_ = 0;     // nodes committed so far
   double T_;
   std::uint64_t E_;
   ReferenceClock clock_;
@@ -864,7 +866,7 @@ class WindowedLearning {
 
 Result compensate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
                   const Axes& start, const Evaluation& before, const CompensateOptions& opt,
-                  const Progress& progress) {
+                  const Progress& progress, const NodeSink& sink) {
   Result res;
   if (nom.reference_too_long) {
     res.note = "not compensated: the planned reference would run longer than compensate.max_machine_time";
@@ -882,66 +884,79 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
     res.note = msg;
     return res;
   }
-  WindowedLearning(model, nom, program, start, before, opt, res).run(progress);
+  WindowedLearning(model, nom, program, start, before, opt, res, sink).run(progress);
   simulate::give_back_freed_memory();  // the learning's series, before the program is written
   return res;
 }
 
-void for_each_compensated_block(std::span<const ResolvedBlock> program, const Result& result, double period,
-                                const std::function<void(const ResolvedBlock&)>& emit) {
-  if (result.nodes.empty()) return;
-  const Axes start = result.nodes.front().joints;
-  const simulate::BlockSource nodes = node_program(program, result.nodes, start, period);
-  std::size_t next = 0;  // next program block not yet passed
-  std::uint64_t noted_line = 0;  // source line of the last motion note
-  bool have_node = false;
-  double last_feed = 0;
-  Axes last_target = start;  // where the last block written leaves the machine
-  auto pass_block = [&](std::size_t i) {
-    const ResolvedBlock& b = program[i];
-    ResolvedBlock c = b;
-    c.tcp = false;
-    c.tool_length_active = false;
-    c.tool_length = 0;
-    c.tool_length_offset = 0;
-    if (b.motion != Motion::kNone && b.line == noted_line && b.motion != Motion::kDwell) return;
-    if (b.motion != Motion::kNone) {
-      noted_line = b.line;
-      // A motion of the source is carried by the timed points that follow; the block stays as a
-      // note with its text so that the operator can find every source line.
-      std::string text = b.text;
-      std::replace(text.begin(), text.end(), '(', '[');
-      std::replace(text.begin(), text.end(), ')', ']');
-      c.motion = Motion::kNone;
-      c.dwell = 0;
-      c.axis_words = 0;
-      c.comment = (b.motion == Motion::kDwell ? "dwell, held by the timed points below: " : "source: ") + text;
-      c.percent = false;
-      c.program_number = -1;
-    }
-    // Between timed points the inverse-time mode stays (no G94/G93 flip-flop in the output);
-    // before the first point the block keeps its own feed mode.
-    c.start = c.target = last_target;
-    if (have_node) {
-      c.feed_mode = FeedMode::kInverseTime;
-      c.feed = last_feed;
-    }
-    emit(c);
-  };
-  for (std::size_t k = 0; k < nodes.count; ++k) {
-    const std::uint32_t src = result.nodes[k + 1].block;
+CompensatedBlocks::CompensatedBlocks(std::span<const ResolvedBlock> program, double period,
+                                     std::function<void(const ResolvedBlock&)> emit)
+    : program_(program), period_(period), emit_(std::move(emit)) {}
+
+void CompensatedBlocks::pass_block(std::size_t i) {
+  const ResolvedBlock& b = program_[i];
+  ResolvedBlock c = b;
+  c.tcp = false;
+  c.tool_length_active = false;
+  c.tool_length = 0;
+  c.tool_length_offset = 0;
+  if (b.motion != Motion::kNone && b.line == noted_line_ && b.motion != Motion::kDwell) return;
+  if (b.motion != Motion::kNone) {
+    noted_line_ = b.line;
+    // A motion of the source is carried by the timed points that follow; the block stays as a
+    // note with its text so that the operator can find every source line.
+    std::string text = b.text;
+    std::replace(text.begin(), text.end(), '(', '[');
+    std::replace(text.begin(), text.end(), ')', ']');
+    c.motion = Motion::kNone;
+    c.dwell = 0;
+    c.axis_words = 0;
+    c.comment = (b.motion == Motion::kDwell ? "dwell, held by the timed points below: " : "source: ") + text;
+    c.percent = false;
+    c.program_number = -1;
+  }
+  // Between timed points the inverse-time mode stays (no G94/G93 flip-flop in the output);
+  // before the first point the block keeps its own feed mode.
+  c.start = c.target = last_target_;
+  if (have_node_) {
+    c.feed_mode = FeedMode::kInverseTime;
+    c.feed = last_feed_;
+  }
+  emit_(c);
+}
+
+void CompensatedBlocks::add(std::span<const Node> nodes) {
+  std::size_t k = 0;
+  if (!started_ && !nodes.empty()) {
+    started_ = true;
+    last_node_ = nodes[0];
+    last_target_ = nodes[0].joints;
+    k = 1;
+  }
+  for (; k < nodes.size(); ++k) {
+    const Node& nd = nodes[k];
     // Program blocks up to this node's source block are passed in order (their M/S/T words and
     // comments), each source line's motion once as a note.
-    while (next <= src && next < program.size()) {
-      pass_block(next++);
-    }
-    const ResolvedBlock& node = nodes.at(k);
-    emit(node);
-    have_node = true;
-    last_feed = node.feed;
-    last_target = node.target;
+    while (next_ <= nd.block && next_ < program_.size()) pass_block(next_++);
+    node_block(program_[nd.block], last_node_.joints, nd.joints, nd.tick - last_node_.tick, period_, block_);
+    emit_(block_);
+    have_node_ = true;
+    last_feed_ = block_.feed;
+    last_target_ = block_.target;
+    last_node_ = nd;
   }
-  while (next < program.size()) pass_block(next++);
+}
+
+void CompensatedBlocks::finish() {
+  if (!started_) return;
+  while (next_ < program_.size()) pass_block(next_++);
+}
+
+void for_each_compensated_block(std::span<const ResolvedBlock> program, const Result& result, double period,
+                                const std::function<void(const ResolvedBlock&)>& emit) {
+  CompensatedBlocks blocks(program, period, emit);
+  blocks.add(result.nodes);
+  blocks.finish();
 }
 
 std::vector<ResolvedBlock> compensated_blocks(std::span<const ResolvedBlock> program, const Result& result,

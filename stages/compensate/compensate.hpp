@@ -115,7 +115,11 @@ struct LearningWindow {
 struct Result {
   bool compensated = false;
   std::string note;                     //!< why not, or what limits the result
+  /// Every node, node 0 (the start) first, when compensate() was given no NodeSink; with one they
+  /// went to it window by window and are not kept.
   std::vector<Node> nodes;
+  std::uint64_t points = 0;    //!< nodes after node 0: the timed points of the compensated program
+  std::uint64_t end_tick = 0;  //!< the last node's tick: the compensated cycle time is end_tick * period
   std::vector<Iteration> iterations;
   std::uint64_t linearisation_splits = 0;   //!< node intervals halved
   double linearisation_max_deviation = 0;   //!< [mm] after splitting
@@ -136,12 +140,44 @@ struct Result {
   }
 };
 
+/// Where the learning hands its nodes as it commits them, window by window, in order (node 0
+/// first): `learned` says whether a window so far has learned anything (a program none of whose
+/// windows learns is not compensated, Result::compensated).
+using NodeSink = std::function<void(std::span<const Node> nodes, bool learned)>;
+
 /// Computes the compensated nodes. `program` is the original, `nominal` its nominal run.
 /// `before` is evaluate()'s figures for the program itself (its per-segment demand bounds the
-/// learning).
+/// learning). Without a `sink` the nodes are collected in Result::nodes.
 Result compensate(const Model& model, const Nominal& nominal, std::span<const ResolvedBlock> program,
                   const Axes& start, const Evaluation& before, const CompensateOptions& options,
-                  const Progress& progress);
+                  const Progress& progress, const NodeSink& sink = {});
+
+/// The compensated program's blocks made as the nodes come (for_each_compensated_block for nodes
+/// handed on window by window): the node blocks (G93 G1 in machine axes, TCP and tool length off,
+/// N = source line) interleaved with the program's non-motion blocks, in program order, each
+/// handed to `emit` (valid during the call).
+class CompensatedBlocks {
+ public:
+  CompensatedBlocks(std::span<const ResolvedBlock> program, double period, std::function<void(const ResolvedBlock&)> emit);
+  /// The next nodes, in order; the first call's first node is node 0, the start.
+  void add(std::span<const Node> nodes);
+  /// The program's blocks after the last node.
+  void finish();
+
+ private:
+  void pass_block(std::size_t i);
+  std::span<const ResolvedBlock> program_;
+  double period_;
+  std::function<void(const ResolvedBlock&)> emit_;
+  bool started_ = false;
+  Node last_node_;               // the node the next one moves from
+  std::size_t next_ = 0;         // next program block not yet passed
+  std::uint64_t noted_line_ = 0; // source line of the last motion note
+  bool have_node_ = false;       // a node block was written
+  double last_feed_ = 0;
+  Axes last_target_{};           // where the last block written leaves the machine
+  ResolvedBlock block_;          // the node block being handed on
+};
 
 /// The node blocks of a result as resolved blocks (G93 G1 in machine axes, TCP and tool length
 /// off, N = source line) interleaved with the program's non-motion blocks, in program order, handed

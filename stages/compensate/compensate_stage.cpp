@@ -21,71 +21,94 @@ namespace {
 
 using pipeline::Emitter;
 
-/// compensated.nc read back block by block as the simulation asks for them: the parser is fed
-/// line by line until the next motion block comes out, so the text's blocks (one a node, 464 bytes
-/// each) are never all held. Blocks are asked for in order; a few are kept behind the newest.
+/// compensated.nc read back as it is written: each piece is parsed line by line (strict, in the
+/// writer's dialect) and its motion blocks are run on the reference clock and measured at once,
+/// so that neither the text nor its blocks (one a node, 464 bytes each) are ever all held. The
+/// "after" figures are those of the text as written, rounding included.
 class ReadBack {
  public:
-  ReadBack(const ParseOptions& options, const MachineConfig& machine, std::string_view text)
-      : parser_(options, machine, "compensated.nc"), text_(text) {
+  ReadBack(const ParseOptions& options, const MachineConfig& machine, const compensate::Model& model,
+           const simulate::SimulationRun& run)
+      : parser_(options, machine, "compensated.nc"), runner_(model, run.start, 0),
+        evaluation_(model, *run.nominal, run.program, run.start, true) {
     sink_.block = [this](const ResolvedBlock& b) {
-      if (b.motion != Motion::kNone) kept_.push_back(b);
+      if (b.motion != Motion::kNone) run_block(b);
       return true;
     };
     sink_.diagnostic = [](const Diagnostic& d) {
       if (d.severity == Severity::kError) throw std::runtime_error("compensated.nc does not read back: " + format(d));
       return true;
     };
+    on_tick_ = [this](const simulate::Tick& t) { evaluation_.add(t, source_of(t.block)); };
   }
 
-  /// Motion block i of the text; throws when the text has fewer (`expected` is the number
-  /// written, for the message).
-  const ResolvedBlock& at(std::size_t i, std::size_t expected) {
-    if (i < first_) throw std::logic_error("compensated.nc read back out of order");
-    while (first_ + kept_.size() <= i)
-      if (!feed_line()) throw does_not_read_back(expected);
-    while (first_ + kKeptBehind < i) kept_.pop_front(), ++first_;
-    return kept_[i - first_];
-  }
-
-  /// All motion blocks of the text (reads it to the end).
-  std::size_t count() {
-    while (feed_line()) {
+  /// The next piece of the text (whole lines), with the program block of each of its timed points.
+  void feed(std::string_view piece, const std::vector<std::uint32_t>& point_blocks) {
+    sources_.insert(sources_.end(), point_blocks.begin(), point_blocks.end());
+    points_ += point_blocks.size();
+    for (std::size_t pos = 0; pos < piece.size();) {
+      const std::size_t end = piece.find('\n', pos);
+      if (end == std::string_view::npos) {  // a line cut by the piece's end: completed by the next
+        partial_.append(piece.substr(pos));
+        break;
+      }
+      feed_line(piece.substr(pos, end - pos));
+      pos = end + 1;
     }
-    return first_ + kept_.size();
   }
 
-  std::runtime_error does_not_read_back(std::size_t expected) {
-    return std::runtime_error("compensated.nc does not read back as written (" + std::to_string(count()) +
-                              " motion blocks for " + std::to_string(expected) + " points)");
+  /// The figures of the whole text; throws when it does not read back as written.
+  simulate::Evaluation finish() {
+    if (!partial_.empty()) feed_line({});
+    parser_.finish(sink_);
+    if (read_ != points_) throw does_not_read_back();
+    return evaluation_.finish(runner_.finish(on_tick_));
   }
+
+  std::uint64_t points() const { return points_; }
 
  private:
-  static constexpr std::size_t kKeptBehind = 8;
-
-  /// Feeds the next line (or, past the last, finishes the parse once); false when nothing is left.
-  bool feed_line() {
-    if (pos_ >= text_.size()) {
-      if (finished_) return false;
-      finished_ = true;
-      parser_.finish(sink_);
-      return true;
+  void feed_line(std::string_view line) {
+    if (!partial_.empty()) {
+      partial_.append(line);
+      std::string whole;
+      whole.swap(partial_);
+      feed_line(whole);
+      return;
     }
-    const std::size_t end = std::min(text_.find('\n', pos_), text_.size());
-    std::string_view line = text_.substr(pos_, end - pos_);
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    pos_ = end + 1;
     parser_.feed(line, sink_);
-    return true;
+  }
+
+  void run_block(const ResolvedBlock& b) {
+    if (read_ >= points_) throw does_not_read_back();
+    // A block the machine cannot run stops the run there (as run_program does); the rest is
+    // still read, to count it.
+    runner_.add(b, static_cast<std::uint32_t>(read_++), on_tick_);
+  }
+
+  // The program block that motion block i of the text stands for. Ticks come in order, so the
+  // blocks before i are done with.
+  std::uint32_t source_of(std::uint32_t i) {
+    while (first_source_ < i && sources_.size() > 1) sources_.pop_front(), ++first_source_;
+    return sources_[std::min<std::size_t>(i - first_source_, sources_.size() - 1)];
+  }
+
+  std::runtime_error does_not_read_back() const {
+    return std::runtime_error("compensated.nc does not read back as written (" + std::to_string(read_) +
+                              " motion blocks for " + std::to_string(points_) + " points)");
   }
 
   Parser parser_;
-  std::string_view text_;
-  std::size_t pos_ = 0;
-  bool finished_ = false;
   ParseSink sink_;
-  std::deque<ResolvedBlock> kept_;
-  std::size_t first_ = 0;  // index of kept_.front() among the text's motion blocks
+  std::string partial_;
+  simulate::ProgramRunner runner_;
+  simulate::RunEvaluation evaluation_;
+  simulate::TickFn on_tick_;
+  std::deque<std::uint32_t> sources_;
+  std::uint64_t first_source_ = 0;  // the text's motion block sources_.front() stands for
+  std::uint64_t points_ = 0;        // timed points written so far
+  std::uint64_t read_ = 0;          // motion blocks read back so far
 };
 
 class CompensateStage final : public pipeline::Stage {
@@ -115,15 +138,23 @@ class CompensateStage final : public pipeline::Stage {
     if (too_many_) return fail("the program has more than compensate.max_blocks = " + std::to_string(options_.max_blocks) + " blocks");
     if (!simulated_) simulate_here();
     if (!simulated_->run.before) return fail("not simulated: " + simulated_->run.note);
-    compensation_ = compensate::compensate_program(model_, options_, write_options_, simulated_->run, progress_);
-    if (compensation_.text.empty()) return fail("no compensated program: " + compensation_.note);
-    read_back(compensation_.text);
-    // The text goes out before the slowed baseline is run, which needs only the program: on a
-    // long program the text (tens of MB) would otherwise be held beside that simulation.
-    const bool r = out.text(compensation_.text);
-    std::string().swap(compensation_.text);  // emptied by the sinks; its memory too
+    // compensated.nc goes out and is read back window by window as the learning commits its
+    // nodes: on a long program neither the text (tens of MB) nor the nodes are held whole.
+    std::optional<ReadBack> back;
+    bool go = true;
+    compensation_ = compensate::compensate_program(
+        model_, options_, write_options_, simulated_->run, progress_,
+        [&](std::string& piece, const std::vector<std::uint32_t>& point_blocks) {
+          if (!back) back.emplace(read_back_options(), machine_, model_, simulated_->run);
+          back->feed(piece, point_blocks);
+          go = out.text(piece) && go;
+        });
+    if (!compensation_.result || !compensation_.result->compensated || !back)
+      return fail("no compensated program: " + compensation_.note);
+    after_ = back->finish();
+    written_nodes_ = back->points();
     measure_slowed_baseline();
-    return r;
+    return go;
   }
 
   void report(pipeline::ReportContext& r) const override {
@@ -168,31 +199,20 @@ class CompensateStage final : public pipeline::Stage {
     simulated_ = s;
   }
 
-  // The "after" figures are those of the text as written, rounding included: it is parsed back
-  // (strict, in the writer's dialect) and simulated on the reference clock.
-  void read_back(const std::string& text) {
-    if (progress_) progress_("re-reading and simulating compensated.nc", 0, 0);
+  // compensated.nc is parsed back strictly, in the writer's dialect.
+  ParseOptions read_back_options() const {
     ParseOptions po = parse_options_;
     po.strict = true;
     po.dialect = write_options_.dialect;
     po.decimal_point_increments = false;
-    const auto& nodes = compensation_.result->nodes;
-    const std::size_t points = nodes.size() - 1;
-    ReadBack back(po, machine_, text);
-    const simulate::BlockSource blocks{points, [&](std::size_t i) -> const ResolvedBlock& { return back.at(i, points); }};
-    const auto& run = simulated_->run;
-    after_ = simulate::evaluate(
-        model_, *run.nominal, run.program, blocks, run.start,
-        [&nodes](std::uint32_t i) { return nodes[std::min<std::size_t>(i + 1, nodes.size() - 1)].block; }, {}, true);
-    if (back.count() != points) throw back.does_not_read_back(points);
-    written_nodes_ = points;
+    return po;
   }
 
   // The original slowed to the compensated program's cycle time: what a sceptic compares with.
   void measure_slowed_baseline() {
-    if (!options_.slowed_baseline || !compensation_.result || compensation_.result->nodes.empty()) return;
+    if (!options_.slowed_baseline || !compensation_.result || compensation_.result->points == 0) return;
     if (progress_) progress_("simulating the original slowed to the compensated cycle time", 0, 0);
-    const double target = static_cast<double>(compensation_.result->nodes.back().tick) * model_.interp.period;
+    const double target = static_cast<double>(compensation_.result->end_tick) * model_.interp.period;
     const double at_one = static_cast<double>(simulated_->run.nominal->raw.size()) * model_.interp.period;
     slowed_ = simulate::slowed_original(model_, simulated_->run.program, target, at_one, compensate::run_bounds(options_));
   }

@@ -69,9 +69,9 @@ Json segments_json(const ReportInput& in) {
 void add_result(Json& j, const ReportInput& in) {
   const Result& r = *in.result;
   const double T = in.model->interp.period;
-  j["nodes"] = r.nodes.empty() ? 0 : r.nodes.size() - 1;
+  j["nodes"] = r.points;
   j["original_duration_s"] = static_cast<double>(in.nominal->raw.size()) * T;
-  j["compensated_duration_s"] = r.nodes.empty() ? 0.0 : static_cast<double>(r.nodes.back().tick) * T;
+  j["compensated_duration_s"] = static_cast<double>(r.end_tick) * T;
   j["linearisation"] = {{"splits", r.linearisation_splits},
                         {"max_deviation_mm", r.linearisation_max_deviation},
                         {"source_tcp_blocks_needing_split", r.source_blocks_needing_split},
@@ -124,8 +124,8 @@ nlohmann::ordered_json report_json(const ReportInput& in) {
   // The original as a look-ahead control runs it to compensate.path_tolerance: the reference.
   if (!in.nominal->reference.empty())
     j["cycle_time_planned_s"] = static_cast<double>(in.nominal->reference.size()) * T;
-  if (in.result && !in.result->nodes.empty() && in.after)
-    j["cycle_time_after_s"] = static_cast<double>(in.result->nodes.back().tick) * T;
+  if (in.result && in.result->points > 0 && in.after)
+    j["cycle_time_after_s"] = static_cast<double>(in.result->end_tick) * T;
   j["contour_error_before"] = contour_json(*in.before);
   if (in.after) {
     j["contour_error_after"] = contour_json(*in.after);
@@ -230,11 +230,11 @@ void outcome_lines(const ReportInput& in, std::string& s) {
     s += buf;
   }
   s += "\n";
-  if (in.result && !in.result->nodes.empty()) {
+  if (in.result && in.result->points > 0) {
     std::snprintf(buf, sizeof buf,
                   "  compensated program runs %.3f s (original %.3f s as the control runs it, %.3f s planned to "
                   "compensate.path_tolerance)\n",
-                  static_cast<double>(in.result->nodes.back().tick) * in.model->interp.period,
+                  static_cast<double>(in.result->end_tick) * in.model->interp.period,
                   static_cast<double>(in.nominal->raw.size()) * in.model->interp.period,
                   static_cast<double>(in.nominal->reference.size()) * in.model->interp.period);
     s += buf;

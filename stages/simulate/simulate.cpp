@@ -190,41 +190,51 @@ void MachineRun::finish(const TickFn& on_tick) {
   while (sink_.sim.flush(s)) sink_.emit(s);
 }
 
+ProgramRunner::ProgramRunner(const Model& model, const Axes& start, std::uint32_t first_block, std::uint64_t max_ticks)
+    : period_(model.interp.period), max_ticks_(max_ticks), run_(model, start, first_block, max_ticks) {}
+
+bool ProgramRunner::add(const ResolvedBlock& b, std::uint32_t i, const TickFn& on_tick) {
+  if (stopped_) return false;
+  const auto r = run_.add(b, i, on_tick);
+  if (r.status != interpolate::InterpolateStatus::kOk) {
+    stats_.ok = false;
+    stats_.message = r.message;
+    if (r.status == interpolate::InterpolateStatus::kTooLong) stats_.message += " (compensate.max_machine_time)";
+    stats_.failed_line = b.line;
+    stopped_ = true;
+    return false;
+  }
+  if (run_.over()) {
+    char msg[160];
+    std::snprintf(msg, sizeof msg, "the program runs longer than %.0f s of machine time (compensate.max_machine_time)",
+                  static_cast<double>(max_ticks_) * period_);
+    stats_.ok = false;
+    stats_.message = msg;
+    stats_.failed_line = b.line;
+    stopped_ = over_ = true;
+    return false;
+  }
+  return true;
+}
+
+RunStats ProgramRunner::finish(const TickFn& on_tick) {
+  // A run past max_ticks is cut off there; one stopped at a block it cannot run settles where
+  // it stopped.
+  if (!over_) run_.finish(on_tick);
+  stats_.ticks = run_.ticks();
+  stats_.saturated_ticks = run_.saturated_ticks();
+  stats_.interp = run_.interp_stats();
+  return stats_;
+}
+
 RunStats run_program(const Model& model, const BlockSource& blocks, const Axes& start,
                      const std::function<void(const Tick&)>& on_tick, std::uint64_t max_ticks) {
-  RunStats stats;
   std::uint32_t first = 0;
   while (first + 1 < blocks.count && blocks.at(first).motion == Motion::kNone) ++first;
-  MachineRun run(model, start, first, max_ticks);
-  auto finish_stats = [&] {
-    stats.ticks = run.ticks();
-    stats.saturated_ticks = run.saturated_ticks();
-    stats.interp = run.interp_stats();
-  };
-  for (std::size_t i = 0; i < blocks.count; ++i) {
-    const ResolvedBlock& b = blocks.at(i);
-    const auto r = run.add(b, static_cast<std::uint32_t>(i), on_tick);
-    if (r.status != interpolate::InterpolateStatus::kOk) {
-      stats.ok = false;
-      stats.message = r.message;
-      if (r.status == interpolate::InterpolateStatus::kTooLong) stats.message += " (compensate.max_machine_time)";
-      stats.failed_line = b.line;
-      break;
-    }
-    if (run.over()) {
-      char msg[160];
-      std::snprintf(msg, sizeof msg, "the program runs longer than %.0f s of machine time (compensate.max_machine_time)",
-                    static_cast<double>(max_ticks) * model.interp.period);
-      stats.ok = false;
-      stats.message = msg;
-      stats.failed_line = b.line;
-      finish_stats();
-      return stats;
-    }
-  }
-  run.finish(on_tick);
-  finish_stats();
-  return stats;
+  ProgramRunner run(model, start, first, max_ticks);
+  for (std::size_t i = 0; i < blocks.count; ++i)
+    if (!run.add(blocks.at(i), static_cast<std::uint32_t>(i), on_tick)) break;
+  return run.finish(on_tick);
 }
 
 namespace {
@@ -315,6 +325,8 @@ void hand_on(const std::function<void(const Tick&)>& tap, const Tick& t, bool cu
   marked.tip = tip;
   tap(marked);
 }
+
+}  // namespace
 
 /// The figures of one run against the nominal path, gathered tick by tick: contour error on
 /// cutting moves and on rapids, per segment, what the run demanded of the axes, following error,
@@ -437,6 +449,8 @@ class RunAccumulator {
   std::size_t bucket_ = 1;
   double bucket_max_ = 0;
 };
+
+namespace {
 
 /// The recorded run's series grew sample by sample, so up to half of what they hold is spare: it
 /// goes before the planner, whose peak it would add to (20 MB on a one-hour program).
@@ -580,25 +594,35 @@ double ContourMeter::distance_beyond(const Tick& t, const ResolvedBlock& b, doub
   return search_.distance_beyond(tip, limit, bound, nearest);
 }
 
+RunEvaluation::RunEvaluation(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
+                             const Axes& start, bool on_reference_clock)
+    : nom_(nom), program_(program), meter_(model, nom, program, on_reference_clock),
+      acc_(std::make_unique<RunAccumulator>(model, nom.segments.size())),
+      ref_end_(nom.reference.empty() ? start : nom.reference.back()) {}
+
+RunEvaluation::~RunEvaluation() = default;
+
+void RunEvaluation::add(const Tick& t, std::uint32_t src, const TickFn& also) {
+  const ResolvedBlock& b = program_[std::min<std::size_t>(src, program_.size() - 1)];
+  Vec3 tip, nearest;
+  const double e = meter_.distance(t, b, tip, nearest);
+  const std::uint32_t seg = nom_.segment_of_block.empty() ? 0 : nom_.segment_of_block[std::min<std::size_t>(src, nom_.segment_of_block.size() - 1)];
+  const bool cutting = acc_->add(t, b, seg, e, tip, nearest);
+  const std::size_t n = static_cast<std::size_t>(t.n);
+  acc_->track(n < nom_.reference.size() ? nom_.reference[n] : ref_end_, t.actual);
+  hand_on(also, t, cutting, e, tip);
+}
+
+Evaluation RunEvaluation::finish(const RunStats& stats) { return acc_->finish(stats); }
+
 Evaluation evaluate(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
                     const BlockSource& blocks, const Axes& start,
                     const std::function<std::uint32_t(std::uint32_t)>& source_block,
                     const std::function<void(const Tick&)>& also, bool on_reference_clock) {
-  ContourMeter meter(model, nom, program, on_reference_clock);
-  RunAccumulator acc(model, nom.segments.size());
-  const Axes& ref_end = nom.reference.empty() ? start : nom.reference.back();
-  const RunStats stats = run_program(model, blocks, start, [&](const Tick& t) {
-    const std::uint32_t src = source_block(t.block);
-    const ResolvedBlock& b = program[std::min<std::size_t>(src, program.size() - 1)];
-    Vec3 tip, nearest;
-    const double e = meter.distance(t, b, tip, nearest);
-    const std::uint32_t seg = nom.segment_of_block.empty() ? 0 : nom.segment_of_block[std::min<std::size_t>(src, nom.segment_of_block.size() - 1)];
-    const bool cutting = acc.add(t, b, seg, e, tip, nearest);
-    const std::size_t n = static_cast<std::size_t>(t.n);
-    acc.track(n < nom.reference.size() ? nom.reference[n] : ref_end, t.actual);
-    hand_on(also, t, cutting, e, tip);
-  });
-  return acc.finish(stats);
+  RunEvaluation ev(model, nom, program, start, on_reference_clock);
+  const RunStats stats =
+      run_program(model, blocks, start, [&](const Tick& t) { ev.add(t, source_block(t.block), also); });
+  return ev.finish(stats);
 }
 
 }  // namespace gcpipe::simulate

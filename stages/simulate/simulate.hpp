@@ -134,6 +134,26 @@ class MachineRun {
   servo::ServoSample first_{};
 };
 
+/// A program run as its blocks come, one at a time (run_program is a loop over it): for blocks
+/// made by another step as it goes (compensated.nc read back while the compensation writes it).
+class ProgramRunner {
+ public:
+  /// At rest at `start`; `first_block`: the first block that moves (its index).
+  ProgramRunner(const Model& model, const Axes& start, std::uint32_t first_block, std::uint64_t max_ticks = UINT64_MAX);
+  /// Runs block `b`, block `i` of the program. False when the run stopped at it (a block the
+  /// interpolator cannot run, or past `max_ticks`) or before: later blocks are not run.
+  bool add(const ResolvedBlock& b, std::uint32_t i, const TickFn& on_tick);
+  /// Settles the run (unless it was cut off at `max_ticks`) and gives its figures.
+  RunStats finish(const TickFn& on_tick);
+
+ private:
+  double period_;
+  std::uint64_t max_ticks_;
+  MachineRun run_;
+  RunStats stats_;
+  bool stopped_ = false, over_ = false;
+};
+
 /// Interpolates `blocks` (from rest at `start`) at the model's period, runs the five drives and
 /// calls `on_tick` for every tick, in order. Blocks without motion are skipped by the
 /// interpolator; a block it cannot run stops the run (RunStats::ok false).
@@ -415,6 +435,28 @@ class ContourMeter {
   bool on_reference_clock_;
   ContourSearch search_;
   std::unique_ptr<NominalPolyline> path_;
+};
+
+class RunAccumulator;
+
+/// What evaluate() measures, for a run fed tick by tick (a ProgramRunner fed as blocks come).
+class RunEvaluation {
+ public:
+  RunEvaluation(const Model& model, const Nominal& nominal, std::span<const ResolvedBlock> program, const Axes& start,
+                bool on_reference_clock);
+  ~RunEvaluation();
+  RunEvaluation(const RunEvaluation&) = delete;
+  RunEvaluation& operator=(const RunEvaluation&) = delete;
+  /// Tick `t` of the run, which stands for program block `src`; `also` sees it with its error.
+  void add(const Tick& t, std::uint32_t src, const TickFn& also = {});
+  Evaluation finish(const RunStats& stats);
+
+ private:
+  const Nominal& nom_;
+  std::span<const ResolvedBlock> program_;
+  ContourMeter meter_;
+  std::unique_ptr<RunAccumulator> acc_;
+  Axes ref_end_;
 };
 
 /// Runs `blocks` and measures them against the nominal path. `source_block(i)` is the program
