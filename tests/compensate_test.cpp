@@ -138,6 +138,47 @@ TEST(Compensate, PlannedReferenceStaysWithinThePathToleranceWithoutStoppingAtCor
   }
 }
 
+// The planner holds a chunk of the program's raw steps at a time (ReferencePlan::chunk_seconds),
+// each chunk going on from the state the one before left at its commit point, with a margin past
+// it longer than a backward speed pass reaches. The chunks plan what one plan of the whole program
+// does: tick for tick where no round slows a corner near a join, and within the tolerance rounds'
+// own spread where one does.
+TEST(Compensate, APlanInChunksIsThePlanOfTheWholeProgram) {
+  const PipelineConfig pc = circle_config();
+  const Model model = load_model(pc);
+  std::ifstream f(fs::path(GCPIPE_SOURCE_DIR) / "samples" / "circle_test_seed002.nc");
+  const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const auto program = parse_text(text, pc);
+  const Axes start = machine_start(model.kin, program[1], tool_length_of(model, program[1]));
+  simulate::ReferencePlan whole;
+  whole.chunk_seconds = 1e6;
+  const Nominal one = build_nominal(model, program, start, whole);
+  for (const double seconds : {3.0, 6.0}) {
+    simulate::ReferencePlan chunked = whole;
+    chunked.chunk_seconds = seconds;
+    const Nominal nom = build_nominal(model, program, start, chunked);
+    ASSERT_FALSE(nom.reference.empty());
+    ASSERT_GT(static_cast<double>(nom.raw.size()) * nom.period, 5 * seconds) << "the program must span several chunks";
+    double worst = 0;
+    std::size_t same = 0;
+    const std::size_t n = std::min(one.reference.size(), nom.reference.size());
+    for (std::size_t k = 0; k < n; ++k) {
+      const Axes a = one.reference[k], b = nom.reference[k];
+      double d = 0;
+      for (std::size_t i = 0; i < kNumAxes; ++i) d = std::max(d, std::abs(a[i] - b[i]));
+      worst = std::max(worst, d);
+      same += d == 0 && one.progress[k] == nom.progress[k];
+    }
+    std::printf("chunks of %.0f s: %zu ticks planned (whole: %zu), %zu identical, largest joint difference %.3g\n", seconds,
+                nom.reference.size(), one.reference.size(), same, worst);
+    EXPECT_EQ(nom.reference.size(), nom.progress.size());
+    EXPECT_NEAR(static_cast<double>(nom.reference.size()), static_cast<double>(one.reference.size()),
+                0.002 * static_cast<double>(one.reference.size()));
+    EXPECT_LT(worst, 1e-6) << "mm or deg: the chunks plan another reference";
+    EXPECT_LE(worst_reference_deviation(model, program, nom), whole.tolerance);
+  }
+}
+
 // Where the tool length changes (G43 H1 with its Z move) the nominal tool tip jumps by the tool
 // length while the joints move on smoothly. The planner's tolerance check measured the blended
 // reference against that jump, found it beyond the tolerance in every round and slowed the

@@ -48,6 +48,12 @@ class JointSeries {
     clear();
     reserve(n);
   }
+  /// Keeps the first n ticks (n <= size()): as if only they had been pushed.
+  void truncate(std::size_t n) {
+    if (exact_) return full_.resize(n);
+    offset_.resize(n);
+    base_.resize((n + kBlock - 1) / kBlock);
+  }
   void shrink_to_fit() {
     full_.shrink_to_fit();
     offset_.shrink_to_fit();

@@ -3,7 +3,9 @@
 // stages/compensate/README.md, "Reference".
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <limits>
+#include <optional>
 #include <type_traits>
 
 #include "nominal_path.hpp"
@@ -17,14 +19,17 @@ namespace {
 // limit, so that d(sigma)/dt = 1 is every moving axis at most at its limit. Unlike the tool-tip
 // arc length it moves on rotary-only moves and stands still in dwells (whose time is kept).
 struct RawPath {
-  std::vector<double> ds;   //!< N - 1 sigma steps [s at speed limit]
+  std::size_t first = 0;     //!< raw index of the path's sample 0 (a chunk of the program)
+  bool ends_program = true;  //!< its last sample is the program's last
+  std::vector<double> ds;    //!< sigma steps [s at speed limit]: step k from sample first + k
   /// Steps that do not move and where the path rests: a dwell, before the first and after the
   /// last move. Other steps that do not move (a sample repeated where a block ends on a tick)
   /// neither stop the plan nor take time.
   std::vector<std::uint8_t> rest;
-  std::vector<double> sigma;  //!< N cumulative sigma
+  std::vector<double> sigma;  //!< cumulative sigma at every sample, from the program's start
   // The unit directions of the steps are not kept (40 bytes a tick, the largest series of the
   // plan): step_speed_limits, their only user, recomputes them with step_direction().
+  std::size_t samples() const { return sigma.size(); }
 };
 
 constexpr double kStill = 1e-12;  // a sigma step smaller than this does not move
@@ -44,28 +49,68 @@ Axes step_direction(const Model& model, const Nominal& nom, std::size_t k, doubl
   return d;
 }
 
-RawPath raw_path(const Model& model, std::span<const ResolvedBlock> program, const Nominal& nom) {
-  RawPath p;
-  const std::size_t N = nom.raw.size();
-  p.sigma.assign(N, 0.0);
-  p.ds.reserve(N);
-  for (std::size_t k = 0; k + 1 < N; ++k) {
+/// The first and the last raw step that moves (first > last when none does): where the program's
+/// path begins and ends to rest.
+struct MovingSteps {
+  std::size_t first, last;
+};
+
+MovingSteps moving_steps(const Model& model, const Nominal& nom) {
+  const std::size_t S = nom.raw.size() - 1;
+  MovingSteps m{S, 0};
+  for (std::size_t k = 0; k < S; ++k) {
     double len = 0;
     step_direction(model, nom, k, len);
+    if (len > kStill) m.first = std::min(m.first, k), m.last = k;
+  }
+  return m;
+}
+
+/// The path from raw sample `first` to `last` (inclusive), its sigma counted on from `sigma0`
+/// (the sigma at `first`: the same sums in the same order as over the whole program).
+RawPath raw_path(const Model& model, std::span<const ResolvedBlock> program, const Nominal& nom, std::size_t first,
+                 std::size_t last, double sigma0, const MovingSteps& moving) {
+  RawPath p;
+  p.first = first;
+  p.ends_program = last + 1 == nom.raw.size();
+  const std::size_t n = last - first + 1;
+  p.sigma.assign(n, 0.0);
+  p.sigma[0] = sigma0;
+  p.ds.reserve(n - 1);
+  for (std::size_t k = 0; k + 1 < n; ++k) {
+    double len = 0;
+    step_direction(model, nom, first + k, len);
     p.ds.push_back(len);
     p.sigma[k + 1] = p.sigma[k] + len;
   }
   const std::size_t S = p.ds.size();
   p.rest.assign(S, 0);
-  std::size_t first = S, last = 0;
-  for (std::size_t k = 0; k < S; ++k)
-    if (p.ds[k] > kStill) first = std::min(first, k), last = k;
   for (std::size_t k = 0; k < S; ++k) {
     if (p.ds[k] > kStill) continue;
-    const ResolvedBlock& b = program[nom.block[k + 1]];
-    p.rest[k] = k < first || k > last || b.motion == Motion::kDwell || b.stop != ProgramStop::kNone;
+    const std::size_t g = first + k;
+    const ResolvedBlock& b = program[nom.block[g + 1]];
+    p.rest[k] = g < moving.first || g > moving.last || b.motion == Motion::kDwell || b.stop != ProgramStop::kNone;
   }
   return p;
+}
+
+/// The direction of the nearest raw step that moves, from step `from` on backwards (or
+/// forwards); false when there is none.
+bool moving_direction(const Model& model, const Nominal& nom, std::size_t from, bool backwards, Axes& dir) {
+  const std::size_t S = nom.raw.size() - 1;
+  auto moves = [&](std::size_t g) {
+    double len = 0;
+    dir = step_direction(model, nom, g, len);
+    return len > kStill;
+  };
+  if (backwards) {
+    for (std::size_t g = from; g-- > 0;)
+      if (moves(g)) return true;
+  } else {
+    for (std::size_t g = from; g < S; ++g)
+      if (moves(g)) return true;
+  }
+  return false;
 }
 
 double chord(const Axes& u, const Axes& v) {
@@ -88,10 +133,13 @@ std::vector<double> step_speed_limits(const Model& model, const Nominal& nom, co
   const std::size_t S = p.ds.size();
   // One pass, moving step by moving step: the jump where step k begins is known at k, the jump
   // where the next moving step begins only when that step is reached, so step k's limit is set
-  // then (the last moving step has no next jump).
+  // then (the last moving step has no next jump). A chunk of the program measures its first jump
+  // from the moving step before it and its last from the one after it: the same limits as over
+  // the whole program.
   std::vector<double> w(S, 0.0);
-  std::size_t prev = S;  // the previous moving step
+  std::size_t prev = S;  // the previous moving step of the chunk
   Axes prev_dir{};
+  bool have_prev = moving_direction(model, nom, p.first, true, prev_dir);
   double prev_jump = 0;  // the jump where the previous moving step began
   auto limit = [&](std::size_t k, double jump_begin, double jump_next) {
     const double j = std::max(jump_begin, jump_next);
@@ -101,12 +149,14 @@ std::vector<double> step_speed_limits(const Model& model, const Nominal& nom, co
   for (std::size_t k = 0; k < S; ++k) {
     if (!(p.ds[k] > kStill)) continue;
     double len = 0;
-    const Axes dir = step_direction(model, nom, k, len);
-    const double jump = prev < S ? chord(prev_dir, dir) : 0.0;
+    const Axes dir = step_direction(model, nom, p.first + k, len);
+    const double jump = have_prev ? chord(prev_dir, dir) : 0.0;
     if (prev < S) limit(prev, prev_jump, jump);
-    prev = k, prev_dir = dir, prev_jump = jump;
+    prev = k, prev_dir = dir, prev_jump = jump, have_prev = true;
   }
-  if (prev < S) limit(prev, prev_jump, 0.0);
+  Axes next_dir{};
+  if (prev < S)
+    limit(prev, prev_jump, moving_direction(model, nom, p.first + S, false, next_dir) ? chord(prev_dir, next_dir) : 0.0);
   return w;
 }
 
@@ -115,19 +165,27 @@ std::vector<double> step_speed_limits(const Model& model, const Nominal& nom, co
 /// side, and reachable with acceleration `a` (a forward and a backward pass over the whole
 /// program: the look-ahead of a planner with an unbounded block buffer).
 std::vector<double> sample_speeds(const RawPath& p, const std::vector<double>& w, double a,
-                                  std::span<const ResolvedBlock> program, const Nominal& nom) {
-  const std::size_t N = nom.raw.size();
-  std::vector<double> W(N, 0.0);
-  for (std::size_t k = 1; k + 1 < N; ++k) {
-    const bool rapid_a = program[nom.block[k - 1]].motion == Motion::kRapid;
-    const bool rapid_b = program[nom.block[k + 1]].motion == Motion::kRapid;
+                                  std::span<const ResolvedBlock> program, const Nominal& nom, std::size_t from,
+                                  double seed, std::size_t keep, double& forward_at_keep) {
+  const std::size_t n = p.samples();
+  std::vector<double> W(n, 0.0);
+  for (std::size_t k = from + 1; k + 1 < n; ++k) {
+    const std::size_t g = p.first + k;
+    const bool rapid_a = program[nom.block[g - 1]].motion == Motion::kRapid;
+    const bool rapid_b = program[nom.block[g + 1]].motion == Motion::kRapid;
     if (rapid_a != rapid_b) continue;
     if (p.rest[k - 1] || p.rest[k]) continue;
     const double inf = std::numeric_limits<double>::infinity();
     W[k] = std::min(p.ds[k - 1] > kStill ? w[k - 1] : inf, p.ds[k] > kStill ? w[k] : inf);
   }
-  for (std::size_t k = 1; k < N; ++k) W[k] = std::min(W[k], std::sqrt(W[k - 1] * W[k - 1] + 2 * a * p.ds[k - 1]));
-  for (std::size_t k = N - 1; k-- > 0;) W[k] = std::min(W[k], std::sqrt(W[k + 1] * W[k + 1] + 2 * a * p.ds[k]));
+  // A chunk is planned from sample `from` on, at the speed the forward pass of the chunk before
+  // reached there (0: the program at rest), and ends, unless the program does, at its last
+  // step's limit: its margin past what it commits is longer than a backward pass reaches back.
+  W[from] = seed;
+  if (!p.ends_program && n >= 2) W[n - 1] = p.ds[n - 2] > kStill ? w[n - 2] : 0.0;
+  for (std::size_t k = from + 1; k < n; ++k) W[k] = std::min(W[k], std::sqrt(W[k - 1] * W[k - 1] + 2 * a * p.ds[k - 1]));
+  forward_at_keep = W[std::min(keep, n - 1)];
+  for (std::size_t k = n - 1; k-- > from;) W[k] = std::min(W[k], std::sqrt(W[k + 1] * W[k + 1] + 2 * a * p.ds[k]));
   return W;
 }
 
@@ -135,25 +193,40 @@ std::vector<double> sample_speeds(const RawPath& p, const std::vector<double>& w
 /// 8 bytes a tick at the planner's peak). A moving step takes the time of a linear speed change
 /// between its end speeds (never less than one tick: never faster than the program); a step that
 /// does not move (a dwell) keeps its tick. The step times are summed in order, once for the total
-/// and again as the ticks pass: the same sums, so the same ticks as a table of them.
+/// and again as the ticks pass: the same sums, so the same ticks as a table of them. A chunk of
+/// the program begins at the time `t_start` the chunk before reached its first step, with the
+/// program's tick `first_tick`.
 class PlannedSigma {
  public:
-  PlannedSigma(const RawPath& p, std::vector<double> W, double T, double a) : p_(p), W_(std::move(W)), T_(T), a_(a) {
+  PlannedSigma(const RawPath& p, std::vector<double> W, double T, double a, std::size_t from = 0,
+               double t_start = 0, std::size_t first_tick = 0, std::size_t commit_step = SIZE_MAX)
+      : p_(p), W_(std::move(W)), T_(T), a_(a), j_(first_tick), k_(from), t0_(t_start) {
     const std::size_t S = p.ds.size();
-    double t = 0;
-    for (std::size_t k = 0; k < S; ++k) t = t + step_time(k);
+    double t = t_start;
+    commit_time_ = std::numeric_limits<double>::infinity();
+    for (std::size_t k = from; k < S; ++k) {
+      if (k == commit_step) commit_time_ = t;
+      t = t + step_time(k);
+    }
     end_ = t;
-    if (S > 0) t1_ = 0.0 + step_time(0);
+    t1_ = from < S ? t_start + step_time(from) : t_start;
     ticks_ = static_cast<std::size_t>(std::ceil(end_ / T - 1e-9)) + 1;
   }
   /// The plan would run past `max_ticks`.
   bool longer_than(double max_ticks) const { return end_ / T_ > max_ticks; }
-  /// Ticks of the plan (next() gives each once).
+  /// Ticks of the program's plan up to the path's end (next() gives each once): the whole
+  /// plan's when the path ends the program.
   std::size_t size() const { return ticks_; }
+  /// The program's tick next() gives next, and its time.
+  std::size_t next_tick() const { return j_; }
+  double next_time() const { return static_cast<double>(j_) * T_; }
+  /// When the path's `commit_step` begins, and its last step ends [s].
+  double commit_time() const { return commit_time_; }
+  double end_time() const { return end_; }
   double next() {
     const std::size_t S = p_.ds.size();
     const double tj = std::min(static_cast<double>(j_++) * T_, end_);
-    if (S == 0) return 0.0;
+    if (k_ >= S) return p_.sigma.empty() ? 0.0 : p_.sigma[std::min(k_, p_.sigma.size() - 1)];
     while (k_ + 1 < S && t1_ <= tj) {
       ++k_;
       t0_ = t1_;
@@ -177,7 +250,8 @@ class PlannedSigma {
   const RawPath& p_;
   std::vector<double> W_;  // speed at every raw sample (sample_speeds)
   double T_, a_;
-  double end_ = 0;         // the plan's duration [s]
+  double end_ = 0;         // when the path's last step ends [s]
+  double commit_time_ = 0;
   std::size_t ticks_ = 0;
   std::size_t j_ = 0;      // next tick
   std::size_t k_ = 0;      // raw step of the last tick
@@ -252,13 +326,15 @@ class TwoAverages {
   V last_in_{}, last_mid_{};
 };
 
-/// Fractional raw index of a sigma value (the first index where several share it: a dwell's
-/// samples are one point); `k` carries the search from the previous, never smaller, value.
+/// Fractional raw index (of the program) of a sigma value (the first index where several share
+/// it: a dwell's samples are one point); `k` carries the search (a sample of the path) from the
+/// previous, never smaller, value.
 double index_of_sigma(const RawPath& p, double s, std::size_t& k) {
   const std::size_t N = p.sigma.size();
   while (k + 1 < N && p.sigma[k + 1] <= s) ++k;
-  if (k + 1 >= N || !(p.ds[k] > kStill)) return static_cast<double>(k);
-  return static_cast<double>(k) + std::clamp((s - p.sigma[k]) / p.ds[k], 0.0, 1.0);
+  const double g = static_cast<double>(p.first + k);  // (the program's index first: the same double as one plan's)
+  if (k + 1 >= N || !(p.ds[k] > kStill)) return g;
+  return g + std::clamp((s - p.sigma[k]) / p.ds[k], 0.0, 1.0);
 }
 
 /// Ticks where the reference leaves the nominal tool-tip path by more than `tolerance`, and by
@@ -268,9 +344,12 @@ double index_of_sigma(const RawPath& p, double s, std::size_t& k) {
 /// depend on how the reference is then stored.
 class Excursions {
  public:
+  /// The polyline from raw tick `first_tick` on: a chunk of the plan measures from far enough
+  /// back to hold the points its reference may still be near (ContourMeter's look-back).
   Excursions(const Model& model, std::span<const ResolvedBlock> program, const Nominal& nom, std::size_t h,
-             double tolerance)
-      : model_(model), program_(program), nom_(nom), path_(model, nom, program, search_), h_(h), tolerance_(tolerance) {}
+             double tolerance, std::size_t first_tick = 0)
+      : model_(model), program_(program), nom_(nom), path_(model, nom, program, search_, first_tick), h_(h),
+        tolerance_(tolerance) {}
 
   /// Reference tick n (in order) is at joints r, with raw index k its progress.
   void add(const Axes& r, std::size_t k) {
@@ -313,58 +392,85 @@ class Excursions {
   std::vector<std::pair<std::size_t, double>> over_;
 };
 
-/// The reference of one plan: sigma smoothed by two moving averages (ma, mb ticks: speed changes
-/// become jerk-limited, the path stays exact), the joints at that sigma, then blended by two short
-/// moving averages (m1, m2: corners are rounded within the tolerance, arcs shrink by
-/// v^2 (T1^2 + T2^2) / 24 R at most). Each stage streams into the next: only the reference and
-/// its progress are series. Every reference tick goes to `check` before it is stored.
-void blend(const RawPath& p, PlannedSigma& sig, std::size_t ma, std::size_t mb, std::size_t m1,
-           std::size_t m2, Nominal& nom, Excursions& check) {
-  const std::size_t N = nom.raw.size();
-  const std::size_t J = sig.size() + ma - 1 + mb - 1;  // samples of the smoothed sigma
-  const std::size_t delay = (m1 - 1) / 2 + (m2 - 1) / 2;
-  // The previous plan's series go first (a long program's reference is tens of MB), or are
-  // written over where they are long enough: the next round's plan is about as long, and memory
-  // freed and taken again in another size leaves holes that stay resident.
-  const std::size_t E = J + m1 - 1 + m2 - 1;
-  nom.reference.clear_for(E);
-  if (nom.progress.capacity() < E) std::vector<std::uint32_t>().swap(nom.progress);
-  nom.progress.clear();
-  nom.progress.reserve(E);
-  TwoAverages<Axes> joint_blend(m1, m2);
-  // progress runs `delay` ticks ahead of the reference (below); the reference's last ticks, made
-  // past the end of the plan, keep the last progress.
-  auto keep_reference = [&nom, &check](const Axes& blended) {
-    const std::size_t n = nom.reference.size();
-    const Axes& r = n == 0 ? nom.raw.front() : blended;  // exactly at rest where the program starts
-    check.add(r, n < nom.progress.size() ? nom.progress[n] : nom.progress.back());
-    nom.reference.push_back(r);
+/// The reference made from planned sigma, tick by tick: sigma smoothed by two moving averages
+/// (ma, mb ticks: speed changes become jerk-limited, the path stays exact), the joints at that
+/// sigma, then blended by two short moving averages (m1, m2: corners are rounded within the
+/// tolerance, arcs shrink by v^2 (T1^2 + T2^2) / 24 R at most). Each stage streams into the next,
+/// and the whole state is a few rings of values: a copy taken where a chunk of the plan ends is
+/// where the next chunk goes on from, and where a round of the chunk's plan starts again.
+class ReferenceBlend {
+ public:
+  ReferenceBlend(std::size_t ma, std::size_t mb, std::size_t m1, std::size_t m2)
+      : speed_(ma, mb), joints_(m1, m2), delay_((m1 - 1) / 2 + (m2 - 1) / 2), tail_(ma - 1 + mb - 1) {}
+
+  /// Where the made ticks go: the reference joints (each seen by `check` first, in full
+  /// precision: the plan's decisions do not depend on how the reference is stored) and their
+  /// progress (the whole raw index the blend centres on).
+  struct Out {
+    JointSeries& reference;
+    std::vector<std::uint32_t>& progress;
+    Excursions& check;
   };
-  std::size_t k = 0, j = 0;
-  double last = 0;
-  auto joints_at = [&](double s) {
-    last = std::max(last, index_of_sigma(p, std::max(s, 0.0), k));
+
+  /// The next planned sigma (of the program's tick `tick`); `total_ticks`: the plan's tick count
+  /// when `p` ends the program (its last smoothed sample is exactly the program's end).
+  void push(double sigma, const RawPath& p, const Nominal& nom, std::size_t total_ticks, Out out) {
+    speed_.push(sigma, [&](double s) { joints_at(s, p, nom, total_ticks, out); });
+  }
+  /// Runs the averages past the program's end.
+  void finish(const RawPath& p, const Nominal& nom, std::size_t total_ticks, Out out) {
+    speed_.finish([&](double s) { joints_at(s, p, nom, total_ticks, out); });
+    joints_.finish([&](const Axes& q) { keep(q, nom, out); });
+  }
+  /// Ticks of the reference made so far.
+  std::size_t made() const { return made_; }
+  /// The raw index (whole) the reference has reached.
+  std::size_t progress() const { return static_cast<std::size_t>(last_); }
+
+ private:
+  void joints_at(double s, const RawPath& p, const Nominal& nom, std::size_t total_ticks, Out& out) {
+    const std::size_t N = nom.raw.size();
+    std::size_t k = k_ > p.first ? k_ - p.first : 0;  // the search, as a sample of this path
+    last_ = std::max(last_, index_of_sigma(p, std::max(s, 0.0), k));
+    k_ = p.first + k;
     Axes q;
-    double progress = last;
-    if (++j == J) {
+    double progress = last_;
+    if (++j_ == total_ticks + tail_) {
       q = nom.raw.back();  // exactly where the program ends
       progress = static_cast<double>(N - 1);
     } else {
-      const auto i0 = std::min(static_cast<std::size_t>(std::floor(last)), N - 1);
-      q = lerp(nom.raw[i0], nom.raw[std::min(i0 + 1, N - 1)], last - static_cast<double>(i0));
+      const auto i0 = std::min(static_cast<std::size_t>(std::floor(last_)), N - 1);
+      q = lerp(nom.raw[i0], nom.raw[std::min(i0 + 1, N - 1)], last_ - static_cast<double>(i0));
     }
-    // progress[n] is the raw index of the joints the blend centres on at n: delay ticks back.
+    // The progress of reference tick n is the raw index of the joints the blend centres on at
+    // n: `delay` ticks back. The reference's last ticks, made past the end of the plan, keep the
+    // last progress.
     const auto whole = static_cast<std::uint32_t>(progress);
-    if (nom.progress.empty()) nom.progress.assign(delay, whole);
-    nom.progress.push_back(whole);
-    joint_blend.push(q, keep_reference);
-  };
-  TwoAverages<double> speed_smoothing(ma, mb);
-  for (std::size_t n = sig.size(); n > 0; --n) speed_smoothing.push(sig.next(), joints_at);
-  speed_smoothing.finish(joints_at);
-  joint_blend.finish(keep_reference);
-  nom.progress.resize(nom.reference.size(), nom.progress.back());
-}
+    if (!started_) ahead_.assign(delay_, whole), started_ = true;
+    ahead_.push_back(whole);
+    joints_.push(q, [&](const Axes& blended) { keep(blended, nom, out); });
+  }
+
+  void keep(const Axes& blended, const Nominal& nom, Out& out) {
+    const Axes& r = made_ == 0 ? nom.raw.front() : blended;  // exactly at rest where the program starts
+    if (!ahead_.empty()) last_progress_ = ahead_.front(), ahead_.pop_front();
+    out.check.add(r, last_progress_);
+    out.reference.push_back(r);
+    out.progress.push_back(last_progress_);
+    ++made_;
+  }
+
+  TwoAverages<double> speed_;
+  TwoAverages<Axes> joints_;
+  std::size_t delay_, tail_;
+  std::size_t k_ = 0;        // raw index of index_of_sigma's search
+  double last_ = 0;          // furthest fractional raw index reached
+  std::size_t j_ = 0;        // smoothed sigma samples made
+  std::size_t made_ = 0;     // reference ticks made
+  bool started_ = false;
+  std::deque<std::uint32_t> ahead_;  // progress of the joints pushed and not yet blended out
+  std::uint32_t last_progress_ = 0;
+};
 
 /// Lowers the speed limits where the reference left the path: by 0.9 tolerance / deviation
 /// (within [0.2, 0.9]), over the sigma the lowered speed covers in `half_span` seconds either
@@ -373,8 +479,8 @@ void slow_down(const RawPath& p, const std::vector<std::pair<std::size_t, double
                double half_span, std::size_t min_steps, std::vector<double>& w) {
   const std::size_t S = w.size();
   std::vector<double> factor(S, 1.0);
-  for (const auto& [k0, e] : over) {
-    const std::size_t k = std::min(k0, S - 1);
+  for (const auto& [g, e] : over) {
+    const std::size_t k = std::min(g > p.first ? g - p.first : 0, S - 1);
     const double f = std::clamp(0.9 * tolerance / e, 0.2, 0.9);
     // At least the blend's own reach in raw steps: a deviation shows a few ticks off its cause.
     const double steps = p.sigma[std::min(k + min_steps, S)] - p.sigma[k >= min_steps ? k - min_steps : 0];
@@ -393,37 +499,136 @@ std::size_t ticks(double seconds, double T) {
 
 namespace {
 
-void plan_rounds(const Model& model, std::span<const ResolvedBlock> program, const ReferencePlan& plan,
-                 double max_ticks, Nominal& nom) {
-  const double T = nom.period;
+// The plan's constants from the model and the `compensate` section.
+struct PlanSettings {
+  double T, a_sigma, T1, half_span, tolerance;
+  std::size_t ma, mb, m1, m2, h, spread;
+};
+
+PlanSettings plan_settings(const Model& model, const ReferencePlan& plan, double T) {
   double Ts = 0, a_sigma = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < kNumAxes; ++i) {
     Ts = std::max(Ts, model.interp.smoothing_time[i]);
     const double v = model.interp.max_velocity[i] > 0 ? model.interp.max_velocity[i] : 1.0;
     if (model.interp.max_acceleration[i] > 0) a_sigma = std::min(a_sigma, model.interp.max_acceleration[i] / v);
   }
-  a_sigma *= plan.acceleration;
-  const std::size_t ma = ticks(plan.smoothing * Ts, T), mb = std::max<std::size_t>(1, ma / 2);
-  const std::size_t m1 = ticks(plan.blend_time, T), m2 = std::max<std::size_t>(1, m1 / 2);
-  const double T1 = static_cast<double>(m1) * T;
-  const std::size_t h = (m1 + m2) / 2 + 1, spread = (ma + mb) / 2 + h;
-  const RawPath raw = raw_path(model, program, nom);
-  std::vector<double> w = step_speed_limits(model, nom, raw, T, T1, a_sigma);
-  // Where the blend still leaves the path by more than the tolerance (a sharp corner taken fast,
-  // a tight arc), the speed there is lowered and the plan made again: the deviation of a blended
-  // corner grows with the speed, so a few rounds settle it.
-  for (int round = 0; round < 8; ++round) {
-    PlannedSigma sig(raw, sample_speeds(raw, w, a_sigma, program, nom), T, a_sigma);
-    if (sig.longer_than(max_ticks)) {
-      nom.reference.release();
-      std::vector<std::uint32_t>().swap(nom.progress);
-      nom.reference_too_long = true;
-      return;
+  PlanSettings s;
+  s.T = T;
+  s.a_sigma = a_sigma * plan.acceleration;
+  s.tolerance = plan.tolerance;
+  s.ma = ticks(plan.smoothing * Ts, T), s.mb = std::max<std::size_t>(1, s.ma / 2);
+  s.m1 = ticks(plan.blend_time, T), s.m2 = std::max<std::size_t>(1, s.m1 / 2);
+  s.T1 = static_cast<double>(s.m1) * T;
+  s.h = (s.m1 + s.m2) / 2 + 1, s.spread = (s.ma + s.mb) / 2 + s.h;
+  s.half_span = static_cast<double>(s.ma + s.mb) * T / 2;
+  return s;
+}
+
+/// The last raw sample a chunk committing samples up to `k1` plans to: at least `min_margin`
+/// samples on, and far enough that a backward speed pass from past it could not reach `k1` nor a
+/// slow-down in the margin's far part (where the cut look-ahead leaves speeds too high): twice
+/// the braking distance 2 v^2 / (2 a_sigma) of the fastest the program moves in the margin.
+std::size_t margin_end(const Model& model, const Nominal& nom, std::size_t k1, std::size_t min_margin, double a_sigma,
+                       double T) {
+  const std::size_t last = nom.raw.size() - 1;
+  double sigma = 0, v_max = 0;
+  std::size_t k = k1 > 0 ? k1 - 1 : 0;
+  for (; k < last; ++k) {
+    double len = 0;
+    step_direction(model, nom, k, len);
+    v_max = std::max(v_max, len / T);
+    if (k >= k1) sigma += len;
+    if (k >= k1 + min_margin && 2 * a_sigma * sigma > 2 * v_max * v_max) return k + 1;
+  }
+  return last;
+}
+
+/// The reference planned chunk by chunk (ReferencePlan::chunk_seconds of the program as the
+/// control runs it, plus a margin): per chunk only its raw steps' sigma, limits and speeds are
+/// held, not the program's. A chunk goes on from the state in which the one before left the
+/// plan at the step it committed up to (the blend's rings, the time, the forward speed, the
+/// slow-downs of the steps after it), so that without slow-downs the chunks plan what one plan of
+/// the whole program would, tick for tick. The rounds that lower the speed where the blend leaves
+/// the path by more than the tolerance run per chunk, over its margin too.
+void plan_chunks(const Model& model, std::span<const ResolvedBlock> program, const ReferencePlan& plan,
+                 double max_ticks, Nominal& nom) {
+  const PlanSettings c = plan_settings(model, plan, nom.period);
+  const std::size_t N = nom.raw.size();
+  const MovingSteps moving = moving_steps(model, nom);
+  const std::size_t chunk = ticks(plan.chunk_seconds, c.T), min_margin = ticks(2.0, c.T);
+  const std::size_t lead = 2 * (c.ma + c.mb) + 64;  // samples before a chunk the smoothed sigma may still be at
+  constexpr std::size_t kLookBack = ContourSearch::kLookBack + 500;
+  // No room is reserved for the longest plan allowed: measured, it cost resident memory (75
+  // against 65 MB on an 8000-segment CAM program) and saved none on an hour.
+  nom.reference.release();
+  std::vector<std::uint32_t>().swap(nom.progress);
+  ReferenceBlend state(c.ma, c.mb, c.m1, c.m2);
+  std::size_t k0 = 0, tick0 = 0;
+  double t0 = 0, seed = 0;
+  RawPath prev;                     // the chunk before (its sigma: where the next one's starts)
+  std::vector<double> carried_w;    // its limits of the steps from k0 on, slow-downs included
+  for (;;) {
+    const std::size_t k1 = std::min(k0 + chunk, N - 1);
+    const std::size_t k2 = k1 == N - 1 ? N - 1 : margin_end(model, nom, k1, min_margin, c.a_sigma, c.T);
+    const std::size_t first = k0 > lead ? k0 - lead : 0;
+    RawPath p = raw_path(model, program, nom, first, k2, k0 == 0 ? 0.0 : prev.sigma[first - prev.first], moving);
+    const bool last = p.ends_program && k1 == N - 1;
+    const std::size_t from = k0 - first, commit = k1 - first;
+    std::vector<double> w = step_speed_limits(model, nom, p, c.T, c.T1, c.a_sigma);
+    std::copy_n(carried_w.begin(), std::min(carried_w.size(), w.size() - from), w.begin() + static_cast<std::ptrdiff_t>(from));
+    double forward_at_commit = 0;
+    std::optional<ReferenceBlend> next;
+    const std::size_t made = nom.reference.size();  // ticks the chunks before committed
+    std::size_t committed = 0, next_tick = 0;
+    double commit_time = 0;
+    // Where the blend still leaves the path by more than the tolerance (a sharp corner taken
+    // fast, a tight arc), the speed there is lowered and the chunk planned again: the deviation
+    // of a blended corner grows with the speed, so a few rounds settle it.
+    for (int round = 0; round < 8; ++round) {
+      PlannedSigma sig(p, sample_speeds(p, w, c.a_sigma, program, nom, from, seed, commit, forward_at_commit), c.T,
+                       c.a_sigma, from, t0, tick0, last ? SIZE_MAX : commit);
+      if (sig.longer_than(max_ticks)) {
+        nom.reference.release();
+        std::vector<std::uint32_t>().swap(nom.progress);
+        nom.reference_too_long = true;
+        return;
+      }
+      ReferenceBlend blend = state;
+      Excursions check(model, program, nom, c.spread, c.tolerance,
+                       blend.progress() > kLookBack ? blend.progress() - kLookBack : 0);
+      // A round writes the reference from the chunk's start on, over the round before.
+      nom.reference.truncate(made);
+      nom.progress.resize(made);
+      const ReferenceBlend::Out out{nom.reference, nom.progress, check};
+      next.reset();
+      if (last) {
+        const std::size_t total = sig.size();
+        for (std::size_t n = total - std::min(tick0, total); n > 0; --n) blend.push(sig.next(), p, nom, total, out);
+        blend.finish(p, nom, total, out);
+        committed = nom.reference.size();
+      } else {
+        constexpr std::size_t kNotLast = SIZE_MAX / 4;  // the program's end is not in this chunk
+        while (sig.next_time() < sig.end_time()) {
+          if (!next && sig.next_time() >= sig.commit_time()) {
+            next = blend, committed = nom.reference.size(), next_tick = sig.next_tick();
+            commit_time = sig.commit_time();
+          }
+          blend.push(sig.next(), p, nom, kNotLast, out);
+        }
+      }
+      if (check.over().empty()) break;
+      if (round < 7) slow_down(p, check.over(), c.tolerance, c.half_span, c.h, w);
     }
-    Excursions check(model, program, nom, spread, plan.tolerance);
-    blend(raw, sig, ma, mb, m1, m2, nom, check);
-    if (check.over().empty()) return;
-    slow_down(raw, check.over(), plan.tolerance, static_cast<double>(ma + mb) * T / 2, h, w);
+    nom.reference.truncate(committed);  // the margin's ticks are the next chunk's to make
+    nom.progress.resize(committed);
+    if (last || !next) return;
+    state = std::move(*next);
+    tick0 = next_tick;
+    t0 = commit_time;
+    seed = forward_at_commit;
+    carried_w.assign(w.begin() + static_cast<std::ptrdiff_t>(commit), w.end());
+    k0 = k1;
+    prev = std::move(p);
   }
 }
 
@@ -431,7 +636,7 @@ void plan_rounds(const Model& model, std::span<const ResolvedBlock> program, con
 
 void plan_reference(const Model& model, std::span<const ResolvedBlock> program, const ReferencePlan& plan,
                     double max_ticks, Nominal& nom) {
-  plan_rounds(model, program, plan, max_ticks, nom);
+  plan_chunks(model, program, plan, max_ticks, nom);
   // The plan was made on the exact raw samples; from here on (the learning, the contour metric,
   // the figures) they are read at the compact series' 0.5 nm, in half the memory.
   nom.raw.compact();

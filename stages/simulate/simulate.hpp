@@ -346,6 +346,9 @@ struct ReferencePlan {
   double acceleration = 0.3;  //!< planned acceleration, a fraction of every axis's limit (0.5 left the
                               //!< compensation too little headroom on the seed 002 circle test)
   double smoothing = 2.0;     //!< speed-profile smoothing, in units of the slowest axis's Ts
+  /// [s] of the program as the control runs it planned at a time (plus a margin past it): the
+  /// planner holds a chunk's series, not the program's. Not a config key (tests shorten it).
+  double chunk_seconds = 120;
 };
 
 /// The nominal run of the original program.
