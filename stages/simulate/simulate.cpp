@@ -459,6 +459,21 @@ void shrink_recorded(Nominal& nom) {
   nom.block.shrink_to_fit();
 }
 
+/// The program with every feed move's F multiplied by `f` (in G93, F is 1/min: smaller is slower
+/// too; rapids keep the machine's rapid rate), block by block as the run asks: the slowed
+/// baseline runs the program several times, and a copy a run was 464 bytes a block.
+BlockSource with_feeds_scaled(std::span<const ResolvedBlock> program, double f) {
+  if (f == 1.0) return BlockSource::of(program);
+  auto scaled = std::make_shared<ResolvedBlock>();
+  return {program.size(), [program, f, scaled](std::size_t i) -> const ResolvedBlock& {
+            const ResolvedBlock& b = program[i];
+            if (b.motion != Motion::kLinear && b.motion != Motion::kArcCW && b.motion != Motion::kArcCCW) return b;
+            *scaled = b;
+            scaled->feed *= f;
+            return *scaled;
+          }};
+}
+
 /// The program's own run, evaluated as it goes: each tick's raw sample is the nominal (pushed to
 /// the contour search), its actual is measured against the nominal path so far. With
 /// `record` the run is also recorded for the report and the compensation: raw samples and blocks
@@ -468,7 +483,8 @@ struct OwnRun {
 };
 
 OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> program, const Axes& start, Nominal& nom,
-                       bool record, std::uint64_t max_ticks, const std::function<void(const Tick&)>& on_tick) {
+                       bool record, std::uint64_t max_ticks, const std::function<void(const Tick&)>& on_tick,
+                       double feed_factor) {
   OwnRun own;
   RunAccumulator acc(model, nom.segments.size(), record);
   ContourSearch contour;
@@ -496,7 +512,7 @@ OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> progra
     for (const Tips& t : ticks) evaluate_tick(t);
   });
   nom.stats = run_program(
-      model, program, start,
+      model, with_feeds_scaled(program, feed_factor), start,
       [&](const Tick& t) {
         // The raw samples are recorded on this thread, not the evaluation's: a thread's own
         // malloc arena keeps the memory a growing series leaves behind (tens of MB on a long
@@ -642,17 +658,17 @@ std::string travel_error(const Model& model, const interpolate::InterpolateStats
   return msg;
 }
 
-SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> program, const RunBounds& bounds,
-                               const std::function<void(const Tick&)>& on_tick, const Progress& progress) {
-  SimulationRun run;
-  run.program = std::move(program);
-  run.program.shrink_to_fit();  // collected block by block: up to half of it spare, held to the end
-  const auto& p = run.program;
+namespace {
+
+/// simulate_program's run of `p`, its feeds multiplied by `feed_factor`, into `run` (whose
+/// program is `p` or left empty).
+void simulate_into(SimulationRun& run, const Model& model, std::span<const ResolvedBlock> p, double feed_factor,
+                   const RunBounds& bounds, const std::function<void(const Tick&)>& on_tick, const Progress& progress) {
   std::size_t first = 0;
   while (first < p.size() && p[first].motion == Motion::kNone) ++first;
   if (first == p.size()) {
     run.note = "the program moves nothing";
-    return run;
+    return;
   }
   run.start = machine_start(model.kin, p[first], tool_length_of(model, p[first]));
   if (progress) progress("simulating the program (interpolator + feed drives)", 0, 1);
@@ -662,18 +678,19 @@ SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> pr
   nom.segment_of_block = segment_blocks(p, nseg);
   nom.segments.assign(nseg, Segment{});
   const double max_ticks = max_ticks_of(model, bounds.max_machine_time);
-  OwnRun own = run_own_program(model, p, run.start, nom, bounds.record_nominal, tick_bound(max_ticks), on_tick);
+  OwnRun own = run_own_program(model, p, run.start, nom, bounds.record_nominal, tick_bound(max_ticks), on_tick,
+                               feed_factor);
   if (!nom.stats.ok) {
     // The interpolator's messages name the block already ("line 4 (G1 X100 F1.5): ...").
     const bool named = nom.stats.message.rfind("line ", 0) == 0;
     run.note = named ? nom.stats.message : "line " + std::to_string(nom.stats.failed_line) + ": " + nom.stats.message;
-    return run;
+    return;
   }
   const std::string travel = travel_error(model, nom.stats.interp);
   if (!travel.empty()) {
     run.note = travel;
     run.travel_line = nom.stats.interp.first_violation_line;
-    return run;
+    return;
   }
   if (bounds.record_nominal) {
     shrink_recorded(nom);
@@ -682,6 +699,16 @@ SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> pr
     add_tracking_against_reference(model, p, run.start, nom, tick_bound(max_ticks), own.eval.axes);
   }
   run.before = std::move(own.eval);
+}
+
+}  // namespace
+
+SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> program, const RunBounds& bounds,
+                               const std::function<void(const Tick&)>& on_tick, const Progress& progress) {
+  SimulationRun run;
+  run.program = std::move(program);
+  run.program.shrink_to_fit();  // collected block by block: up to half of it spare, held to the end
+  simulate_into(run, model, run.program, 1.0, bounds, on_tick, progress);
   return run;
 }
 
@@ -690,15 +717,6 @@ SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> pr
 namespace gcpipe::simulate {
 
 namespace {
-
-// The program with every feed move's F multiplied by `f` (in G93, F is 1/min: smaller is slower
-// too); rapids keep the machine's rapid rate.
-std::vector<ResolvedBlock> with_feeds_scaled(std::span<const ResolvedBlock> program, double f) {
-  std::vector<ResolvedBlock> out(program.begin(), program.end());
-  for (ResolvedBlock& b : out)
-    if (b.motion == Motion::kLinear || b.motion == Motion::kArcCW || b.motion == Motion::kArcCCW) b.feed *= f;
-  return out;
-}
 
 }  // namespace
 
@@ -709,7 +727,8 @@ SlowedBaseline slowed_original(const Model& model, std::span<const ResolvedBlock
   RunBounds own = bounds;
   own.record_nominal = false;
   auto run_at = [&](double f) {
-    const SimulationRun run = simulate_program(model, with_feeds_scaled(program, f), own);
+    SimulationRun run;  // the program is not copied into it: the run scales its feeds as it goes
+    simulate_into(run, model, program, f, own, {}, {});
     SlowedBaseline r;
     if (!run.before) {
       r.note = run.note;
