@@ -4,8 +4,13 @@
 
 #include <array>
 #include <cstddef>
+#include <algorithm>
 #include <cstdint>
+#include <memory>
+#include <new>
 #include <vector>
+
+#include <sys/mman.h>
 
 #include "gcpipe/block.hpp"
 
@@ -17,79 +22,101 @@ namespace gcpipe::simulate {
 /// An offset within a block is what an axis covers in 64 ms, so its rounding (half a float step
 /// of that distance) stays below 0.5 nm at 100 mm/s and 2e-6 deg at 720 deg/s (the circle test's
 /// C at 4 pi): far below the 0.1 um the compensated program is written with.
-/// A series made exact (kExact) holds doubles until compact() is called: the nominal run's raw
+/// A series made exact (kExact) holds doubles until its ticks are compacted: the nominal run's raw
 /// samples are planned on in full precision (the plan's decisions, and so the cycle time, must
-/// not depend on storage), then kept compact for the learning and the figures.
+/// not depend on storage), then kept compact for the learning and the figures. The planner
+/// compacts the ticks behind the chunk it plans as it goes (compact_before), so the exact values
+/// are held in pages of kPage ticks that go as they are compacted: no copy of the series is ever
+/// made, and the exact and the compact series are never both held whole.
 /// Read by value: a compact series holds no Axes to refer to.
 class JointSeries {
  public:
   static constexpr std::size_t kBlockBits = 6;
   static constexpr std::size_t kBlock = std::size_t{1} << kBlockBits;
+  static constexpr std::size_t kPageBits = 16;
+  static constexpr std::size_t kPage = std::size_t{1} << kPageBits;  // 2.6 MB of exact values
   enum Storage { kCompact, kExact };
 
   explicit JointSeries(Storage storage = kCompact) : exact_(storage == kExact) {}
 
-  std::size_t size() const { return exact_ ? full_.size() : offset_.size(); }
+  std::size_t size() const { return exact_ ? size_ : offset_.size(); }
   bool empty() const { return size() == 0; }
   void reserve(std::size_t n) {
-    if (exact_) return full_.reserve(n);
+    if (exact_) return pages_.reserve((n + kPage - 1) / kPage);
     offset_.reserve(n);
     base_.reserve((n + kBlock - 1) / kBlock);
   }
   void clear() {
-    full_.clear();
+    pages_.clear();
+    size_ = compacted_ = 0;
     offset_.clear();
     base_.clear();
   }
   /// Empty, with room for n ticks: the memory kept if it holds them, else given back first (never
   /// two buffers at once).
   void clear_for(std::size_t n) {
-    if ((exact_ ? full_.capacity() : offset_.capacity()) < n) release();
+    if (!exact_ && offset_.capacity() < n) release();
     clear();
     reserve(n);
   }
-  /// Keeps the first n ticks (n <= size()): as if only they had been pushed.
+  /// Keeps the first n ticks (n <= size(); not below the compacted ticks of an exact series): as
+  /// if only they had been pushed.
   void truncate(std::size_t n) {
-    if (exact_) return full_.resize(n);
+    if (exact_) {
+      size_ = n;
+      pages_.resize((n + kPage - 1) / kPage);
+      return;
+    }
     offset_.resize(n);
     base_.resize((n + kBlock - 1) / kBlock);
   }
   void shrink_to_fit() {
-    full_.shrink_to_fit();
+    pages_.shrink_to_fit();
     offset_.shrink_to_fit();
     base_.shrink_to_fit();
   }
   /// Gives the memory back (clear() keeps it).
   void release() {
-    std::vector<Axes>().swap(full_);
+    std::vector<Page>().swap(pages_);
+    size_ = compacted_ = 0;
     std::vector<Offset>().swap(offset_);
     std::vector<Axes>().swap(base_);
   }
-  /// From here on compact: the exact values are stored again as base and offsets, and freed.
+  /// Ticks before `n` are read compact from here on, and the pages of exact values wholly before
+  /// it are freed. The compact values are those of a compact series pushed the same ticks.
+  void compact_before(std::size_t n) {
+    if (!exact_) return;
+    n = std::min(n, size_);
+    if (offset_.capacity() < size_) {  // room for every tick at once: the compact series never grows by copying
+      offset_.reserve(size_);
+      base_.reserve((size_ + kBlock - 1) / kBlock);
+    }
+    for (; compacted_ < n; ++compacted_) push_compact(exact_at(compacted_));
+    for (std::size_t p = 0; (p + 1) * kPage <= compacted_ && p < pages_.size(); ++p) pages_[p].reset();
+  }
+  /// From here on compact: every tick read at the compact series' precision; the exact values freed.
   void compact() {
     if (!exact_) return;
+    compact_before(size_);
+    std::vector<Page>().swap(pages_);
+    size_ = compacted_ = 0;
     exact_ = false;
-    reserve(full_.size());
-    for (const Axes& x : full_) push_back(x);
-    std::vector<Axes>().swap(full_);
   }
 
   void push_back(const Axes& x) {
-    if (exact_) return full_.push_back(x);
-    if ((offset_.size() & (kBlock - 1)) == 0) base_.push_back(x);
-    const Axes& b = base_.back();
-    Offset o;
-    for (std::size_t i = 0; i < kNumAxes; ++i) o[i] = static_cast<float>(x[i] - b[i]);
-    offset_.push_back(o);
+    if (!exact_) return push_compact(x);
+    if ((size_ & (kPage - 1)) == 0) pages_.push_back(new_page());
+    pages_.back()[size_ & (kPage - 1)] = x;
+    ++size_;
   }
 
   /// Axis `axis` at tick n.
   double at(std::size_t n, std::size_t axis) const {
-    if (exact_) return full_[n][axis];
+    if (exact_ && n >= compacted_) return exact_at(n)[axis];
     return base_[n >> kBlockBits][axis] + static_cast<double>(offset_[n][axis]);
   }
   Axes operator[](std::size_t n) const {
-    if (exact_) return full_[n];
+    if (exact_ && n >= compacted_) return exact_at(n);
     const Axes& b = base_[n >> kBlockBits];
     const Offset& o = offset_[n];
     Axes x;
@@ -107,8 +134,30 @@ class JointSeries {
 
  private:
   using Offset = std::array<float, kNumAxes>;
+  // A page is mapped from the system and unmapped when freed: a page freed into malloc's heap
+  // stays resident as a hole the growing compact series cannot use (measured: the one-hour
+  // program peaked at 261 MB that way, against 228 MB with no compaction during the plan).
+  struct Unmap {
+    void operator()(Axes* p) const { ::munmap(p, kPage * sizeof(Axes)); }
+  };
+  using Page = std::unique_ptr<Axes[], Unmap>;
+  static Page new_page() {
+    void* p = ::mmap(nullptr, kPage * sizeof(Axes), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (p == MAP_FAILED) throw std::bad_alloc();
+    return Page(static_cast<Axes*>(p));
+  }
+  const Axes& exact_at(std::size_t n) const { return pages_[n >> kPageBits][n & (kPage - 1)]; }
+  void push_compact(const Axes& x) {
+    if ((offset_.size() & (kBlock - 1)) == 0) base_.push_back(x);
+    const Axes& b = base_.back();
+    Offset o;
+    for (std::size_t i = 0; i < kNumAxes; ++i) o[i] = static_cast<float>(x[i] - b[i]);
+    offset_.push_back(o);
+  }
   bool exact_;
-  std::vector<Axes> full_;      // the values, while exact
+  std::vector<Page> pages_;     // exact: the values in pages of kPage ticks (freed once compacted)
+  std::size_t size_ = 0;        // exact: ticks pushed
+  std::size_t compacted_ = 0;   // exact: ticks before this are read from the compact arrays
   std::vector<Axes> base_;      // compact: the value of tick k * kBlock
   std::vector<Offset> offset_;  // compact: per tick, from its block's base
 };

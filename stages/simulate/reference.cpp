@@ -629,6 +629,11 @@ void plan_chunks(const Model& model, std::span<const ResolvedBlock> program, con
     carried_w.assign(w.begin() + static_cast<std::ptrdiff_t>(commit), w.end());
     k0 = k1;
     prev = std::move(p);
+    // The raw samples the next chunks will not read again (its lead-in, its polyline's look-back
+    // and some) are read compact from here on, as the learning reads them: the planner's peak is
+    // not the program's exact samples beside its whole reference.
+    const std::size_t reach = std::min(k0 > lead ? k0 - lead : 0, state.progress());
+    nom.raw.compact_before(reach > kLookBack + 1000 ? reach - kLookBack - 1000 : 0);
   }
 }
 
