@@ -37,6 +37,12 @@ std::vector<ResolvedBlock> parse_text(const std::string& text, const PipelineCon
   return out;
 }
 
+/// samples/circle_test_seed002.nc: the seed 002 circle test (34.6 s, three learning windows).
+std::string circle_test_text() {
+  std::ifstream f(fs::path(GCPIPE_SOURCE_DIR) / "samples" / "circle_test_seed002.nc");
+  return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
+}
+
 PipelineConfig circle_config() {
   return load_pipeline_config(fs::path(GCPIPE_SOURCE_DIR) / "pipeline_configs" / "circle_test.yaml");
 }
@@ -146,8 +152,7 @@ TEST(Compensate, PlannedReferenceStaysWithinThePathToleranceWithoutStoppingAtCor
 TEST(Compensate, APlanInChunksIsThePlanOfTheWholeProgram) {
   const PipelineConfig pc = circle_config();
   const Model model = load_model(pc);
-  std::ifstream f(fs::path(GCPIPE_SOURCE_DIR) / "samples" / "circle_test_seed002.nc");
-  const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const std::string text = circle_test_text();
   const auto program = parse_text(text, pc);
   const Axes start = machine_start(model.kin, program[1], tool_length_of(model, program[1]));
   simulate::ReferencePlan whole;
@@ -236,8 +241,7 @@ TEST(Compensate, ReferenceLiesOnTheNominalPathAndStartsAndEndsAtRest) {
 TEST(Compensate, TheLearningReplaysAWindowNotTheWholeProgram) {
   const PipelineConfig pc = circle_config();
   const Model model = load_model(pc);
-  std::ifstream f(fs::path(GCPIPE_SOURCE_DIR) / "samples" / "circle_test_seed002.nc");
-  const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const std::string text = circle_test_text();
   const auto program = parse_text(text, pc);
   const Axes start = machine_start(model.kin, program[1], tool_length_of(model, program[1]));
   const CompensateOptions opt;
@@ -277,8 +281,7 @@ TEST(Compensate, TheLearningReplaysAWindowNotTheWholeProgram) {
 TEST(Compensate, TheProgramIsWrittenWindowByWindowAsTheNodesAreCommitted) {
   const PipelineConfig pc = circle_config();
   const Model model = load_model(pc);
-  std::ifstream f(fs::path(GCPIPE_SOURCE_DIR) / "samples" / "circle_test_seed002.nc");
-  const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const std::string text = circle_test_text();
   const CompensateOptions opt;
   const auto run = simulate::simulate_program(model, parse_text(text, pc), run_bounds(opt));
   const ProgramCompensation whole = compensate_program(model, opt, WriteOptions{}, run, {});
