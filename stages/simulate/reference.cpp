@@ -549,104 +549,148 @@ std::size_t margin_end(const Model& model, const Nominal& nom, std::size_t k1, s
 /// plan at the step it committed up to (the blend's rings, the time, the forward speed, the
 /// slow-downs of the steps after it), so that without slow-downs the chunks plan what one plan of
 /// the whole program would, tick for tick. The rounds that lower the speed where the blend leaves
-/// the path by more than the tolerance run per chunk, over its margin too.
-void plan_chunks(const Model& model, std::span<const ResolvedBlock> program, const ReferencePlan& plan,
-                 double max_ticks, Nominal& nom) {
-  const PlanSettings c = plan_settings(model, plan, nom.period);
-  const std::size_t N = nom.raw.size();
-  const MovingSteps moving = moving_steps(model, nom);
-  const std::size_t chunk = ticks(plan.chunk_seconds, c.T), min_margin = ticks(2.0, c.T);
-  const std::size_t lead = 2 * (c.ma + c.mb) + 64;  // samples before a chunk the smoothed sigma may still be at
-  constexpr std::size_t kLookBack = ContourSearch::kLookBack + 500;
-  // Room for the longest plan allowed (max_machine_time): address space, not memory, since pages
-  // are resident once written; the reference never grows by doubling, which held its old and new
-  // arrays at once. Measured peak RSS (/usr/bin/time): the one-hour CAM program 222 MB without,
-  // 194 MB with; the 8000-segment one 69 and 64 MB. The progress (4 bytes a tick) is not given
-  // room: its 14 MB come from the heap, where the room cost the 65 s slot 7 MB and saved the hour 3.
-  nom.reference.release();
-  std::vector<std::uint32_t>().swap(nom.progress);
-  const double room = std::min(max_ticks + static_cast<double>(c.ma + c.mb + c.m1 + c.m2), 8e6);
-  nom.reference.reserve(static_cast<std::size_t>(room));
-  ReferenceBlend state(c.ma, c.mb, c.m1, c.m2);
-  std::size_t k0 = 0, tick0 = 0;
-  double t0 = 0, seed = 0;
-  RawPath prev;                     // the chunk before (its sigma: where the next one's starts)
-  std::vector<double> carried_w;    // its limits of the steps from k0 on, slow-downs included
-  for (;;) {
-    const std::size_t k1 = std::min(k0 + chunk, N - 1);
-    const std::size_t k2 = k1 == N - 1 ? N - 1 : margin_end(model, nom, k1, min_margin, c.a_sigma, c.T);
-    const std::size_t first = k0 > lead ? k0 - lead : 0;
-    RawPath p = raw_path(model, program, nom, first, k2, k0 == 0 ? 0.0 : prev.sigma[first - prev.first], moving);
-    const bool last = p.ends_program && k1 == N - 1;
-    const std::size_t from = k0 - first, commit = k1 - first;
-    std::vector<double> w = step_speed_limits(model, nom, p, c.T, c.T1, c.a_sigma);
-    std::copy_n(carried_w.begin(), std::min(carried_w.size(), w.size() - from), w.begin() + static_cast<std::ptrdiff_t>(from));
-    double forward_at_commit = 0;
-    std::optional<ReferenceBlend> next;
-    const std::size_t made = nom.reference.size();  // ticks the chunks before committed
-    std::size_t committed = 0, next_tick = 0;
-    double commit_time = 0;
+/// the path by more than the tolerance run per chunk, over its margin too. One chunk a call
+/// (next()): what a learning that asks for the reference as it goes would drive.
+class ChunkedPlan {
+ public:
+  ChunkedPlan(const Model& model, std::span<const ResolvedBlock> program, const ReferencePlan& plan, double max_ticks,
+              Nominal& nom)
+      : model_(model), program_(program), c_(plan_settings(model, plan, nom.period)), max_ticks_(max_ticks), nom_(nom),
+        N_(nom.raw.size()), moving_(moving_steps(model, nom)), chunk_(ticks(plan.chunk_seconds, c_.T)),
+        min_margin_(ticks(2.0, c_.T)), state_(c_.ma, c_.mb, c_.m1, c_.m2) {
+    // Room for the longest plan allowed (max_machine_time): address space, not memory, since
+    // pages are resident once written; the reference never grows by doubling, which held its old
+    // and new arrays at once. Measured peak RSS (/usr/bin/time): the one-hour CAM program 222 MB
+    // without, 194 MB with; the 8000-segment one 69 and 64 MB. The progress (4 bytes a tick) is
+    // not given room: its 14 MB come from the heap, where the room cost the 65 s slot 7 MB and
+    // saved the hour 3.
+    nom.reference.release();
+    std::vector<std::uint32_t>().swap(nom.progress);
+    const double room = std::min(max_ticks + static_cast<double>(c_.ma + c_.mb + c_.m1 + c_.m2), 8e6);
+    nom.reference.reserve(static_cast<std::size_t>(room));
+  }
+
+  /// Plans the next chunk and commits its reference ticks; false once the program's end is
+  /// planned (or the plan runs past max_ticks: Nominal::reference_too_long).
+  bool next() {
+    const std::size_t k1 = std::min(k0_ + chunk_, N_ - 1);
+    const std::size_t k2 = k1 == N_ - 1 ? N_ - 1 : margin_end(model_, nom_, k1, min_margin_, c_.a_sigma, c_.T);
+    const std::size_t first = k0_ > kLead() ? k0_ - kLead() : 0;
+    RawPath p = raw_path(model_, program_, nom_, first, k2, k0_ == 0 ? 0.0 : prev_.sigma[first - prev_.first], moving_);
+    Chunk ch{k0_ - first, k1 - first, p.ends_program && k1 == N_ - 1};
+    std::vector<double> w = step_speed_limits(model_, nom_, p, c_.T, c_.T1, c_.a_sigma);
+    std::copy_n(carried_w_.begin(), std::min(carried_w_.size(), w.size() - ch.from), w.begin() + static_cast<std::ptrdiff_t>(ch.from));
+    const std::size_t made = nom_.reference.size();  // ticks the chunks before committed
+    Round r;
     // Where the blend still leaves the path by more than the tolerance (a sharp corner taken
     // fast, a tight arc), the speed there is lowered and the chunk planned again: the deviation
     // of a blended corner grows with the speed, so a few rounds settle it.
     for (int round = 0; round < 8; ++round) {
-      PlannedSigma sig(p, sample_speeds(p, w, c.a_sigma, program, nom, from, seed, commit, forward_at_commit), c.T,
-                       c.a_sigma, from, t0, tick0, last ? SIZE_MAX : commit);
-      if (sig.longer_than(max_ticks)) {
-        nom.reference.release();
-        std::vector<std::uint32_t>().swap(nom.progress);
-        nom.reference_too_long = true;
-        return;
-      }
-      ReferenceBlend blend = state;
-      Excursions check(model, program, nom, c.spread, c.tolerance,
-                       blend.progress() > kLookBack ? blend.progress() - kLookBack : 0);
-      // A round writes the reference from the chunk's start on, over the round before.
-      nom.reference.truncate(made);
-      nom.progress.resize(made);
-      const ReferenceBlend::Out out{nom.reference, nom.progress, check};
-      next.reset();
-      if (last) {
-        const std::size_t total = sig.size();
-        for (std::size_t n = total - std::min(tick0, total); n > 0; --n) blend.push(sig.next(), p, nom, total, out);
-        blend.finish(p, nom, total, out);
-        committed = nom.reference.size();
-      } else {
-        constexpr std::size_t kNotLast = SIZE_MAX / 4;  // the program's end is not in this chunk
-        while (sig.next_time() < sig.end_time()) {
-          if (!next && sig.next_time() >= sig.commit_time()) {
-            next = blend, committed = nom.reference.size(), next_tick = sig.next_tick();
-            commit_time = sig.commit_time();
-          }
-          blend.push(sig.next(), p, nom, kNotLast, out);
-        }
-      }
-      if (check.over().empty()) break;
-      if (round < 7) slow_down(p, check.over(), c.tolerance, c.half_span, c.h, w);
+      nom_.reference.truncate(made);  // a round writes over the round before
+      nom_.progress.resize(made);
+      if (!plan_round(p, ch, w, r)) return false;
+      if (r.over.empty()) break;
+      if (round < 7) slow_down(p, r.over, c_.tolerance, c_.half_span, c_.h, w);
     }
-    nom.reference.truncate(committed);  // the margin's ticks are the next chunk's to make
-    nom.progress.resize(committed);
-    if (last || !next) return;
-    state = std::move(*next);
-    tick0 = next_tick;
-    t0 = commit_time;
-    seed = forward_at_commit;
-    carried_w.assign(w.begin() + static_cast<std::ptrdiff_t>(commit), w.end());
-    k0 = k1;
-    prev = std::move(p);
+    nom_.reference.truncate(r.committed);  // the margin's ticks are the next chunk's to make
+    nom_.progress.resize(r.committed);
+    if (ch.last || !r.next) return false;
+    go_on_from(r, std::move(p), std::move(w), ch.commit, k1);
+    return true;
+  }
+
+ private:
+  // Samples before a chunk the smoothed sigma may still be at (the speed smoothing's lag).
+  std::size_t kLead() const { return 2 * (c_.ma + c_.mb) + 64; }
+  static constexpr std::size_t kLookBack = ContourSearch::kLookBack + 500;  // the excursions' polyline
+
+  struct Chunk {
+    std::size_t from, commit;  // samples of the path: the chunk's first, and the one it commits up to
+    bool last;                 // the chunk ends the program
+  };
+  // One round of a chunk: where the blend left the path, and (not the last chunk) the state at
+  // the commit step, the reference ticks made before it and what the next chunk starts from.
+  struct Round {
+    std::vector<std::pair<std::size_t, double>> over;
+    std::optional<ReferenceBlend> next;
+    std::size_t committed = 0, next_tick = 0;
+    double commit_time = 0, forward_at_commit = 0;
+  };
+
+  /// The chunk's reference with limits `w`, from the committed state; false when the plan runs
+  /// past max_ticks.
+  bool plan_round(const RawPath& p, const Chunk& ch, const std::vector<double>& w, Round& r) {
+    PlannedSigma sig(p, sample_speeds(p, w, c_.a_sigma, program_, nom_, ch.from, seed_, ch.commit, r.forward_at_commit),
+                     c_.T, c_.a_sigma, ch.from, t0_, tick0_, ch.last ? SIZE_MAX : ch.commit);
+    if (sig.longer_than(max_ticks_)) {
+      nom_.reference.release();
+      std::vector<std::uint32_t>().swap(nom_.progress);
+      nom_.reference_too_long = true;
+      return false;
+    }
+    ReferenceBlend blend = state_;
+    Excursions check(model_, program_, nom_, c_.spread, c_.tolerance,
+                     blend.progress() > kLookBack ? blend.progress() - kLookBack : 0);
+    const ReferenceBlend::Out out{nom_.reference, nom_.progress, check};
+    r.next.reset();
+    if (ch.last) {
+      const std::size_t total = sig.size();
+      for (std::size_t n = total - std::min(tick0_, total); n > 0; --n) blend.push(sig.next(), p, nom_, total, out);
+      blend.finish(p, nom_, total, out);
+      r.committed = nom_.reference.size();
+    } else {
+      constexpr std::size_t kNotLast = SIZE_MAX / 4;  // the program's end is not in this chunk
+      while (sig.next_time() < sig.end_time()) {
+        if (!r.next && sig.next_time() >= sig.commit_time()) {
+          r.next = blend, r.committed = nom_.reference.size(), r.next_tick = sig.next_tick();
+          r.commit_time = sig.commit_time();
+        }
+        blend.push(sig.next(), p, nom_, kNotLast, out);
+      }
+    }
+    r.over = std::move(check.over());
+    return true;
+  }
+
+  /// The next chunk starts at raw sample k1 from the accepted round's state there.
+  void go_on_from(Round& r, RawPath p, std::vector<double> w, std::size_t commit, std::size_t k1) {
+    state_ = std::move(*r.next);
+    tick0_ = r.next_tick;
+    t0_ = r.commit_time;
+    seed_ = r.forward_at_commit;
+    carried_w_.assign(w.begin() + static_cast<std::ptrdiff_t>(commit), w.end());
+    k0_ = k1;
+    prev_ = std::move(p);
     // The raw samples the next chunks will not read again (its lead-in, its polyline's look-back
     // and some) are read compact from here on, as the learning reads them: the planner's peak is
     // not the program's exact samples beside its whole reference.
-    const std::size_t reach = std::min(k0 > lead ? k0 - lead : 0, state.progress());
-    nom.raw.compact_before(reach > kLookBack + 1000 ? reach - kLookBack - 1000 : 0);
+    const std::size_t reach = std::min(k0_ > kLead() ? k0_ - kLead() : 0, state_.progress());
+    nom_.raw.compact_before(reach > kLookBack + 1000 ? reach - kLookBack - 1000 : 0);
   }
-}
+
+  const Model& model_;
+  std::span<const ResolvedBlock> program_;
+  const PlanSettings c_;
+  double max_ticks_;
+  Nominal& nom_;
+  std::size_t N_;
+  MovingSteps moving_;
+  std::size_t chunk_, min_margin_;
+  // Where the next chunk goes on from.
+  ReferenceBlend state_;
+  std::size_t k0_ = 0, tick0_ = 0;  // its first raw sample, its first tick
+  double t0_ = 0, seed_ = 0;        // the time its first step begins, the forward speed there
+  RawPath prev_;                    // the chunk before (its sigma: where the next one's starts)
+  std::vector<double> carried_w_;   // its limits of the steps from k0 on, slow-downs included
+};
 
 }  // namespace
 
 void plan_reference(const Model& model, std::span<const ResolvedBlock> program, const ReferencePlan& plan,
                     double max_ticks, Nominal& nom) {
-  plan_chunks(model, program, plan, max_ticks, nom);
+  ChunkedPlan chunks(model, program, plan, max_ticks, nom);
+  while (chunks.next()) {
+  }
   // The plan was made on the exact raw samples; from here on (the learning, the contour metric,
   // the figures) they are read at the compact series' 0.5 nm, in half the memory.
   nom.raw.compact();
