@@ -123,6 +123,28 @@ TEST(ParseModal, FeedBelowTheMinimumIsAnErrorAtItsWord) {
   EXPECT_EQ(parse_text("G21 G1 X1 F0.001\n", off).first_error(), nullptr);
 }
 
+// G95: a move in feed per revolution runs at F x S, and is resolved to that feed in mm/min (what
+// G94 would say; rs274_diff_test checks it against LinuxCNC). With no turning spindle, no spindle
+// speed or no F it would not move: an error at the motion word, as would a product below
+// parse.min_feed. G97 (rev/min, a mill's only mode) is accepted; G96 is not.
+TEST(ParseModal, FeedPerRevolutionIsFTimesTheSpindleSpeed) {
+  Parsed p = parse_text("G21 S2000 M3\nG95 G1 X1 F0.1\nS500 X2\nG97 S1000 X3\nG94 X4 F300\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.blocks.size(), 5u);
+  EXPECT_DOUBLE_EQ(p.blocks[1].feed, 200);
+  EXPECT_DOUBLE_EQ(p.blocks[2].feed, 50);
+  EXPECT_DOUBLE_EQ(p.blocks[3].feed, 100);
+  EXPECT_EQ(p.blocks[3].feed_mode, FeedMode::kUnitsPerMinute);
+  EXPECT_DOUBLE_EQ(p.blocks[4].feed, 300);
+  EXPECT_DOUBLE_EQ(last(parse_text("G20 S1000 M3 G95 G1 X1 F0.004\n")).feed, 101.6);  // 0.004 in/rev
+  expect_error("G21 S2000\nG95 G1 X1 F0.1\n", "with the spindle stopped", 5);
+  expect_error("G21 M3\nG95 G1 X1 F0.1\n", "without a spindle speed: program S", 5);
+  expect_error("G21 S2000 M3\nG95 G1 X1\n", "without a feed: program F (mm per revolution)", 5);
+  expect_error("G21 S10 M3\nG95 G1 X1 F0.01\n", "F x S = 0.1 mm/min is below the minimum feed", 5);
+  expect_error("G21 S10 M3\nG94 G1 X1 F100\nG95 X2\n", "without a feed: program F", 5);  // switching drops the feed
+  expect_error("G96 S200 M3\n", "G96 (constant surface speed) is not supported on this milling machine", 1);
+}
+
 TEST(ParseModal, ToolLengthTcpSpindleCoolant) {
   Parsed p = parse_text("T1 M6\nG43 H1 S1200 M3 M8\nG43.4 H1\nG49\nM7 M8\nM9 M8\nM5 M9\n");
   ASSERT_EQ(p.blocks.size(), 7u) << format(p.diags.at(0));

@@ -49,6 +49,7 @@ struct Run {
   Point last{};  // where the tool stands: both start at machine zero
   std::vector<std::string> rejected;  // texts of rejected lines, trimmed
   std::vector<double> lengths;        // tool length offsets in force [mm], each change once
+  std::vector<double> feeds;          // per feed move that ends somewhere new: program units a minute
 };
 
 // Tool lengths are compared on programs that set them with G10 L1/L10 first: rs274 standalone
@@ -65,11 +66,12 @@ std::string trim(std::string s) {
 }
 
 // A move that goes nowhere is not an end point (rs274 states some, e.g. G0 without axes).
-void add_point(Run& r, const Point& p) {
+bool add_point(Run& r, const Point& p) {
   bool same = true;
   for (int a = 0; a < 5; ++a) same = same && std::fabs(r.last[a] - p[a]) <= kTol / 10;
   r.last = p;
   if (!same) r.ends.push_back(p);
+  return !same;
 }
 
 std::string rs274_path() {
@@ -110,12 +112,18 @@ Run run_rs274(const fs::path& program, const std::string& text) {
   // rs274 states positions without the G5x and G92 offsets, which it passes as calls of their
   // own; adding them back gives machine coordinates, as gcpipe's targets are.
   Point g5x{}, g92{};
+  // The feed a move runs at: the rate, times the spindle speed in feed per revolution (G95).
+  bool per_revolution = false;
+  double rate = 0, spindle = 0;
   std::ifstream o(out);
   for (std::string line; std::getline(o, line);) {
     std::smatch m;
     if (!std::regex_match(line, m, canon)) continue;
     const std::string call = m[1], args = m[2];
     if (call == "SELECT_PLANE") plane = args;
+    if (call == "SET_FEED_MODE") per_revolution = args.find(", 1") != std::string::npos;
+    if (call == "SET_FEED_RATE") rate = std::stod(args);
+    if (call == "SET_SPINDLE_SPEED") spindle = std::stod(args.substr(args.find(',') + 1));
     if (call == "USE_TOOL_LENGTH_OFFSET") {  // (x y z, a b c, u v w) in mm
       std::stringstream ls(args);
       double x = 0, y = 0, z = 0;
@@ -139,7 +147,7 @@ Run run_rs274(const fs::path& program, const std::string& text) {
       p = {v[0], v[1], v[2], v[3], v[5]};
     }
     for (int a = 0; a < 5; ++a) p[a] += g5x[a] + g92[a];
-    add_point(r, p);
+    if (add_point(r, p) && call != "STRAIGHT_TRAVERSE") r.feeds.push_back(per_revolution ? rate * spindle : rate);
   }
   std::ifstream e(err);
   std::string message;
@@ -191,7 +199,7 @@ Run run_gcpipe(const std::string& text, const std::string& name) {
       const double k = b.source_units == Units::kInch ? 1 / 25.4 : 1.0;
       Point pt{};
       for (int a = 0; a < 5; ++a) pt[a] = b.target[a] * (a < 3 ? k : 1.0);  // machine coordinates
-      add_point(r, pt);
+      if (add_point(r, pt) && b.motion != Motion::kRapid) r.feeds.push_back(b.feed * k);
     }
     if (b.stop == ProgramStop::kEnd || b.stop == ProgramStop::kEndRewind) break;
   }
@@ -330,6 +338,25 @@ std::vector<std::pair<std::string, std::string>> cutter_error_programs() {
 }
 
 }  // namespace
+
+// G95, feed per revolution: gcpipe resolves each move to the feed it runs at, F x S in mm/min (as
+// G94 would say it), through spindle speed changes, in inches, on arcs and back to G94; rs274
+// states the rate per revolution and the spindle speed, whose product must be that feed.
+TEST(Rs274Diff, FeedPerRevolutionMovesAtFTimesTheSpindleSpeed) {
+  if (rs274_path().empty()) GTEST_SKIP() << "rs274 (Debian package linuxcnc-uspace) is not installed";
+  const std::string text =
+      "G21 G90 G17 G94\nG0 X0 Y0 Z5 S2000 M3\nG95 G1 Z0 F0.1\nX10 S3000\nG2 X20 Y0 R5\nG1 G97 S1200 Y5\n"
+      "G20 G1 X1 F0.004\nY0.5 S800\nG21 G94 G1 X0 F500\nG95 F0.05 S1500 Y0\nM2\n";
+  const fs::path file = work_dir() / "g95.ngc";
+  const auto ours = run_gcpipe(text, file.string());
+  const auto theirs = run_rs274(file, text);
+  EXPECT_TRUE(ours.rejected.empty()) << (ours.rejected.empty() ? "" : ours.rejected.front());
+  EXPECT_EQ(ours.rejected, theirs.rejected);
+  ASSERT_EQ(ours.feeds.size(), theirs.feeds.size());
+  ASSERT_EQ(ours.feeds.size(), 8u);
+  for (std::size_t i = 0; i < ours.feeds.size(); ++i) EXPECT_NEAR(ours.feeds[i], theirs.feeds[i], 1e-9) << "feed move " << i;
+  EXPECT_NEAR(ours.feeds[0], 200.0, 1e-9);  // 0.1 mm/rev at 2000 rev/min
+}
 
 TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
   if (rs274_path().empty())

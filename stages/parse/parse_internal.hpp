@@ -47,7 +47,7 @@ struct Code {
 enum Group : int {
   kGNonModal = 0, kGMotion = 1, kGPlane = 2, kGDistance = 3, kGArcDistance = 4, kGFeedMode = 5,
   kGUnits = 6, kGCutterComp = 7, kGToolLength = 8, kGCycleCancel = 9, kGCycleReturn = 10,
-  kGCoordSystem = 12, kGPathMode = 13, kGLookAhead = 14, kGUnsupported = 99
+  kGCoordSystem = 12, kGPathMode = 13, kGLookAhead = 14, kGSpindleMode = 15, kGUnsupported = 99
 };
 
 // Why a code is what it is: the parser's words for "G81" in messages.
@@ -77,7 +77,9 @@ struct ModalState {
   bool arc_incremental = true;  // G91.1 is the default in Fanuc and LinuxCNC
   Units units = Units::kMillimetre;
   FeedMode feed_mode = FeedMode::kUnitsPerMinute;
-  double feed = 0;
+  double feed = 0;               // mm/min (G94, G95: F x S) or 1/min (G93)
+  bool per_revolution = false;   // G95: F is mm per spindle revolution
+  double feed_per_rev = 0;       // G95's F [mm/rev]
   double spindle_speed = 0;
   Spindle spindle = Spindle::kOff;
   std::int32_t tool = 0;
@@ -358,6 +360,7 @@ struct Parser::Impl {
   bool move(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, const Axes& target, std::uint8_t mask,
             bool vector_words, const Vec3& vector);
   bool check_feed(const BlockCodes& c, const ModalState& ns);
+  bool check_feed_per_revolution(std::uint32_t col, const ModalState& ns);
   double linear_value(const Word& w, Units units) const;
   double angle_value(const Word& w) const;
 

@@ -45,7 +45,8 @@ int g_group(int code, Dialect d) {
     case 170: case 180: case 190: return kGPlane;
     case 900: case 910: return kGDistance;
     case 901: case 911: return kGArcDistance;
-    case 930: case 940: return kGFeedMode;
+    case 930: case 940: case 950: return kGFeedMode;
+    case 970: return kGSpindleMode;  // G97: spindle speed in rev/min, a mill's only mode
     case 200: case 210: return kGUnits;
     case 400: return kGCutterComp;
     // Compensation (cutter.cpp) has LinuxCNC's geometry in that dialect and Fanuc's cutter
@@ -78,8 +79,7 @@ std::string unsupported_g(int code, Dialect d) {
   switch (code) {
     case 411: case 421:
       return g + " (LinuxCNC dynamic cutter compensation) is not Fanuc G-code: parse with dialect linuxcnc";
-    case 950: return "G95 (feed per revolution) is not supported: use G94 (mm/min) or G93 (inverse time)";
-    case 960: case 970: return g + " (constant surface speed) is not supported on this milling machine";
+    case 960: return "G96 (constant surface speed) is not supported on this milling machine: program G97 S (rev/min)";
     case 330: case 331: return g + " (threading) is not supported";
     case 760:
       return d == Dialect::kLinuxCnc
@@ -285,18 +285,26 @@ GCPIPE_STEP bool Parser::Impl::check_block_number() {
 GCPIPE_STEP bool Parser::Impl::apply_feed_speed_tool(const BlockCodes& c, ModalState& ns, ResolvedBlock& b) {
   const Scan& s = sc;
   const double unit = ns.units == Units::kInch ? kInch : 1.0;
-  if (c.has(kGFeedMode)) ns.feed_mode = c.group_code[kGFeedMode] == 930 ? FeedMode::kInverseTime : FeedMode::kUnitsPerMinute;
+  if (c.has(kGFeedMode)) {
+    const int code = c.group_code[kGFeedMode];
+    ns.feed_mode = code == 930 ? FeedMode::kInverseTime : FeedMode::kUnitsPerMinute;
+    ns.per_revolution = code == 950;
+  }
   if (s.has('F')) {
     const Word& f = s.w('F');
     if (f.value < 0) return fail(f.col, "feed F" + show(f.value) + " is negative");
     const double v = ns.feed_mode == FeedMode::kInverseTime ? f.value : f.value * unit;
     if (v > kMaxFeed) return fail(f.col, "feed F" + show(f.value) + " is out of range (at most 100000000 mm/min or 1/min)");
-    if (ns.feed_mode == FeedMode::kUnitsPerMinute && v > 0 && v < opt.min_feed)
-      return fail(f.col, "feed F" + show(f.value) + " is below the minimum feed of " + show(opt.min_feed) +
-                             " mm/min (parse.min_feed in the pipeline config): a mistyped feed would run for hours");
-    ns.feed = v;
-  } else if (c.has(kGFeedMode) && ns.feed_mode != st.feed_mode) {
-    ns.feed = 0;  // switching G93/G94 invalidates the feed: it means something else now
+    if (ns.per_revolution) {
+      ns.feed_per_rev = v;
+    } else {
+      if (ns.feed_mode == FeedMode::kUnitsPerMinute && v > 0 && v < opt.min_feed)
+        return fail(f.col, "feed F" + show(f.value) + " is below the minimum feed of " + show(opt.min_feed) +
+                               " mm/min (parse.min_feed in the pipeline config): a mistyped feed would run for hours");
+      ns.feed = v;
+    }
+  } else if (c.has(kGFeedMode) && (ns.feed_mode != st.feed_mode || ns.per_revolution != st.per_revolution)) {
+    ns.feed = ns.feed_per_rev = 0;  // switching G93/G94/G95 invalidates the feed: it means something else now
   }
   if (s.has('S')) {
     const Word& w = s.w('S');
@@ -304,6 +312,9 @@ GCPIPE_STEP bool Parser::Impl::apply_feed_speed_tool(const BlockCodes& c, ModalS
       return fail(w.col, "spindle speed S" + show(w.value) + " is out of range (0..1000000 rev/min)");
     ns.spindle_speed = w.value;
   }
+  // G95: the control moves F mm per revolution at the spindle speed in force, so the block is
+  // resolved to the feed in mm/min it moves at (F x S), as G94 would say it.
+  if (ns.per_revolution) ns.feed = ns.feed_per_rev * ns.spindle_speed;
   if (s.has('T')) {
     const Word& w = s.w('T');
     if (w.value < 0 || w.value > 9999 || w.value != std::floor(w.value))
@@ -667,12 +678,27 @@ bool Parser::Impl::dwell(const BlockCodes& c, ResolvedBlock& b, const ModalState
   return true;
 }
 
+// G95: a feed per revolution needs the revolutions: a spindle that turns, at a speed, and the
+// resulting feed is held to parse.min_feed as a G94 one is.
+bool Parser::Impl::check_feed_per_revolution(std::uint32_t col, const ModalState& ns) {
+  const std::string what = std::string(motion_name(ns.motion)) + " in feed per revolution (G95)";
+  if (ns.feed_per_rev <= 0) return fail(col, what + " without a feed: program F (mm per revolution) in this block or before it");
+  if (ns.spindle == Spindle::kOff)
+    return fail(col, what + " with the spindle stopped: the axes would not move; start it (M3/M4) first");
+  if (ns.spindle_speed <= 0) return fail(col, what + " without a spindle speed: program S (rev/min) before it");
+  if (ns.feed < opt.min_feed)
+    return fail(col, what + ": F x S = " + show(ns.feed) + " mm/min is below the minimum feed of " + show(opt.min_feed) +
+                         " mm/min (parse.min_feed in the pipeline config)");
+  return true;
+}
+
 // G1/G2/G3 need a feed (and in G93 one in the block).
 bool Parser::Impl::check_feed(const BlockCodes& c, const ModalState& ns) {
   if (ns.motion == Motion::kRapid) return true;
   const std::uint32_t col = c.motion_col ? c.motion_col : (sc.has('X') ? sc.w('X').col : 1);
   if (ns.feed_mode == FeedMode::kInverseTime && !sc.has('F'))
     return fail(col, std::string(motion_name(ns.motion)) + " in inverse-time mode (G93) needs F in the same block");
+  if (ns.per_revolution) return check_feed_per_revolution(col, ns);
   if (ns.feed <= 0)
     return fail(col, std::string(motion_name(ns.motion)) + " without a feed: program F (mm/min) in this block or before it");
   return true;
