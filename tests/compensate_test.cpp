@@ -385,6 +385,34 @@ TEST(Compensate, ConfigRejectsUnknownKeysAndBadValues) {
 // Issue 12: where the cutting contour error comes down less than tenfold, the report names what
 // limits it: the limit that held the learning back where the largest error is (its window or a
 // neighbour), else the floor of joint-linear motion between the points, else the stall.
+// report.txt lists a canned cycle's pecks (one segment each: every retract is a rapid) as one line,
+// gives no reduction factor where the error after is below the 0.1 um compensated.nc is written
+// with (847 um before, 0.002 um after is no "423500x"), and leaves out segments with no error of
+// that size either side.
+TEST(CompensateReport, PecksAreOneLineAndNoFactorIsGivenBelowTheWrittenResolution) {
+  Nominal nom;
+  nom.segments = {{10, 12, 0, 1}, {13, 13, 1, 2}, {13, 13, 2, 3}, {13, 13, 3, 4}, {13, 14, 4, 5}, {15, 20, 5, 9}};
+  Evaluation before, after;
+  before.per_segment.resize(6);
+  after.per_segment.resize(6);
+  const double b[] = {0.5, 0.847, 0.3, 0.2, 0.00001, 0.9}, a[] = {0.02, 0.000002, 0.000001, 0.000003, 0.00002, 0.03};
+  for (std::size_t k = 0; k < 6; ++k) before.per_segment[k].max = b[k], after.per_segment[k].max = a[k];
+  Result result;
+  result.compensated = true;
+  ReportInput in;
+  in.nominal = &nom;
+  in.before = &before;
+  in.after = &after;
+  in.result = &result;
+  std::string text;
+  segment_lines(in, text);
+  EXPECT_NE(text.find("lines 13-13 (t 1.00-4.00 s, 3 segments): max 847.00 um -> 0.00 um (below the 0.1 um it is written with)"),
+            std::string::npos) << text;
+  EXPECT_NE(text.find("lines 10-12 (t 0.00-1.00 s): max 500.00 um -> 20.00 um (25.0x)"), std::string::npos) << text;
+  EXPECT_EQ(text.find("lines 13-14"), std::string::npos) << "a segment with nothing to show is listed:\n" << text;
+  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 3) << text;
+}
+
 TEST(CompensateReport, BelowTenfoldTheReportNamesWhatLimitsIt) {
   Evaluation before, after;
   Result result;

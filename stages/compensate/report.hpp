@@ -37,6 +37,10 @@ nlohmann::ordered_json report_json(const ReportInput& in);
 /// Readable summary, a few lines, each starting with two spaces.
 std::string report_text(const ReportInput& in);
 
+/// report_text's lines per segment, appended to `s`: a canned cycle's pecks as one line, no
+/// reduction factor below the 0.1 um compensated.nc is written with.
+void segment_lines(const ReportInput& in, std::string& s);
+
 /// Where the cutting contour error came down less than tenfold (issue 12's target), what limits
 /// it: the limit that held the learning back where the largest error is, the floor of the
 /// points' joint-linear motion, or the learning's stall; empty when tenfold was reached.
