@@ -413,6 +413,12 @@ TEST(CompensateReport, PecksAreOneLineAndNoFactorIsGivenBelowTheWrittenResolutio
   EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 3) << text;
 }
 
+TEST(CompensateReport, AnAccelerationOverItsLimitReadsOverIt) {
+  EXPECT_EQ(acceleration_over_limit('X', 5062.4, 5050), "axis X acceleration 5062 > limit 5050");
+  EXPECT_EQ(acceleration_over_limit('X', 5050.0104, 5050), "axis X acceleration 5050.01 > limit 5050.00");
+  EXPECT_EQ(acceleration_over_limit('C', 1010.00004, 1010), "axis C acceleration 1010.000 > limit 1010.000");  // 3 decimals at most
+}
+
 TEST(CompensateReport, BelowTenfoldTheReportNamesWhatLimitsIt) {
   Evaluation before, after;
   Result result;

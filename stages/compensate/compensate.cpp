@@ -530,8 +530,7 @@ class WindowedLearning {
                       static_cast<unsigned long long>(lw.saturated[i]), static_cast<unsigned long long>(allowed.saturated_ticks[i]));
         why = msg;
       } else if (model_.kin.max_acceleration[i] > 0 && lw.peak_acceleration[i] > alim) {
-        std::snprintf(msg, sizeof msg, "axis %c acceleration %.0f > limit %.0f", kAxisLetters[i], lw.peak_acceleration[i], alim);
-        why = msg;
+        why = acceleration_over_limit(kAxisLetters[i], lw.peak_acceleration[i], alim);
       }
     }
     return why;
@@ -964,6 +963,14 @@ std::vector<ResolvedBlock> compensated_blocks(std::span<const ResolvedBlock> pro
   std::vector<ResolvedBlock> out;
   for_each_compensated_block(program, result, period, [&out](const ResolvedBlock& b) { out.push_back(b); });
   return out;
+}
+
+std::string acceleration_over_limit(char axis, double peak, double limit) {
+  int digits = 0;
+  while (digits < 3 && std::llround(peak * std::pow(10.0, digits)) == std::llround(limit * std::pow(10.0, digits))) ++digits;
+  char msg[120];
+  std::snprintf(msg, sizeof msg, "axis %c acceleration %.*f > limit %.*f", axis, digits, peak, digits, limit);
+  return msg;
 }
 
 }  // namespace gcpipe::compensate

@@ -189,4 +189,9 @@ void for_each_compensated_block(std::span<const ResolvedBlock> program, const Re
 std::vector<ResolvedBlock> compensated_blocks(std::span<const ResolvedBlock> program, const Result& result,
                                               double period);
 
+/// "axis X acceleration 5062 > limit 5050", as the learning says why it held back: whole units, or
+/// as many decimals (up to 3) as the two need not to read the same (an iterate over the limit by a
+/// fraction read "5050 > limit 5050").
+std::string acceleration_over_limit(char axis, double peak, double limit);
+
 }  // namespace gcpipe::compensate
