@@ -184,6 +184,32 @@ TEST(Compensate, APlanInChunksIsThePlanOfTheWholeProgram) {
   }
 }
 
+// A program's own G64 P is the path tolerance the planner blends its corners within, as a
+// LinuxCNC control would: tighter than compensate.path_tolerance, the corners are slower and the
+// reference stays within it; looser, they are faster. G64 without P leaves the config's.
+TEST(Compensate, TheProgramsOwnG64PIsThePathTolerance) {
+  const PipelineConfig pc = circle_config();
+  const Model model = load_model(pc);
+  const simulate::ReferencePlan plan;  // 0.02 mm
+  const std::string square = "G0 X0 Y0 Z5\nG1 Z0 F500\nG1 X20 F6000\nY20\nX0\nY0\nG0 Z5\nM30\n";
+  auto planned = [&](const std::string& mode, double& worst) {
+    const auto program = parse_text("G21 G90 G94 G17 " + mode + "\n" + square, pc);
+    const Nominal nom = build_nominal(model, program, program[1].start, plan);
+    worst = worst_reference_deviation(model, program, nom);
+    return static_cast<double>(nom.reference.size()) * nom.period;
+  };
+  double config = 0, tight = 0, loose = 0;
+  const double t_config = planned("G64", config), t_tight = planned("G64 P0.004", tight), t_loose = planned("G64 P0.2", loose);
+  std::printf("square: config 0.02 mm: %.3f s, %.2f um; G64 P0.004: %.3f s, %.2f um; G64 P0.2: %.3f s, %.2f um\n", t_config,
+              config * 1e3, t_tight, tight * 1e3, t_loose, loose * 1e3);
+  EXPECT_LE(config, plan.tolerance);
+  EXPECT_LE(tight, 0.004);
+  EXPECT_GT(t_tight, t_config);
+  EXPECT_LE(loose, 0.2);
+  EXPECT_GT(loose, config);
+  EXPECT_LT(t_loose, t_config);
+}
+
 // Where the tool length changes (G43 H1 with its Z move) the nominal tool tip jumps by the tool
 // length while the joints move on smoothly. The planner's tolerance check measured the blended
 // reference against that jump, found it beyond the tolerance in every round and slowed the

@@ -45,6 +45,7 @@ ResolvedBlock random_block(std::mt19937_64& rng) {
   b.feed_mode = static_cast<FeedMode>(pick({93, 94}));
   b.dwell = u(rng);
   b.spindle_speed = u(rng);
+  b.path_tolerance = u(rng);
   b.spindle = static_cast<Spindle>(pick({3, 4, 5}));
   b.tool = i(rng);
   b.tool_in_spindle = i(rng);
@@ -86,7 +87,7 @@ void expect_identical(const ResolvedBlock& a, const ResolvedBlock& b) {
 #define SAME_BITS(f) EXPECT_TRUE(bits_equal(a.f, b.f)) << #f
   SAME(line); SAME(text); SAME(comment); SAME(motion); SAME_BITS(start); SAME_BITS(target);
   SAME(axis_words); SAME(plane); SAME_BITS(centre); SAME_BITS(radius); SAME(turns);
-  SAME_BITS(feed); SAME(feed_mode); SAME_BITS(dwell); SAME_BITS(spindle_speed); SAME(spindle);
+  SAME_BITS(feed); SAME(feed_mode); SAME_BITS(dwell); SAME_BITS(spindle_speed); SAME_BITS(path_tolerance); SAME(spindle);
   SAME(tool); SAME(tool_in_spindle); SAME(tool_length_offset); SAME_BITS(tool_length);
   SAME(tool_length_active); SAME(tcp); SAME_BITS(tool_vector);
   SAME(tool_vector_mode); SAME(coolant); SAME(work_offset); SAME_BITS(work_origin);
@@ -145,7 +146,7 @@ TEST(DdsConvert, ResolvedBlockLayoutIsTheOneMirroredInTheIdl) {
   // A tripwire: a field added to ResolvedBlock changes its size. Mirror it in idl/gcpipe.idl
   // (struct Block), in dds_convert.cpp and in random_block()/expect_identical() above, then
   // update this number.
-  EXPECT_EQ(sizeof(ResolvedBlock), 464u);
+  EXPECT_EQ(sizeof(ResolvedBlock), 472u);
 }
 
 TEST(DdsConvert, SummaryRoundTripsAndCountsAreChecked) {

@@ -145,6 +145,22 @@ TEST(ParseModal, FeedPerRevolutionIsFTimesTheSpindleSpeed) {
   expect_error("G96 S200 M3\n", "G96 (constant surface speed) is not supported on this milling machine", 1);
 }
 
+// G64 P is the path tolerance in force (the planner blends corners within it); inches are
+// converted; G64 without P, G61 and G61.1 leave none (compensate.path_tolerance then).
+TEST(ParseModal, G64PIsThePathToleranceInForce) {
+  Parsed p = parse_text("G21 G64 P0.005\nG1 X1 F100\nG20 G64 P0.001 X1\nG61 X2\nG64 P0.01 X3\nG64 X4\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.blocks.size(), 6u);
+  EXPECT_DOUBLE_EQ(p.blocks[0].path_tolerance, 0.005);
+  EXPECT_DOUBLE_EQ(p.blocks[1].path_tolerance, 0.005);  // modal
+  EXPECT_DOUBLE_EQ(p.blocks[2].path_tolerance, 0.0254);
+  EXPECT_DOUBLE_EQ(p.blocks[3].path_tolerance, 0);
+  EXPECT_DOUBLE_EQ(p.blocks[4].path_tolerance, 0.254);
+  EXPECT_DOUBLE_EQ(p.blocks[5].path_tolerance, 0);
+  expect_error("G21 G64 P-0.01\n", "G64 P-0.01 is not a path tolerance of 0 to 1 mm", 9);
+  expect_error("G21 G64 P2\n", "G64 P2 is not a path tolerance", 9);
+}
+
 TEST(ParseModal, ToolLengthTcpSpindleCoolant) {
   Parsed p = parse_text("T1 M6\nG43 H1 S1200 M3 M8\nG43.4 H1\nG49\nM7 M8\nM9 M8\nM5 M9\n");
   ASSERT_EQ(p.blocks.size(), 7u) << format(p.diags.at(0));

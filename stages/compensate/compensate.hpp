@@ -185,7 +185,7 @@ class CompensatedBlocks {
 void for_each_compensated_block(std::span<const ResolvedBlock> program, const Result& result, double period,
                                 const std::function<void(const ResolvedBlock&)>& emit);
 
-/// The same blocks collected in a vector (for tests: on a long program they take 464 bytes a node).
+/// The same blocks collected in a vector (for tests: on a long program they take 472 bytes a node).
 std::vector<ResolvedBlock> compensated_blocks(std::span<const ResolvedBlock> program, const Result& result,
                                               double period);
 

@@ -23,7 +23,7 @@ using pipeline::Emitter;
 
 /// compensated.nc read back as it is written: each piece is parsed line by line (strict, in the
 /// writer's dialect) and its motion blocks are run on the reference clock and measured at once,
-/// so that neither the text nor its blocks (one a node, 464 bytes each) are ever all held. The
+/// so that neither the text nor its blocks (one a node, 472 bytes each) are ever all held. The
 /// "after" figures are those of the text as written, rounding included.
 class ReadBack {
  public:

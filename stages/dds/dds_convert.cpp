@@ -66,6 +66,7 @@ void to_msg(const ResolvedBlock& b, msg::Block& o) {
   o.feed_mode(static_cast<std::uint8_t>(b.feed_mode));
   o.dwell(b.dwell);
   o.spindle_speed(b.spindle_speed);
+  o.path_tolerance(b.path_tolerance);
   o.spindle(static_cast<std::uint8_t>(b.spindle));
   o.tool(b.tool);
   o.tool_in_spindle(b.tool_in_spindle);
@@ -117,6 +118,7 @@ bool from_msg(const msg::Block& i, ResolvedBlock& b, std::string* why) {
   b.feed = i.feed();
   b.dwell = i.dwell();
   b.spindle_speed = i.spindle_speed();
+  b.path_tolerance = i.path_tolerance();
   b.tool = i.tool();
   b.tool_in_spindle = i.tool_in_spindle();
   b.tool_length_offset = i.tool_length_offset();

@@ -81,6 +81,7 @@ struct ModalState {
   bool per_revolution = false;   // G95: F is mm per spindle revolution
   double feed_per_rev = 0;       // G95's F [mm/rev]
   double spindle_speed = 0;
+  double path_tolerance = 0;     // G64 P [mm]; 0 after G64 without P, G61 or G61.1
   Spindle spindle = Spindle::kOff;
   std::int32_t tool = 0;
   std::int32_t tool_in_spindle = 0;

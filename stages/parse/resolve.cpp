@@ -312,6 +312,18 @@ GCPIPE_STEP bool Parser::Impl::apply_feed_speed_tool(const BlockCodes& c, ModalS
       return fail(w.col, "spindle speed S" + show(w.value) + " is out of range (0..1000000 rev/min)");
     ns.spindle_speed = w.value;
   }
+  // G64 P: the path tolerance a look-ahead control blends corners within (LinuxCNC's naive-CAM Q
+  // is read and not used). G64 without P, G61 (exact stop) and G61.1 (exact path) give none:
+  // the planner then takes compensate.path_tolerance (it does not stop at every block in G61).
+  if (c.has(kGPathMode)) {
+    ns.path_tolerance = 0;
+    if (c.group_code[kGPathMode] == 640 && s.has('P')) {
+      const Word& p = s.w('P');
+      if (p.value < 0 || p.value * unit > 1)
+        return fail(p.col, "G64 P" + show(p.value) + " is not a path tolerance of 0 to 1 mm");
+      ns.path_tolerance = p.value * unit;  // P0: none (LinuxCNC: best speed)
+    }
+  }
   // G95: the control moves F mm per revolution at the spindle speed in force, so the block is
   // resolved to the feed in mm/min it moves at (F x S), as G94 would say it.
   if (ns.per_revolution) ns.feed = ns.feed_per_rev * ns.spindle_speed;

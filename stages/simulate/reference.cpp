@@ -364,11 +364,15 @@ class Excursions {
     const std::size_t limit = path_.index_of_tick(k + h_ + 2);
     path_.fill(std::max<std::size_t>(limit, 1) + 1);  // as the search over a whole polyline takes them
     Vec3 c;
+    // The program's own G64 P where it has one, else the config's.
+    const double given = program_[nom_.block[k]].path_tolerance;
+    const double tolerance = given > 0 ? given : tolerance_;
     // Only the ticks beyond the tolerance matter, with their distance: most are found within it
     // near the previous match, without searching the whole window (the same ticks, the same
-    // distances beyond it).
-    const double e = search_.distance_beyond(tip, limit, tolerance_, c);
-    if (e > tolerance_) over_.emplace_back(k, e);
+    // distances beyond it). A deviation is kept in units of the config's tolerance, which the
+    // slow-down is reckoned in.
+    const double e = search_.distance_beyond(tip, limit, tolerance, c);
+    if (e > tolerance) over_.emplace_back(k, e * (tolerance_ / tolerance));
   }
   std::vector<std::pair<std::size_t, double>>& over() { return over_; }
 

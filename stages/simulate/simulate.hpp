@@ -77,7 +77,7 @@ struct RunStats {
 
 /// A program handed to the simulation block by block: `count` blocks, `at(i)` block i, valid until
 /// the next call. A generated program (the compensation's node program, or compensated.nc read
-/// back) is made one block at a time this way instead of held whole (464 bytes a block, one block
+/// back) is made one block at a time this way instead of held whole (472 bytes a block, one block
 /// a node: on a long program the largest thing in memory).
 struct BlockSource {
   std::size_t count = 0;

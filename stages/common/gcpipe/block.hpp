@@ -91,6 +91,8 @@ struct ResolvedBlock {
   FeedMode feed_mode = FeedMode::kUnitsPerMinute;
   double dwell = 0;                         //!< G4 dwell time [s]
   double spindle_speed = 0;                 //!< S [rev/min]
+  double path_tolerance = 0;                //!< G64 P in force [mm] (0: none programmed; the
+                                            //!< planner then takes compensate.path_tolerance)
   Spindle spindle = Spindle::kOff;
   std::int32_t tool = 0;                    //!< T selected (loaded by M6)
   std::int32_t tool_in_spindle = 0;         //!< tool loaded by the last M6
