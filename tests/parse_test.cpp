@@ -143,6 +143,9 @@ TEST(ParseModal, FeedPerRevolutionIsFTimesTheSpindleSpeed) {
   expect_error("G21 S10 M3\nG95 G1 X1 F0.01\n", "F x S = 0.1 mm/min is below the minimum feed", 5);
   expect_error("G21 S10 M3\nG94 G1 X1 F100\nG95 X2\n", "without a feed: program F", 5);  // switching drops the feed
   expect_error("G96 S200 M3\n", "G96 (constant surface speed) is not supported on this milling machine", 1);
+  // Found by parse_fuzz: 1500 in/rev at 8000 rev/min is 3e8 mm/min, which output.nc could not say.
+  expect_error("G20 G95 S8000 M3\nG1 X1 F1500\n", "G95 feed F x S = 304800000 mm/min is out of range", 7);
+  expect_error("G21 G95 F1000 M3\nS200000\n", "G95 feed F x S = 2e+08 mm/min is out of range", 1);
 }
 
 // G64 P is the path tolerance in force (the planner blends corners within it); inches are

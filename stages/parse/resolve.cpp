@@ -326,7 +326,14 @@ GCPIPE_STEP bool Parser::Impl::apply_feed_speed_tool(const BlockCodes& c, ModalS
   }
   // G95: the control moves F mm per revolution at the spindle speed in force, so the block is
   // resolved to the feed in mm/min it moves at (F x S), as G94 would say it.
-  if (ns.per_revolution) ns.feed = ns.feed_per_rev * ns.spindle_speed;
+  if (ns.per_revolution) {
+    ns.feed = ns.feed_per_rev * ns.spindle_speed;
+    // Only a block with F or S changes the product (G95 alone drops the feed): the error goes to
+    // its F word, else its S.
+    if (ns.feed > kMaxFeed)
+      return fail(s.has('F') ? s.w('F').col : s.w('S').col,
+                  "G95 feed F x S = " + show(ns.feed) + " mm/min is out of range (at most 100000000 mm/min)");
+  }
   if (s.has('T')) {
     const Word& w = s.w('T');
     if (w.value < 0 || w.value > 9999 || w.value != std::floor(w.value))
