@@ -951,17 +951,12 @@ void CompensatedBlocks::finish() {
   while (next_ < program_.size()) pass_block(next_++);
 }
 
-void for_each_compensated_block(std::span<const ResolvedBlock> program, const Result& result, double period,
-                                const std::function<void(const ResolvedBlock&)>& emit) {
-  CompensatedBlocks blocks(program, period, emit);
-  blocks.add(result.nodes);
-  blocks.finish();
-}
-
 std::vector<ResolvedBlock> compensated_blocks(std::span<const ResolvedBlock> program, const Result& result,
                                               double period) {
   std::vector<ResolvedBlock> out;
-  for_each_compensated_block(program, result, period, [&out](const ResolvedBlock& b) { out.push_back(b); });
+  CompensatedBlocks blocks(program, period, [&out](const ResolvedBlock& b) { out.push_back(b); });
+  blocks.add(result.nodes);
+  blocks.finish();
   return out;
 }
 

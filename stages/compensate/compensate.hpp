@@ -152,8 +152,7 @@ Result compensate(const Model& model, const Nominal& nominal, std::span<const Re
                   const Axes& start, const Evaluation& before, const CompensateOptions& options,
                   const Progress& progress, const NodeSink& sink = {});
 
-/// The compensated program's blocks made as the nodes come (for_each_compensated_block for nodes
-/// handed on window by window): the node blocks (G93 G1 in machine axes, TCP and tool length off,
+/// The compensated program's blocks made as the nodes come, window by window: the node blocks (G93 G1 in machine axes, TCP and tool length off,
 /// N = source line) interleaved with the program's non-motion blocks, in program order, each
 /// handed to `emit` (valid during the call).
 class CompensatedBlocks {
@@ -179,13 +178,8 @@ class CompensatedBlocks {
   ResolvedBlock block_;          // the node block being handed on
 };
 
-/// The node blocks of a result as resolved blocks (G93 G1 in machine axes, TCP and tool length
-/// off, N = source line) interleaved with the program's non-motion blocks, in program order, handed
-/// to `emit` one at a time (the block is valid during the call): the writer needs no more.
-void for_each_compensated_block(std::span<const ResolvedBlock> program, const Result& result, double period,
-                                const std::function<void(const ResolvedBlock&)>& emit);
-
-/// The same blocks collected in a vector (for tests: on a long program they take 472 bytes a node).
+/// CompensatedBlocks of a result's collected nodes in a vector (for tests: on a long program they
+/// take 472 bytes a node).
 std::vector<ResolvedBlock> compensated_blocks(std::span<const ResolvedBlock> program, const Result& result,
                                               double period);
 

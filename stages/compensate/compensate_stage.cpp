@@ -47,11 +47,7 @@ class ReadBack {
     sources_.insert(sources_.end(), point_blocks.begin(), point_blocks.end());
     points_ += point_blocks.size();
     for (std::size_t pos = 0; pos < piece.size();) {
-      const std::size_t end = piece.find('\n', pos);
-      if (end == std::string_view::npos) {  // a line cut by the piece's end: completed by the next
-        partial_.append(piece.substr(pos));
-        break;
-      }
+      const std::size_t end = std::min(piece.find('\n', pos), piece.size());
       feed_line(piece.substr(pos, end - pos));
       pos = end + 1;
     }
@@ -59,7 +55,6 @@ class ReadBack {
 
   /// The figures of the whole text; throws when it does not read back as written.
   simulate::Evaluation finish() {
-    if (!partial_.empty()) feed_line({});
     parser_.finish(sink_);
     if (read_ != points_) throw does_not_read_back();
     return evaluation_.finish(runner_.finish(on_tick_));
@@ -69,13 +64,6 @@ class ReadBack {
 
  private:
   void feed_line(std::string_view line) {
-    if (!partial_.empty()) {
-      partial_.append(line);
-      std::string whole;
-      whole.swap(partial_);
-      feed_line(whole);
-      return;
-    }
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
     parser_.feed(line, sink_);
   }
@@ -101,7 +89,6 @@ class ReadBack {
 
   Parser parser_;
   ParseSink sink_;
-  std::string partial_;
   simulate::ProgramRunner runner_;
   simulate::RunEvaluation evaluation_;
   simulate::TickFn on_tick_;

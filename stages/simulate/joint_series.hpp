@@ -2,9 +2,9 @@
 // 3.6 M ticks, and the compensation holds several such series at once).
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstddef>
-#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <new>
@@ -51,13 +51,6 @@ class JointSeries {
     size_ = compacted_ = 0;
     offset_.clear();
     base_.clear();
-  }
-  /// Empty, with room for n ticks: the memory kept if it holds them, else given back first (never
-  /// two buffers at once).
-  void clear_for(std::size_t n) {
-    if (!exact_ && offset_.capacity() < n) release();
-    clear();
-    reserve(n);
   }
   /// Keeps the first n ticks (n <= size(); not below the compacted ticks of an exact series): as
   /// if only they had been pushed.

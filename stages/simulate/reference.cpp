@@ -416,8 +416,7 @@ class ReferenceBlend {
     Excursions& check;
   };
 
-  /// The next planned sigma (of the program's tick `tick`); `total_ticks`: the plan's tick count
-  /// when `p` ends the program (its last smoothed sample is exactly the program's end).
+  /// The next tick's planned sigma; `total_ticks`: the plan's tick count when `p` ends the program (its last smoothed sample is exactly the program's end).
   void push(double sigma, const RawPath& p, const Nominal& nom, std::size_t total_ticks, Out out) {
     speed_.push(sigma, [&](double s) { joints_at(s, p, nom, total_ticks, out); });
   }
@@ -426,8 +425,6 @@ class ReferenceBlend {
     speed_.finish([&](double s) { joints_at(s, p, nom, total_ticks, out); });
     joints_.finish([&](const Axes& q) { keep(q, nom, out); });
   }
-  /// Ticks of the reference made so far.
-  std::size_t made() const { return made_; }
   /// The raw index (whole) the reference has reached.
   std::size_t progress() const { return static_cast<std::size_t>(last_); }
 
@@ -579,7 +576,7 @@ class ChunkedPlan {
   bool next() {
     const std::size_t k1 = std::min(k0_ + chunk_, N_ - 1);
     const std::size_t k2 = k1 == N_ - 1 ? N_ - 1 : margin_end(model_, nom_, k1, min_margin_, c_.a_sigma, c_.T);
-    const std::size_t first = k0_ > kLead() ? k0_ - kLead() : 0;
+    const std::size_t first = lead_in_start();
     RawPath p = raw_path(model_, program_, nom_, first, k2, k0_ == 0 ? 0.0 : prev_.sigma[first - prev_.first], moving_);
     Chunk ch{k0_ - first, k1 - first, p.ends_program && k1 == N_ - 1};
     std::vector<double> w = step_speed_limits(model_, nom_, p, c_.T, c_.T1, c_.a_sigma);
@@ -604,8 +601,12 @@ class ChunkedPlan {
   }
 
  private:
-  // Samples before a chunk the smoothed sigma may still be at (the speed smoothing's lag).
-  std::size_t kLead() const { return 2 * (c_.ma + c_.mb) + 64; }
+  // The first raw sample of the next chunk's path: its first planned sample less the samples the
+  // smoothed sigma may still be behind it (the speed smoothing's lag).
+  std::size_t lead_in_start() const {
+    const std::size_t lead = 2 * (c_.ma + c_.mb) + 64;
+    return k0_ > lead ? k0_ - lead : 0;
+  }
   static constexpr std::size_t kLookBack = ContourSearch::kLookBack + 500;  // the excursions' polyline
 
   struct Chunk {
@@ -668,7 +669,7 @@ class ChunkedPlan {
     // The raw samples the next chunks will not read again (its lead-in, its polyline's look-back
     // and some) are read compact from here on, as the learning reads them: the planner's peak is
     // not the program's exact samples beside its whole reference.
-    const std::size_t reach = std::min(k0_ > kLead() ? k0_ - kLead() : 0, state_.progress());
+    const std::size_t reach = std::min(lead_in_start(), state_.progress());
     nom_.raw.compact_before(reach > kLookBack + 1000 ? reach - kLookBack - 1000 : 0);
   }
 
