@@ -37,15 +37,23 @@ std::vector<ResolvedBlock> parse_text(const std::string& text, const PipelineCon
   return out;
 }
 
-/// samples/circle_test_seed002.nc: the seed 002 circle test (34.6 s, three learning windows).
-std::string circle_test_text() {
-  std::ifstream f(fs::path(GCPIPE_SOURCE_DIR) / "samples" / "circle_test_seed002.nc");
-  return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
-}
-
 PipelineConfig circle_config() {
   return load_pipeline_config(fs::path(GCPIPE_SOURCE_DIR) / "pipeline_configs" / "circle_test.yaml");
 }
+
+/// samples/circle_test_seed002.nc (the seed 002 circle test: 34.6 s, three learning windows) with
+/// its config, parsed, and the joints it starts from.
+struct CircleTest {
+  PipelineConfig pc = circle_config();
+  Model model = load_model(pc);
+  std::vector<ResolvedBlock> program;
+  Axes start{};
+  CircleTest() {
+    std::ifstream f(fs::path(GCPIPE_SOURCE_DIR) / "samples" / "circle_test_seed002.nc");
+    program = parse_text(std::string(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()), pc);
+    start = machine_start(model.kin, program[1], tool_length_of(model, program[1]));
+  }
+};
 
 // One condition of seed 002's synchronous circle test: w = 2 pi rad/s, two turns.
 const char* kCircle2Pi =
@@ -147,14 +155,13 @@ TEST(Compensate, PlannedReferenceStaysWithinThePathToleranceWithoutStoppingAtCor
 // The planner holds a chunk of the program's raw steps at a time (ReferencePlan::chunk_seconds),
 // each chunk going on from the state the one before left at its commit point, with a margin past
 // it longer than a backward speed pass reaches. The chunks plan what one plan of the whole program
-// does: tick for tick where no round slows a corner near a join, and within the tolerance rounds'
-// own spread where one does.
+// does: tick for tick, but where the tolerance rounds slow a corner once an earlier chunk's
+// slow-downs are final (the tick phase there differs), and within 1 nm there.
 TEST(Compensate, APlanInChunksIsThePlanOfTheWholeProgram) {
-  const PipelineConfig pc = circle_config();
-  const Model model = load_model(pc);
-  const std::string text = circle_test_text();
-  const auto program = parse_text(text, pc);
-  const Axes start = machine_start(model.kin, program[1], tool_length_of(model, program[1]));
+  const CircleTest c;
+  const Model& model = c.model;
+  const auto& program = c.program;
+  const Axes& start = c.start;
   simulate::ReferencePlan whole;
   whole.chunk_seconds = 1e6;
   const Nominal one = build_nominal(model, program, start, whole);
@@ -265,11 +272,10 @@ TEST(Compensate, ReferenceLiesOnTheNominalPathAndStartsAndEndsAtRest) {
 // bounded by each window's own iterations over its own span and margin, not by the program's
 // length times the iterations.
 TEST(Compensate, TheLearningReplaysAWindowNotTheWholeProgram) {
-  const PipelineConfig pc = circle_config();
-  const Model model = load_model(pc);
-  const std::string text = circle_test_text();
-  const auto program = parse_text(text, pc);
-  const Axes start = machine_start(model.kin, program[1], tool_length_of(model, program[1]));
+  const CircleTest c;
+  const Model& model = c.model;
+  const auto& program = c.program;
+  const Axes& start = c.start;
   const CompensateOptions opt;
   const Nominal nom = build_nominal(model, program, start, opt.reference, opt.max_machine_time);
   const Evaluation before = evaluate(model, nom, program, program, start, [](std::uint32_t i) { return i; });
@@ -305,11 +311,10 @@ TEST(Compensate, TheLearningReplaysAWindowNotTheWholeProgram) {
 // neither the text nor the nodes of a long program are held whole; the pieces are the text a
 // whole collection writes, and each timed point comes with the program block it stands for.
 TEST(Compensate, TheProgramIsWrittenWindowByWindowAsTheNodesAreCommitted) {
-  const PipelineConfig pc = circle_config();
-  const Model model = load_model(pc);
-  const std::string text = circle_test_text();
+  const CircleTest c;
+  const Model& model = c.model;
   const CompensateOptions opt;
-  const auto run = simulate::simulate_program(model, parse_text(text, pc), run_bounds(opt));
+  const auto run = simulate::simulate_program(model, c.program, run_bounds(opt));
   const ProgramCompensation whole = compensate_program(model, opt, WriteOptions{}, run, {});
   ASSERT_FALSE(whole.text.empty()) << whole.note;
   std::string joined;
