@@ -312,18 +312,6 @@ GCPIPE_STEP bool Parser::Impl::apply_feed_speed_tool(const BlockCodes& c, ModalS
       return fail(w.col, "spindle speed S" + show(w.value) + " is out of range (0..1000000 rev/min)");
     ns.spindle_speed = w.value;
   }
-  // G64 P: the path tolerance a look-ahead control blends corners within (LinuxCNC's naive-CAM Q
-  // is read and not used). G64 without P, G61 (exact stop) and G61.1 (exact path) give none:
-  // the planner then takes compensate.path_tolerance (it does not stop at every block in G61).
-  if (c.has(kGPathMode)) {
-    ns.path_tolerance = 0;
-    if (c.group_code[kGPathMode] == 640 && s.has('P')) {
-      const Word& p = s.w('P');
-      if (p.value < 0 || p.value * unit > 1)
-        return fail(p.col, "G64 P" + show(p.value) + " is not a path tolerance of 0 to 1 mm");
-      ns.path_tolerance = p.value * unit;  // P0: none (LinuxCNC: best speed)
-    }
-  }
   // G95: the control moves F mm per revolution at the spindle speed in force, so the block is
   // resolved to the feed in mm/min it moves at (F x S), as G94 would say it.
   if (ns.per_revolution) {
@@ -414,7 +402,8 @@ GCPIPE_STEP bool Parser::Impl::apply_tool_length(const BlockCodes& c, ModalState
   return true;
 }
 
-// Step 5: kinematics switch, plane, work offset, distance modes, motion mode, program stops.
+// Step 5: kinematics switch, plane, path tolerance (G64 P), work offset, distance modes, motion
+// mode, program stops.
 GCPIPE_STEP bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, ResolvedBlock& b) {
   if (c.m_col[kMKins]) {
     ns.tcp = c.m_code[kMKins] == 4280;  // M428 TCP on; M429/M430 joint mode
@@ -425,6 +414,18 @@ GCPIPE_STEP bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, 
     ns.tool_vector = {0, 0, 1};
   }
   if (c.has(kGPlane)) ns.plane = static_cast<Plane>(c.group_code[kGPlane] / 10);
+  // G64 P: the path tolerance a look-ahead control blends corners within (LinuxCNC's naive-CAM Q
+  // is read and not used). G64 without P, G61 (exact stop) and G61.1 (exact path) give none:
+  // the planner then takes compensate.path_tolerance (it does not stop at every block in G61).
+  if (c.has(kGPathMode)) {
+    ns.path_tolerance = 0;
+    if (c.group_code[kGPathMode] == 640 && sc.has('P')) {
+      const Word& p = sc.w('P');
+      const double mm = p.value * (ns.units == Units::kInch ? kInch : 1.0);
+      if (p.value < 0 || mm > 1) return fail(p.col, "G64 P" + show(p.value) + " is not a path tolerance of 0 to 1 mm");
+      ns.path_tolerance = mm;  // P0: none (LinuxCNC: best speed)
+    }
+  }
   if (c.has(kGCoordSystem)) {
     ns.work_offset = c.group_code[kGCoordSystem] / 10;
     ns.work_origin = machine.work_offsets[static_cast<std::size_t>(ns.work_offset - 54)];
