@@ -45,7 +45,7 @@ void plot_ik_divergence(const std::filesystem::path& png, const IkSeries& s, con
   }
   if (!s.flagged.empty()) fig.scatter(s.flagged, std::vector<double>(s.flagged.size(), 0.0), cv::Scalar(0, 0, 200), 3, "neural_diverged");
   char note[96];
-  std::snprintf(note, sizeof note, "%zu points, %zu flagged neural_diverged", s.index.size(), s.flagged.size());
+  std::snprintf(note, sizeof note, "%zu points, %llu flagged neural_diverged", s.index.size(), static_cast<unsigned long long>(s.flagged_count));
   fig.note(note);
   fig.save_png(png);
 }

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include <cstdint>
+
 #include "gcpipe/kinematics.hpp"
 
 namespace gcpipe {
@@ -17,7 +19,8 @@ struct IkSeries {
   std::vector<double> index;                         //!< point number (x axis)
   std::array<std::vector<double>, kNumAxes> diff;    //!< neural - analytic [mm, deg]
   Axes tolerance{};                                  //!< divergence tolerance [mm, deg]
-  std::vector<double> flagged;                       //!< point numbers flagged neural_diverged
+  std::vector<double> flagged;                       //!< point numbers flagged neural_diverged (a sample of them on a long program)
+  std::uint64_t flagged_count = 0;                   //!< points flagged neural_diverged, all of them
   std::vector<double> tip_error_analytic;            //!< |FK(analytic) - programmed tip| [mm]
   std::vector<double> tip_error_neural;              //!< |FK(neural) - programmed tip| [mm]
 };

@@ -110,26 +110,28 @@ void IkPipelineStage::report(pipeline::ReportContext& r) const {
 void IkPipelineStage::Sampler::add(const IkPoint& p, const MachineKinematics& kin, double tool_length) {
   const std::uint64_t k = seen++;
   if (!p.has_neural) return;
-  if ((p.flags & kIkNeuralDiverged) != 0) s.flagged.push_back(static_cast<double>(k));
+  if ((p.flags & kIkNeuralDiverged) != 0 && s.flagged_count++ % flag_stride == 0) {
+    s.flagged.push_back(static_cast<double>(k));
+    if (s.flagged.size() >= kCap) thin(s.flagged), flag_stride *= 2;
+  }
   if (k % stride != 0) return;
   s.index.push_back(static_cast<double>(k));
   for (std::size_t i = 0; i < kNumAxes; ++i) s.diff[i].push_back(p.neural_joints[i] - p.joints[i]);
   s.tip_error_analytic.push_back(distance(forward_kinematics(kin, p.joints, tool_length).tip, p.pose.tip));
   s.tip_error_neural.push_back(distance(forward_kinematics(kin, p.neural_joints, tool_length).tip, p.pose.tip));
-  if (s.index.size() >= kCap) thin();
+  if (s.index.size() >= kCap) {
+    thin(s.index);
+    for (auto& d : s.diff) thin(d);
+    thin(s.tip_error_analytic);
+    thin(s.tip_error_neural);
+    stride *= 2;
+  }
 }
 
-void IkPipelineStage::Sampler::thin() {
-  auto half = [](std::vector<double>& v) {
-    std::size_t j = 0;
-    for (std::size_t i = 0; i < v.size(); i += 2) v[j++] = v[i];
-    v.resize(j);
-  };
-  half(s.index);
-  for (auto& d : s.diff) half(d);
-  half(s.tip_error_analytic);
-  half(s.tip_error_neural);
-  stride *= 2;
+void IkPipelineStage::Sampler::thin(std::vector<double>& v) {
+  std::size_t j = 0;
+  for (std::size_t i = 0; i < v.size(); i += 2) v[j++] = v[i];
+  v.resize(j);
 }
 
 pipeline::StageInfo ik_stage() {

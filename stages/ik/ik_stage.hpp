@@ -26,13 +26,15 @@ class IkPipelineStage final : public pipeline::Stage {
 
  private:
   /// IK points kept for the figures: every `stride`-th, the stride doubling whenever the store
-  /// fills, so that a long program keeps an even sample in bounded memory.
+  /// fills, so that a long program keeps an even sample in bounded memory; the flagged points'
+  /// marks likewise (issue 12: the marks of a two-hour program's 96,000 flagged points were kept
+  /// whole). kCap as the simulation's figure series: more points than a figure has pixels.
   struct Sampler {
     IkSeries s;
-    std::uint64_t seen = 0, stride = 1;
-    static constexpr std::size_t kCap = 100000;
+    std::uint64_t seen = 0, stride = 1, flag_stride = 1;
+    static constexpr std::size_t kCap = 20000;
     void add(const IkPoint& p, const MachineKinematics& kin, double tool_length);
-    void thin();
+    static void thin(std::vector<double>& v);
   };
 
   MachineKinematics kin_;

@@ -6,13 +6,9 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
-#include <memory>
-#include <new>
-#include <vector>
-
-#include <sys/mman.h>
 
 #include "gcpipe/block.hpp"
+#include "gcpipe/scratch.hpp"
 
 namespace gcpipe::simulate {
 
@@ -25,91 +21,78 @@ namespace gcpipe::simulate {
 /// A series made exact (kExact) holds doubles until its ticks are compacted: the nominal run's raw
 /// samples are planned on in full precision (the plan's decisions, and so the cycle time, must
 /// not depend on storage), then kept compact for the learning and the figures. The planner
-/// compacts the ticks behind the chunk it plans as it goes (compact_before), so the exact values
-/// are held in pages of kPage ticks that go as they are compacted: no copy of the series is ever
-/// made, and the exact and the compact series are never both held whole.
+/// compacts the ticks behind the chunk it plans as it goes (compact_before), and their exact
+/// values' pages are freed as it does: the exact and the compact series are never both held whole.
 /// Read by value: a compact series holds no Axes to refer to.
 class JointSeries {
  public:
   static constexpr std::size_t kBlockBits = 6;
   static constexpr std::size_t kBlock = std::size_t{1} << kBlockBits;
-  static constexpr std::size_t kPageBits = 16;
-  static constexpr std::size_t kPage = std::size_t{1} << kPageBits;  // 2.6 MB of exact values
   enum Storage { kCompact, kExact };
 
   explicit JointSeries(Storage storage = kCompact) : exact_(storage == kExact) {}
 
-  std::size_t size() const { return exact_ ? size_ : offset_.size(); }
+  std::size_t size() const { return exact_ ? values_.size() : offset_.size(); }
   bool empty() const { return size() == 0; }
   void reserve(std::size_t n) {
-    if (exact_) return pages_.reserve((n + kPage - 1) / kPage);
+    if (exact_) return values_.reserve(n);
     offset_.reserve(n);
     base_.reserve((n + kBlock - 1) / kBlock);
   }
   void clear() {
-    pages_.clear();
-    size_ = compacted_ = 0;
+    values_.clear();
+    compacted_ = 0;
     offset_.clear();
     base_.clear();
   }
   /// Keeps the first n ticks (n <= size(); not below the compacted ticks of an exact series): as
   /// if only they had been pushed.
   void truncate(std::size_t n) {
-    if (exact_) {
-      size_ = n;
-      pages_.resize((n + kPage - 1) / kPage);
-      return;
-    }
+    if (exact_) return values_.resize(n);
     offset_.resize(n);
     base_.resize((n + kBlock - 1) / kBlock);
   }
   void shrink_to_fit() {
-    pages_.shrink_to_fit();
+    values_.shrink_to_fit();
     offset_.shrink_to_fit();
     base_.shrink_to_fit();
   }
   /// Gives the memory back (clear() keeps it).
   void release() {
-    std::vector<Page>().swap(pages_);
-    size_ = compacted_ = 0;
-    std::vector<Offset>().swap(offset_);
-    std::vector<Axes>().swap(base_);
+    values_.release();
+    compacted_ = 0;
+    offset_.release();
+    base_.release();
   }
-  /// Ticks before `n` are read compact from here on, and the pages of exact values wholly before
-  /// it are freed. The compact values are those of a compact series pushed the same ticks.
+  /// Ticks before `n` are read compact from here on, and the exact values wholly before it are
+  /// freed. The compact values are those of a compact series pushed the same ticks.
   void compact_before(std::size_t n) {
     if (!exact_) return;
-    n = std::min(n, size_);
-    if (offset_.capacity() < size_) {  // room for every tick at once: the compact series never grows by copying
-      offset_.reserve(size_);
-      base_.reserve((size_ + kBlock - 1) / kBlock);
-    }
-    for (; compacted_ < n; ++compacted_) push_compact(exact_at(compacted_));
-    for (std::size_t p = 0; (p + 1) * kPage <= compacted_ && p < pages_.size(); ++p) pages_[p].reset();
+    n = std::min(n, values_.size());
+    for (; compacted_ < n; ++compacted_) push_compact(values_[compacted_]);
+    values_.discard_before(compacted_);
   }
   /// From here on compact: every tick read at the compact series' precision; the exact values freed.
   void compact() {
     if (!exact_) return;
-    compact_before(size_);
-    std::vector<Page>().swap(pages_);
-    size_ = compacted_ = 0;
+    compact_before(values_.size());
+    values_.release();
+    compacted_ = 0;
     exact_ = false;
   }
 
   void push_back(const Axes& x) {
     if (!exact_) return push_compact(x);
-    if ((size_ & (kPage - 1)) == 0) pages_.push_back(new_page());
-    pages_.back()[size_ & (kPage - 1)] = x;
-    ++size_;
+    values_.push_back(x);
   }
 
   /// Axis `axis` at tick n.
   double at(std::size_t n, std::size_t axis) const {
-    if (exact_ && n >= compacted_) return exact_at(n)[axis];
+    if (exact_ && n >= compacted_) return values_[n][axis];
     return base_[n >> kBlockBits][axis] + static_cast<double>(offset_[n][axis]);
   }
   Axes operator[](std::size_t n) const {
-    if (exact_ && n >= compacted_) return exact_at(n);
+    if (exact_ && n >= compacted_) return values_[n];
     const Axes& b = base_[n >> kBlockBits];
     const Offset& o = offset_[n];
     Axes x;
@@ -127,19 +110,6 @@ class JointSeries {
 
  private:
   using Offset = std::array<float, kNumAxes>;
-  // A page is mapped from the system and unmapped when freed: a page freed into malloc's heap
-  // stays resident as a hole the growing compact series cannot use (measured: the one-hour
-  // program peaked at 261 MB that way, against 228 MB with no compaction during the plan).
-  struct Unmap {
-    void operator()(Axes* p) const { ::munmap(p, kPage * sizeof(Axes)); }
-  };
-  using Page = std::unique_ptr<Axes[], Unmap>;
-  static Page new_page() {
-    void* p = ::mmap(nullptr, kPage * sizeof(Axes), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if (p == MAP_FAILED) throw std::bad_alloc();
-    return Page(static_cast<Axes*>(p));
-  }
-  const Axes& exact_at(std::size_t n) const { return pages_[n >> kPageBits][n & (kPage - 1)]; }
   void push_compact(const Axes& x) {
     if ((offset_.size() & (kBlock - 1)) == 0) base_.push_back(x);
     const Axes& b = base_.back();
@@ -147,12 +117,13 @@ class JointSeries {
     for (std::size_t i = 0; i < kNumAxes; ++i) o[i] = static_cast<float>(x[i] - b[i]);
     offset_.push_back(o);
   }
+  // Scratch arrays (gcpipe/scratch.hpp): a long series lives in a scratch file's pages, not in
+  // the process's memory, and growing one never copies it.
   bool exact_;
-  std::vector<Page> pages_;     // exact: the values in pages of kPage ticks (freed once compacted)
-  std::size_t size_ = 0;        // exact: ticks pushed
-  std::size_t compacted_ = 0;   // exact: ticks before this are read from the compact arrays
-  std::vector<Axes> base_;      // compact: the value of tick k * kBlock
-  std::vector<Offset> offset_;  // compact: per tick, from its block's base
+  ScratchArray<Axes> values_;     // exact: every tick (freed page by page as it is compacted)
+  std::size_t compacted_ = 0;     // exact: ticks before this are read from the compact arrays
+  ScratchArray<Axes> base_;       // compact: the value of tick k * kBlock
+  ScratchArray<Offset> offset_;   // compact: per tick, from its block's base
 };
 
 }  // namespace gcpipe::simulate

@@ -412,7 +412,7 @@ class ReferenceBlend {
   /// progress (the whole raw index the blend centres on).
   struct Out {
     JointSeries& reference;
-    std::vector<std::uint32_t>& progress;
+    ScratchArray<std::uint32_t>& progress;
     Excursions& check;
   };
 
@@ -566,7 +566,7 @@ class ChunkedPlan {
     // not given room: its 14 MB come from the heap, where the room cost the 65 s slot 7 MB and
     // saved the hour 3.
     nom.reference.release();
-    std::vector<std::uint32_t>().swap(nom.progress);
+    nom.progress.release();
     const double room = std::min(max_ticks + static_cast<double>(c_.ma + c_.mb + c_.m1 + c_.m2), 8e6);
     nom.reference.reserve(static_cast<std::size_t>(room));
   }
@@ -629,7 +629,7 @@ class ChunkedPlan {
                      c_.T, c_.a_sigma, ch.from, t0_, tick0_, ch.last ? SIZE_MAX : ch.commit);
     if (sig.longer_than(max_ticks_)) {
       nom_.reference.release();
-      std::vector<std::uint32_t>().swap(nom_.progress);
+      nom_.progress.release();
       nom_.reference_too_long = true;
       return false;
     }

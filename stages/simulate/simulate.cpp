@@ -730,13 +730,19 @@ void simulate_into(SimulationRun& run, const Model& model, std::span<const Resol
 
 }  // namespace
 
-SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> program, const RunBounds& bounds,
+SimulationRun simulate_program(const Model& model, BlockStore program, const RunBounds& bounds,
                                const std::function<void(const Tick&)>& on_tick, const Progress& progress) {
   SimulationRun run;
   run.program = std::move(program);
-  run.program.shrink_to_fit();  // collected block by block: up to half of it spare, held to the end
   simulate_into(run, model, run.program, 1.0, bounds, on_tick, progress);
   return run;
+}
+
+SimulationRun simulate_program(const Model& model, std::span<const ResolvedBlock> program, const RunBounds& bounds,
+                               const std::function<void(const Tick&)>& on_tick, const Progress& progress) {
+  BlockStore store(program.size());
+  for (const ResolvedBlock& b : program) store.push_back(b);
+  return simulate_program(model, std::move(store), bounds, on_tick, progress);
 }
 
 }  // namespace gcpipe::simulate

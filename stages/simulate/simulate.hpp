@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "gcpipe/block.hpp"
+#include "gcpipe/block_store.hpp"
 #include "gcpipe/kinematics.hpp"
 #include "gcpipe/pipeline_config.hpp"
 #include "interpolate.hpp"
@@ -356,10 +357,10 @@ struct Nominal {
   double period = 0.001;
   JointSeries raw{JointSeries::kExact};  //!< R_n, n = 0..N-1: exact while the reference is
                                        //!< planned, compact after (joint_series.hpp)
-  std::vector<std::uint32_t> block;    //!< block index of each raw sample
+  ScratchArray<std::uint32_t> block;   //!< block index of each raw sample
   JointSeries reference;               //!< r_n (planned and blended path), n = 0..E-1, stored
                                        //!< compactly (joint_series.hpp: within 0.5 nm)
-  std::vector<std::uint32_t> progress; //!< p_n, the raw index r_n has reached (whole samples:
+  ScratchArray<std::uint32_t> progress; //!< p_n, the raw index r_n has reached (whole samples:
                                        //!< every user asks which sample, and 4 bytes a tick)
   bool reference_too_long = false;     //!< the reference would exceed max_machine_time (empty)
   std::vector<std::uint32_t> segment_of_block;  //!< per program block
@@ -483,7 +484,7 @@ namespace gcpipe::simulate {
 /// The simulation of one whole program: what `gcpipe simulate` reports and what the compensation
 /// starts from. Handed from the simulate stage to the compensate stage in one process.
 struct SimulationRun {
-  std::vector<ResolvedBlock> program;  //!< the blocks simulated, in order
+  BlockStore program;                  //!< the blocks simulated, in order (not in the process's memory)
   Axes start{};                        //!< machine joints the simulation starts from, at rest
   std::optional<Nominal> nominal;      //!< set when the program moves
   std::optional<Evaluation> before;    //!< set when the nominal run completed
@@ -511,7 +512,10 @@ struct RunBounds {
 /// of `evaluate`); with `bounds.record_nominal` it is also recorded as build_nominal records it.
 /// `on_tick` sees every tick of the run (trace output). Never throws for a program the machine
 /// cannot run: the reason goes to `note`.
-SimulationRun simulate_program(const Model& model, std::vector<ResolvedBlock> program, const RunBounds& bounds,
+SimulationRun simulate_program(const Model& model, BlockStore program, const RunBounds& bounds,
+                               const std::function<void(const Tick&)>& on_tick = {}, const Progress& progress = {});
+/// The same for a program held in memory (tests, the calibration's programs).
+SimulationRun simulate_program(const Model& model, std::span<const ResolvedBlock> program, const RunBounds& bounds,
                                const std::function<void(const Tick&)>& on_tick = {}, const Progress& progress = {});
 
 }  // namespace gcpipe::simulate

@@ -12,14 +12,15 @@ SimulateStage::SimulateStage(const pipeline::StageContext& c)
       progress_(c.progress),
       file_(c.file),
       log_(*c.log),
-      reports_(std::find(c.whole_pipeline().begin(), c.whole_pipeline().end(), "compensate") == c.whole_pipeline().end()) {}
+      reports_(std::find(c.whole_pipeline().begin(), c.whole_pipeline().end(), "compensate") == c.whole_pipeline().end()),
+      program_(bounds_.max_blocks) {}
 
 bool SimulateStage::block(const ResolvedBlock& b, pipeline::Emitter& out) {
   // The whole program is kept (the learning replays it), up to a bound on memory.
   if (skipped_.empty()) {
     if (program_.size() >= bounds_.max_blocks) {
       skipped_ = "the program has more than compensate.max_blocks = " + std::to_string(bounds_.max_blocks) + " blocks";
-      program_ = {};
+      program_.clear();
     } else {
       program_.push_back(b);
     }

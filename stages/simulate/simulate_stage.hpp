@@ -46,7 +46,7 @@ class SimulateStage final : public pipeline::Stage {
   pipeline::DiagnosticLog& log_;
   bool reports_;  //!< no compensate stage follows, which would report the simulation
   bool record_nominal_ = true;
-  std::vector<ResolvedBlock> program_;
+  BlockStore program_;
   std::string skipped_, failure_;
   std::shared_ptr<SimulatedProgram> result_;
   std::function<void(const simulate::Tick&)> tap_;
