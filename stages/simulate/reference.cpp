@@ -559,16 +559,11 @@ class ChunkedPlan {
       : model_(model), program_(program), c_(plan_settings(model, plan, nom.period)), max_ticks_(max_ticks), nom_(nom),
         N_(nom.raw.size()), moving_(moving_steps(model, nom)), chunk_(ticks(plan.chunk_seconds, c_.T)),
         min_margin_(ticks(2.0, c_.T)), state_(c_.ma, c_.mb, c_.m1, c_.m2) {
-    // Room for the longest plan allowed (max_machine_time): address space, not memory, since
-    // pages are resident once written; the reference never grows by doubling, which held its old
-    // and new arrays at once. Measured peak RSS (/usr/bin/time): the one-hour CAM program 222 MB
-    // without, 194 MB with; the 8000-segment one 69 and 64 MB. The progress (4 bytes a tick) is
-    // not given room: its 14 MB come from the heap, where the room cost the 65 s slot 7 MB and
-    // saved the hour 3.
+    // The reference and its progress grow in scratch arrays (gcpipe/scratch.hpp), which never
+    // copy to grow: no room is reserved (a reservation for max_machine_time cost resident memory
+    // that grew with that bound: 14 MB more at 7300 s than at 3600 s on the one-hour program).
     nom.reference.release();
     nom.progress.release();
-    const double room = std::min(max_ticks + static_cast<double>(c_.ma + c_.mb + c_.m1 + c_.m2), 8e6);
-    nom.reference.reserve(static_cast<std::size_t>(room));
   }
 
   /// Plans the next chunk and commits its reference ticks; false once the program's end is
