@@ -46,7 +46,9 @@ void add_batch(CLI::App& app, BatchArgs& a) {
       "(output.nc) and -> ik -> simulate -> compensate (compensated.nc), then the report and the\n"
       "figures. Writes in OUTDIR: compensated.nc, report.json, report.txt, plots/*.png, output.nc,\n"
       "summary.json, diagnostics.txt. Files of an earlier run there are removed first; every file is\n"
-      "written as NAME.part and renamed when complete.") + "\n\n" + kExitStatus);
+      "written as NAME.part and renamed when complete. The simulation's long series and the program's\n"
+      "blocks are kept in unlinked scratch files in $GCPIPE_SCRATCH_DIR (default /var/tmp; about 50\n"
+      "bytes a planned millisecond while the run lasts), not in memory.") + "\n\n" + kExitStatus);
 }
 
 void add_parse(CLI::App& app, ParseArgs& a) {
@@ -330,15 +332,14 @@ void add_dds_commands(CLI::App& app, DdsCommands& d) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // A long program's per-tick series are tens of MB. glibc serves an allocation above the mmap
-  // threshold from a fresh mmap whose pages fault in again (about 10 us per 4 KiB page on the VM
-  // measured) and gives it back when it is freed; below it, from the heap, where freed memory is
-  // reused but stays resident. 32 MB: the series made again many times (the planner's speeds and
-  // slow-down factors each round, 13 MB on a one-hour program) stay in the heap, while the ones
-  // made once per phase and held through it (the raw samples, the reference, the learning's error:
-  // 30-70 MB there) are mapped, so that what one phase frees does not stay resident beside the
-  // next phase's series (issue 12: 317 -> 297 MB peak on the one-hour program when this was set,
-  // from 256 MB; stages/compensate/README.md, "Memory").
+  // glibc serves an allocation above the mmap threshold from a fresh mmap whose pages fault in
+  // again (about 10 us per 4 KiB page on the VM measured) and gives it back when it is freed;
+  // below it, from the heap, where freed memory is reused but stays resident. 32 MB: series made
+  // again many times (the planner's per-chunk speeds and slow-down factors) stay in the heap,
+  // larger ones made once and held are mapped, so that what one phase frees does not stay
+  // resident beside the next phase's (issue 12: 317 -> 297 MB peak on the one-hour program when
+  // this was set, from 256 MB). The longest series (raw samples, reference) have since gone to
+  // scratch files (gcpipe/scratch.hpp) and no longer come from malloc.
   mallopt(M_MMAP_THRESHOLD, 32 * 1024 * 1024);
   mallopt(M_TRIM_THRESHOLD, 512 * 1024 * 1024);
   CLI::App app{"gcpipe: G-code stream-processing pipeline for table-table five-axis machines", "gcpipe"};
