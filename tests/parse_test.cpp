@@ -1099,6 +1099,22 @@ TEST(ParseIssue14, CutterCompHoldsOneMoveInOrder) {
   expect_continuous(q);
 }
 
+// An I J arc whose radii differ by just under LinuxCNC's 0.1 % (30 and 30.0299 mm) is accepted;
+// under compensation with the tool inside it (G41 on a G3) its offset path keeps the centre and the
+// difference on a radius 5 mm smaller: 0.12 %, which output.nc's read-back (and a control) would
+// reject, so the programmed arc is rejected at its line. Outside (G42) the path's 0.085 % is fine.
+// Found by parse_fuzz (tests/fuzz/regressions/compensated-arc-past-the-relative-radius-tolerance).
+TEST(ParseIssue14, AnArcWhoseOffsetPathLeavesTheRadiusToleranceIsRejectedAtItsLine) {
+  const std::string arc = "G3 X130.0299 Y30 I0 J30\n";
+  const std::string plain = "G21 G90 G17 F100\nG0 X-50 Y0 Z0\nG1 X0 Y0\nG1 X100 Y0\n";
+  EXPECT_EQ(parse_text(plain + arc, linuxcnc()).first_error(), nullptr);
+  expect_error("G21 G90 G17 F100\nG0 X-50 Y0 Z0\nG41 D1\nG1 X0 Y0\nG1 X100 Y0\n" + arc,
+               "G3: with G41 the tool path's radii differ by 0.0299 mm, 0.1195 % of its radius 25.03 mm", 4, linuxcnc());
+  const Parsed outside = parse_text("G21 G90 G17 F100\nG0 X-50 Y0 Z0\nG42 D1\nG1 X0 Y0\nG1 X100 Y0\n" + arc +
+                                        "G40 G1 X150 Y60\n", linuxcnc());
+  EXPECT_EQ(outside.first_error(), nullptr) << format(*outside.first_error());
+}
+
 TEST(ParseIssue14, CutterCompErrorsRejectTheirLineOnly) {
   const std::string head = "G21 G90 G17 F100\nG0 X-50 Y0 Z0\nG41 D1\nG1 X0 Y0\nG1 X100 Y0\n";
   expect_error(head + "G3 X100 Y6 R3\n", "tool radius 5 mm not less than arc radius 3 mm with G41", 4, linuxcnc());

@@ -35,6 +35,7 @@
 //  - G40 (Type A): as LinuxCNC, from the held move's offset end straight to the programmed end.
 // Everything here works in machine coordinates [mm], so units and work offsets do not matter.
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 
 #include "parse_internal.hpp"
@@ -272,6 +273,23 @@ bool Parser::Impl::offset_path(const ModalState& ns, const ResolvedBlock& b, Off
     return fail(move_col(sc), std::string(g) + ": tool radius " + show(r) + " mm not less than arc radius " + show(rs) +
                                   " mm with " + side_name(ns.comp_side) + " (the tool runs inside this arc): it "
                                   "cannot be cut with this tool");
+  // The offset path keeps the arc's centre, so its radii differ by what the programmed ones do,
+  // on a radius smaller by the tool's when the tool runs inside: an arc just within the 0.1 %
+  // tolerance can leave it, and output.nc (or a control) would reject the arc written. The
+  // programmed arc is the one to fix, so it is rejected here, at its line.
+  if (!arc_radii_agree(rs + grow, re + grow, arc_radius_tolerance(ns.units == Units::kInch))) {
+    const double k = ns.units == Units::kInch ? 1 / kInch : 1;
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  "%s: with %s the tool path's radii differ by %.4g %s, %.4f %% of its radius %.4g %s: past the "
+                  "0.1 %% an arc may have (the programmed arc, %.4f %% of %.4g %s, is within it); put the arc's "
+                  "end on the circle through its start",
+                  g, side_name(ns.comp_side), std::fabs(rs - re) * k, ns.units == Units::kInch ? "inch" : "mm",
+                  100 * std::fabs(rs - re) / (std::max(rs, re) + grow), (std::max(rs, re) + grow) * k,
+                  ns.units == Units::kInch ? "inch" : "mm", 100 * std::fabs(rs - re) / std::max(rs, re),
+                  std::max(rs, re) * k, ns.units == Units::kInch ? "inch" : "mm");
+    return fail(move_col(sc), buf);
+  }
   m.radius = rs + grow;
   m.end_radius = re + grow;
   m.path_radius = rs;

@@ -67,9 +67,9 @@ bool Parser::Impl::offset_centre(const ArcGeometry& g, const ModalState& ns, dou
   const double r1 = std::hypot(g.su - cu, g.sv - cv);
   const double r2 = std::hypot(g.eu - cu, g.ev - cv);
   if (r1 < 1e-9) return m.fail(g.col, std::string(g.gname) + ": the centre is at the start point (radius zero)");
-  const double abs_err = std::fabs(r1 - r2);
-  const double rel_err = abs_err / std::max(r1, r2);
-  if (abs_err > 100 * g.t_abs || (abs_err > g.t_abs && rel_err > 0.001)) {
+  if (!arc_radii_agree(r1, r2, g.t_abs)) {
+    const double abs_err = std::fabs(r1 - r2);
+    const double rel_err = abs_err / std::max(r1, r2);
     const double k = g.inch ? 1 / kInch : 1;  // report in the program's units, as LinuxCNC does
     const double ou0 = ns.origin[pa.u], ov0 = ns.origin[pa.v];
     char buf[400];
@@ -97,7 +97,7 @@ bool Parser::Impl::arc(const Scan& s, ResolvedBlock& b, ModalState& ns, bool cw)
   g.eu = b.target[pa.u];
   g.ev = b.target[pa.v];
   g.inch = ns.units == Units::kInch;
-  g.t_abs = (g.inch ? 2 * 0.001 * kInch : 2 * 0.01) * std::numbers::sqrt2;
+  g.t_abs = arc_radius_tolerance(g.inch);
   g.gname[0] = 'G';
   g.gname[1] = cw ? '2' : '3';
   g.col = s.has('R') ? s.w('R').col : s.has(pa.ou) ? s.w(pa.ou).col : s.has(pa.ov) ? s.w(pa.ov).col : 1;

@@ -7,6 +7,8 @@
 //   flow.cpp      LinuxCNC o-word subroutines and flow control (the only part that buffers).
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <deque>
 #include <map>
@@ -29,6 +31,15 @@ constexpr double kMaxAngle = 1e5;    // [deg] allows many turns of C, rejects ov
 constexpr double kMaxFeed = 1e8;
 constexpr double kMaxSpindle = 1e6;  // [rev/min]
 constexpr double kInch = 25.4;       // [mm]
+
+/// LinuxCNC's absolute radius tolerance of a centre-format arc [mm] in the program's units.
+inline double arc_radius_tolerance(bool inch) { return (inch ? 2 * 0.001 * kInch : 2 * 0.01) * 1.4142135623730951; }
+/// Whether an arc's start and end radii agree as LinuxCNC asks (motion.cpp, offset_centre): the
+/// one check for programmed arcs and for the offset paths cutter compensation makes of them.
+inline bool arc_radii_agree(double r1, double r2, double t_abs) {
+  const double abs_err = std::fabs(r1 - r2);
+  return !(abs_err > 100 * t_abs || (abs_err > t_abs && abs_err / std::max(r1, r2) > 0.001));
+}
 
 struct Word {
   double value = 0;
