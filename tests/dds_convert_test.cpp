@@ -46,6 +46,7 @@ ResolvedBlock random_block(std::mt19937_64& rng) {
   b.dwell = u(rng);
   b.spindle_speed = u(rng);
   b.path_tolerance = u(rng);
+  b.path_mode = static_cast<PathMode>(pick({0, 1, 2}));
   b.spindle = static_cast<Spindle>(pick({3, 4, 5}));
   b.tool = i(rng);
   b.tool_in_spindle = i(rng);
@@ -87,7 +88,7 @@ void expect_identical(const ResolvedBlock& a, const ResolvedBlock& b) {
 #define SAME_BITS(f) EXPECT_TRUE(bits_equal(a.f, b.f)) << #f
   SAME(line); SAME(text); SAME(comment); SAME(motion); SAME_BITS(start); SAME_BITS(target);
   SAME(axis_words); SAME(plane); SAME_BITS(centre); SAME_BITS(radius); SAME(turns);
-  SAME_BITS(feed); SAME(feed_mode); SAME_BITS(dwell); SAME_BITS(spindle_speed); SAME_BITS(path_tolerance); SAME(spindle);
+  SAME_BITS(feed); SAME(feed_mode); SAME_BITS(dwell); SAME_BITS(spindle_speed); SAME_BITS(path_tolerance); SAME(path_mode); SAME(spindle);
   SAME(tool); SAME(tool_in_spindle); SAME(tool_length_offset); SAME_BITS(tool_length);
   SAME(tool_length_active); SAME(tcp); SAME_BITS(tool_vector);
   SAME(tool_vector_mode); SAME(coolant); SAME(work_offset); SAME_BITS(work_origin);
@@ -270,6 +271,10 @@ TEST(DdsConvert, CorruptEnumerationsAreRefusedByName) {
   bad = m;
   bad.spindle(6);
   EXPECT_FALSE(dds::from_msg(bad, b, &why));
+  bad = m;
+  bad.path_mode(3);
+  EXPECT_FALSE(dds::from_msg(bad, b, &why));
+  EXPECT_NE(why.find("'path_mode'"), std::string::npos) << why;
   bad = m;
   bad.source_units(22);
   EXPECT_FALSE(dds::from_msg(bad, b, &why));

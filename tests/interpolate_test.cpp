@@ -165,6 +165,55 @@ TEST(Interpolate, SmoothersShapeAVelocityStep) {
   }
 }
 
+// G61 (exact stop) holds each block's end until every axis's smoothed command is within
+// in_position of it; G64 goes on at once and rounds the corner by the smoothing's lag. A 20 mm
+// square at F3000 with Ts 32 ms: G61 passes within in_position of every corner, G64 stays about
+// v*Ts = 1.6 mm away (well beyond it), and G61's stops cost time. The hold is counted in the block's
+// duration. Checked the second way: the hold of one block is the exponential's settling time,
+// Ts ln(v Ts / in_position) give or take a sample.
+TEST(Interpolate, ExactStopHoldsEveryCornerUntilInPosition) {
+  const double Ts = 0.032, in_position = 0.01, v = 50;  // [s, mm, mm/s]
+  const std::vector<Axes> corners = {{20, 0, 0, 0, 0}, {20, 20, 0, 0, 0}, {0, 20, 0, 0, 0}, {0, 0, 0, 0, 0}};
+  auto run = [&](PathMode mode, double& duration) {
+    InterpolateOptions o;
+    o.smoothing = Smoothing::kExponential;
+    o.smoothing_time = {Ts, Ts, Ts, Ts, Ts};
+    o.in_position = in_position;
+    Interpolator ip(o, Axes{});
+    Collect c;
+    duration = 0;
+    for (const Axes& corner : corners) {
+      ResolvedBlock b = block(Motion::kLinear, corner, v * 60);
+      b.path_mode = mode;
+      const auto r = ip.add(b, c);
+      EXPECT_EQ(r.status, InterpolateStatus::kOk);
+      duration += r.duration;
+    }
+    ip.finish(c);
+    std::vector<double> nearest;
+    for (std::size_t k = 0; k + 1 < corners.size(); ++k) {  // the three corners the path turns at
+      double d = 1e9;
+      for (const Axes& x : c.s) d = std::min(d, std::hypot(x[kX] - corners[k][kX], x[kY] - corners[k][kY]));
+      nearest.push_back(d);
+    }
+    return nearest;
+  };
+  double blend_time = 0, stop_time = 0;
+  const auto blend = run(PathMode::kBlend, blend_time);
+  const auto stop = run(PathMode::kExactStop, stop_time);
+  for (std::size_t k = 0; k < stop.size(); ++k) {
+    EXPECT_LE(stop[k], in_position) << "corner " << k;
+    EXPECT_GT(blend[k], 50 * in_position) << "corner " << k;
+  }
+  EXPECT_NEAR(blend_time, 4 * 20 / v, 1e-9);
+  const double hold = Ts * std::log(v * Ts / in_position);  // one corner's settling, about 0.26 s
+  EXPECT_NEAR(stop_time - blend_time, 4 * hold, 4 * 0.002);
+  double exact_path_time = 0;
+  const auto exact_path = run(PathMode::kExactPath, exact_path_time);  // G61.1: modelled as G61
+  EXPECT_EQ(exact_path, stop);
+  EXPECT_EQ(exact_path_time, stop_time);
+}
+
 // Second formulation of the smoothers: a sampled sinusoid through the filter has the gain and
 // phase of smoothing_response().
 TEST(Interpolate, SmoothingResponseMatchesFilteredSinusoid) {

@@ -149,7 +149,8 @@ TEST(ParseModal, FeedPerRevolutionIsFTimesTheSpindleSpeed) {
 }
 
 // G64 P is the path tolerance in force (the planner blends corners within it); inches are
-// converted; G64 without P, G61 and G61.1 leave none (compensate.path_tolerance then).
+// converted; G64 without P, G61 and G61.1 leave none (compensate.path_tolerance then). G61 / G61.1
+// are the path mode in force (the interpolator stops at every block end in them).
 TEST(ParseModal, G64PIsThePathToleranceInForce) {
   Parsed p = parse_text("G21 G64 P0.005\nG1 X1 F100\nG20 G64 P0.001 X1\nG61 X2\nG64 P0.01 X3\nG64 X4\n");
   ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
@@ -160,6 +161,10 @@ TEST(ParseModal, G64PIsThePathToleranceInForce) {
   EXPECT_DOUBLE_EQ(p.blocks[3].path_tolerance, 0);
   EXPECT_DOUBLE_EQ(p.blocks[4].path_tolerance, 0.254);
   EXPECT_DOUBLE_EQ(p.blocks[5].path_tolerance, 0);
+  const PathMode modes[] = {PathMode::kBlend, PathMode::kBlend, PathMode::kBlend, PathMode::kExactStop,
+                            PathMode::kBlend, PathMode::kBlend};
+  for (std::size_t i = 0; i < 6; ++i) EXPECT_EQ(p.blocks[i].path_mode, modes[i]) << i;
+  EXPECT_EQ(parse_text("G61.1 G1 X1 F100\nG1 X2\n").blocks.back().path_mode, PathMode::kExactPath);
   expect_error("G21 G64 P-0.01\n", "G64 P-0.01 is not a path tolerance of 0 to 1 mm", 9);
   expect_error("G21 G64 P2\n", "G64 P2 is not a path tolerance", 9);
 }

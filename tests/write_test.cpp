@@ -153,6 +153,21 @@ TEST(WriteFormat, HeaderLineNumbersCommentsAndRejectedLines) {
             "%\n");
 }
 
+// The path mode and tolerance go out where they change, so the control that runs output.nc blends
+// or stops as the source asked (and blends within the G64 P the compensation planned to).
+TEST(WriteRoundTrip, PathModeAndTolerance) {
+  Parsed p = parse_text("G21 G64 P0.005 G1 X1 F100\nG1 X2\nG61 X3\nG61.1 X4\nG64 X5\nG20 G64 P0.001 X1\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  const std::string out = write_all(p, {});
+  EXPECT_NE(out.find("G64 P0.005 G1"), std::string::npos) << out;
+  EXPECT_NE(out.find("N2 X2."), std::string::npos) << out;  // modal: not repeated
+  EXPECT_NE(out.find("G61 X3."), std::string::npos) << out;
+  EXPECT_NE(out.find("G61.1 X4."), std::string::npos) << out;
+  EXPECT_NE(out.find("G64 X5."), std::string::npos) << out;
+  EXPECT_NE(out.find("G64 P0.001"), std::string::npos) << out;  // in the block's inches
+  expect_round_trip_in_both_dialects(p);
+}
+
 // Seeded random programs: every combination of modes the generator can draw must round-trip.
 // GCPIPE_ROUNDTRIP_PROGRAMS sets how many (default 200).
 TEST(WriteRoundTrip, SeededRandomPrograms) {

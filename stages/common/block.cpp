@@ -75,6 +75,8 @@ bool same_meaning(const ResolvedBlock& a, const ResolvedBlock& b, double tol, st
   c.eq("feed_mode", a.feed_mode, b.feed_mode);
   c.num("dwell", a.dwell, b.dwell);
   c.num("spindle_speed", a.spindle_speed, b.spindle_speed);
+  c.num("path_tolerance", a.path_tolerance, b.path_tolerance);
+  c.eq("path_mode", a.path_mode, b.path_mode);
   c.eq("spindle", a.spindle, b.spindle);
   c.eq("tool", a.tool, b.tool);
   c.eq("tool_in_spindle", a.tool_in_spindle, b.tool_in_spindle);
@@ -177,6 +179,9 @@ void append_json(std::string& o, const ResolvedBlock& b) {
   key("feed_mode");
   o += b.feed_mode == FeedMode::kInverseTime ? "\"G93\"" : "\"G94\"";
   num("spindle_speed", b.spindle_speed);
+  num("path_tolerance", b.path_tolerance);
+  key("path_mode");
+  o += b.path_mode == PathMode::kExactStop ? "\"G61\"" : b.path_mode == PathMode::kExactPath ? "\"G61.1\"" : "\"G64\"";
   key("spindle");
   o += b.spindle == Spindle::kCW ? "\"M3\"" : b.spindle == Spindle::kCCW ? "\"M4\"" : "\"M5\"";
   num("tool", b.tool);

@@ -32,6 +32,11 @@ bool feed_mode_from(std::uint8_t v, FeedMode& f) {
   f = static_cast<FeedMode>(v);
   return true;
 }
+bool path_mode_from(std::uint8_t v, PathMode& m) {
+  if (v > 2) return false;
+  m = static_cast<PathMode>(v);
+  return true;
+}
 bool spindle_from(std::uint8_t v, Spindle& s) {
   if (v != 3 && v != 4 && v != 5) return false;
   s = static_cast<Spindle>(v);
@@ -67,6 +72,7 @@ void to_msg(const ResolvedBlock& b, msg::Block& o) {
   o.dwell(b.dwell);
   o.spindle_speed(b.spindle_speed);
   o.path_tolerance(b.path_tolerance);
+  o.path_mode(static_cast<std::uint8_t>(b.path_mode));
   o.spindle(static_cast<std::uint8_t>(b.spindle));
   o.tool(b.tool);
   o.tool_in_spindle(b.tool_in_spindle);
@@ -101,6 +107,7 @@ bool from_msg(const msg::Block& i, ResolvedBlock& b, std::string* why) {
   if (!plane_from(i.plane(), b.plane)) return fail(why, "plane", i.plane());
   if (!feed_mode_from(i.feed_mode(), b.feed_mode)) return fail(why, "feed_mode", i.feed_mode());
   if (!spindle_from(i.spindle(), b.spindle)) return fail(why, "spindle", i.spindle());
+  if (!path_mode_from(i.path_mode(), b.path_mode)) return fail(why, "path_mode", i.path_mode());
   if (!units_from(i.source_units(), b.source_units))
     return fail(why, "source_units", i.source_units());
   if (!stop_from(i.stop(), b.stop)) return fail(why, "stop", i.stop());

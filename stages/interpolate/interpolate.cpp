@@ -14,9 +14,10 @@ constexpr double kTwoPi = 2 * std::numbers::pi;
 }
 
 InterpolateOptions load_interpolate_options(const Config& s) {
-  s.reject_unknown({"period", "smoothing"});
+  s.reject_unknown({"period", "smoothing", "in_position"});
   InterpolateOptions o;
   o.period = s.number("period", o.period, "s", 1e-5, 0.1);
+  o.in_position = s.number("in_position", o.in_position, "mm or deg", 1e-6, 1);
   const std::string k = s.choice("smoothing", "exponential", {"none", "linear", "exponential"});
   o.smoothing = k == "none" ? Smoothing::kNone : k == "linear" ? Smoothing::kLinear : Smoothing::kExponential;
   return o;
@@ -265,7 +266,27 @@ InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
   if (auto early = plan_duration(b, plan, res)) return *early;
   if (auto early = account(b, plan, res)) return *early;
   sample(b, plan, sink);
+  if (plan.moves && b.path_mode != PathMode::kBlend) res.duration += hold_until_in_position(sink);
   return res;
+}
+
+// G61 (exact stop) and G61.1 (exact path, which a control that smooths after interpolation can
+// only keep by stopping): the end point is held until every axis's smoothed command is within
+// in_position of it, as a control's in-position check holds the next block (here on the command:
+// the drives come after the interpolator). The time held [s] belongs to the block.
+double Interpolator::hold_until_in_position(SampleSink& sink) {
+  const double t0 = t_block_;
+  std::size_t need = 0;
+  for (const auto& s : smooth_) need = std::max(need, s.settle_samples());
+  for (std::size_t i = 0; i < need + 1; ++i) {
+    bool all = true;
+    for (std::size_t a = 0; a < kNumAxes; ++a) all = all && smooth_[a].settled(raw_end_[a], opt_.in_position);
+    if (all && i > 0) break;
+    ++n_;  // the first completes the block's partial period, as finish() does
+    emit(raw_end_, sink);
+  }
+  t_block_ = static_cast<double>(n_) * opt_.period;
+  return t_block_ - t0;
 }
 
 namespace {

@@ -60,6 +60,9 @@ struct InterpolateOptions {
   /// checked before its first sample, so that one block (`G1 X100 F0.001`, an arc of thousands
   /// of turns, a long dwell) cannot run for hours or fill memory.
   double max_time = std::numeric_limits<double>::infinity();
+  /// In G61 / G61.1 the next block starts once every axis's command is within this of the
+  /// block's end [mm, deg] (a Fanuc control's in-position width, parameter 1826, is of this order).
+  double in_position = 0.01;
 };
 
 /// Reads the `interpolate` section (period, smoothing); unknown keys rejected. The limits come
@@ -163,6 +166,7 @@ class Interpolator {
   std::optional<InterpolateResult> account(const ResolvedBlock& b, const BlockPlan& plan, InterpolateResult& res);
   void sample(const ResolvedBlock& b, const BlockPlan& plan, SampleSink& sink);
   void emit(const Axes& raw, SampleSink& sink);
+  double hold_until_in_position(SampleSink& sink);
   InterpolateOptions opt_;
   bool tcp_space_ = false;    // the last moving block was a TCP block (targets were tool tips)
   bool pole_turn_ = false;    // inside the C turn that precedes a G43.5 block leaving the pole

@@ -151,6 +151,7 @@ void Parser::Impl::publish(ResolvedBlock& b, const ModalState& s) const {
   b.feed_mode = s.feed_mode;
   b.spindle_speed = s.spindle_speed;
   b.path_tolerance = s.path_tolerance;
+  b.path_mode = s.path_mode;
   b.spindle = s.spindle;
   b.tool = s.tool;
   b.tool_in_spindle = s.tool_in_spindle;

@@ -93,6 +93,7 @@ struct ModalState {
   double feed_per_rev = 0;       // G95's F [mm/rev]
   double spindle_speed = 0;
   double path_tolerance = 0;     // G64 P [mm]; 0 after G64 without P, G61 or G61.1
+  PathMode path_mode = PathMode::kBlend;  // G64 / G61 / G61.1
   Spindle spindle = Spindle::kOff;
   std::int32_t tool = 0;
   std::int32_t tool_in_spindle = 0;

@@ -416,8 +416,11 @@ GCPIPE_STEP bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, 
   if (c.has(kGPlane)) ns.plane = static_cast<Plane>(c.group_code[kGPlane] / 10);
   // G64 P: the path tolerance a look-ahead control blends corners within (LinuxCNC's naive-CAM Q
   // is read and not used). G64 without P, G61 (exact stop) and G61.1 (exact path) give none:
-  // the planner then takes compensate.path_tolerance (it does not stop at every block in G61).
+  // the planner then takes compensate.path_tolerance. G61 and G61.1 stop at every block end (the
+  // interpolator holds until every axis is in position).
   if (c.has(kGPathMode)) {
+    const int code = c.group_code[kGPathMode];
+    ns.path_mode = code == 610 ? PathMode::kExactStop : code == 611 ? PathMode::kExactPath : PathMode::kBlend;
     ns.path_tolerance = 0;
     if (c.group_code[kGPathMode] == 640 && sc.has('P')) {
       const Word& p = sc.w('P');

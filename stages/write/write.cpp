@@ -110,6 +110,7 @@ bool Writer::write(const ResolvedBlock& b, std::string& out) {
   }
   const std::size_t bare = line.text.size();  // what the line holds before any word with meaning
   units_and_offset(b, line);
+  path_control(b, line);
   tool_length_and_tcp(b, line);
   feed_mode_tool_spindle_coolant(b, line);
   if (!have_pos_) {
@@ -169,6 +170,20 @@ void Writer::units_and_offset(const ResolvedBlock& b, Line& line) {
     line.word(names[std::clamp(b.work_offset - 54, 0, 5)]);
     work_offset_ = b.work_offset;
   }
+}
+
+// G64 [P] / G61 / G61.1 when they change: the control that runs the output blends (or stops) as
+// the source asked, and a G64 P is the path tolerance the compensation planned to.
+void Writer::path_control(const ResolvedBlock& b, Line& line) {
+  if (b.path_mode == path_mode_ && b.path_tolerance == path_tolerance_) return;
+  if (b.path_mode == PathMode::kExactStop) line.word("G61");
+  else if (b.path_mode == PathMode::kExactPath) line.word("G61.1");
+  else {
+    line.word("G64");
+    if (b.path_tolerance > 0) line.number('P', line.len(b.path_tolerance));
+  }
+  path_mode_ = b.path_mode;
+  path_tolerance_ = b.path_tolerance;
 }
 
 void Writer::tool_length_and_tcp(const ResolvedBlock& b, Line& line) {

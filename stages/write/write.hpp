@@ -54,6 +54,7 @@ class Writer {
   bool refuse(const ResolvedBlock& b, std::string& out);
   bool write_program_start(const ResolvedBlock& b, std::string& out);
   void units_and_offset(const ResolvedBlock& b, Line& line);
+  void path_control(const ResolvedBlock& b, Line& line);
   void tool_length_and_tcp(const ResolvedBlock& b, Line& line);
   void feed_mode_tool_spindle_coolant(const ResolvedBlock& b, Line& line);
   void motion(const ResolvedBlock& b, Line& line);
@@ -77,6 +78,8 @@ class Writer {
   bool have_pos_ = false;
   Axes pos_{};  // program coordinates the output has reached
   std::int32_t work_offset_ = 54;
+  PathMode path_mode_ = PathMode::kBlend;  // G64 without P: the control's own blending
+  double path_tolerance_ = 0;              // [mm]
   bool tlo_active_ = false;
   std::int32_t tlo_ = 0;
   bool tcp_ = false;

@@ -32,6 +32,9 @@ enum class Motion : std::uint8_t {
 enum class Plane : std::uint8_t { kXY = 17, kZX = 18, kYZ = 19 };  //!< G17 / G18 / G19
 enum class FeedMode : std::uint8_t { kUnitsPerMinute = 94, kInverseTime = 93 };  //!< G94 / G93
 enum class Spindle : std::uint8_t { kOff = 5, kCW = 3, kCCW = 4 };  //!< M5 / M3 / M4
+/// G64 (blend corners, within G64 P if given) / G61 (exact stop at every block end) / G61.1
+/// (exact path: modelled as G61, since this control model follows a path exactly only by stopping).
+enum class PathMode : std::uint8_t { kBlend = 0, kExactStop = 1, kExactPath = 2 };
 enum class Units : std::uint8_t { kMillimetre = 21, kInch = 20 };  //!< G21 / G20 (source only)
 
 /// Program-flow M codes (modal group 4) and the tool change; at most one per block.
@@ -93,6 +96,7 @@ struct ResolvedBlock {
   double spindle_speed = 0;                 //!< S [rev/min]
   double path_tolerance = 0;                //!< G64 P in force [mm] (0: none programmed; the
                                             //!< planner then takes compensate.path_tolerance)
+  PathMode path_mode = PathMode::kBlend;    //!< G64 / G61 / G61.1 in force
   Spindle spindle = Spindle::kOff;
   std::int32_t tool = 0;                    //!< T selected (loaded by M6)
   std::int32_t tool_in_spindle = 0;         //!< tool loaded by the last M6
