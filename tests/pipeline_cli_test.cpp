@@ -204,3 +204,36 @@ TEST(Evaluate, SimulatedTraceGivesBatchsRapidError) {
 }
 
 }  // namespace
+
+// G61 through the whole batch: the control model stops at every corner, so the original runs
+// longer than in G64; the plan stops there too; output.nc keeps the program's G61; compensated.nc
+// carries the stops in its timed points and runs in the control's plain mode (no G61, which would
+// stop at every point), within the 1.02x of the planned cycle that issue 12 asks.
+TEST(PathMode, ExactStopRunsThroughBatchAndTheCompensatedProgramRunsAsPlanned) {
+  const fs::path dir = tmpdir("path_mode");
+  auto run = [&](const std::string& mode) {
+    const fs::path program = dir / (mode + ".nc");
+    {
+      std::ofstream p(program);
+      p << "G21 G90 G94 G17 " << mode << "\nG0 X0 Y0 Z5\nG1 Z0 F500\nG1 X20 F3000\nY20\nX0\nY0\nG0 Z5\nM30\n";
+    }
+    const fs::path out = dir / ("out_" + mode);
+    const Outcome r = gcpipe({"batch", program.string(), "-o", out.string(), "--quiet"});
+    EXPECT_EQ(r.status, 0) << r.err;
+    return out;
+  };
+  const fs::path blend = run("G64"), stop = run("G61");
+  const auto sb = read_json(blend / "report.json").at("simulation");
+  const auto ss = read_json(stop / "report.json").at("simulation");
+  EXPECT_GT(ss.at("cycle_time_before_s").get<double>(), sb.at("cycle_time_before_s").get<double>() + 0.3);
+  EXPECT_NE(slurp(stop / "output.nc").find("G61"), std::string::npos);
+  EXPECT_EQ(slurp(stop / "compensated.nc").find("G61"), std::string::npos);
+  EXPECT_TRUE(ss.at("compensated").get<bool>()) << ss.at("note");
+  EXPECT_LE(ss.at("cycle_time_after_s").get<double>(), 1.02 * ss.at("cycle_time_planned_s").get<double>());
+  // The plan stops where the control does (measured: 9.39 -> 1.06 um). Before the plan knew the
+  // G61 stops it blended those corners, ran 4.70 s against the original's 5.59 s and made the
+  // error worse (34.8 um): this fails then.
+  EXPECT_LT(ss.at("contour_error_after").at("cutting").at("max_mm").get<double>(),
+            0.5 * ss.at("contour_error_before").at("cutting").at("max_mm").get<double>());
+  EXPECT_GE(ss.at("cycle_time_planned_s").get<double>(), ss.at("cycle_time_before_s").get<double>());
+}

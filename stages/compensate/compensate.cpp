@@ -899,6 +899,10 @@ void CompensatedBlocks::pass_block(std::size_t i) {
   c.tool_length_active = false;
   c.tool_length = 0;
   c.tool_length_offset = 0;
+  // The timed points carry the program's stops and corner speeds (the plan followed G61 and
+  // G64 P): the control runs them as timed, in its plain blending mode, not stopping at each.
+  c.path_mode = PathMode::kBlend;
+  c.path_tolerance = 0;
   if (b.motion != Motion::kNone && b.line == noted_line_ && b.motion != Motion::kDwell) return;
   if (b.motion != Motion::kNone) {
     noted_line_ = b.line;

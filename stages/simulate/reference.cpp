@@ -23,8 +23,9 @@ struct RawPath {
   bool ends_program = true;  //!< its last sample is the program's last
   std::vector<double> ds;    //!< sigma steps [s at speed limit]: step k from sample first + k
   /// Steps that do not move and where the path rests: a dwell, before the first and after the
-  /// last move. Other steps that do not move (a sample repeated where a block ends on a tick)
-  /// neither stop the plan nor take time.
+  /// last move, a block's end in G61 / G61.1 (the control holds it until in position: the plan
+  /// stops there too, and keeps the time). Other steps that do not move (a sample repeated where
+  /// a block ends on a tick) neither stop the plan nor take time.
   std::vector<std::uint8_t> rest;
   std::vector<double> sigma;  //!< cumulative sigma at every sample, from the program's start
   // The unit directions of the steps are not kept (40 bytes a tick, the largest series of the
@@ -89,7 +90,8 @@ RawPath raw_path(const Model& model, std::span<const ResolvedBlock> program, con
     if (p.ds[k] > kStill) continue;
     const std::size_t g = first + k;
     const ResolvedBlock& b = program[nom.block[g + 1]];
-    p.rest[k] = g < moving.first || g > moving.last || b.motion == Motion::kDwell || b.stop != ProgramStop::kNone;
+    p.rest[k] = g < moving.first || g > moving.last || b.motion == Motion::kDwell || b.stop != ProgramStop::kNone ||
+                b.path_mode != PathMode::kBlend;
   }
   return p;
 }
