@@ -107,7 +107,8 @@ class CompensateStage final : public pipeline::Stage {
         parse_options_(load_parse_options(c.config->root.section("parse"))),
         machine_(c.config->machine),
         progress_(c.progress),
-        collect_(std::find(c.stages.begin(), c.stages.end(), "simulate") == c.stages.end()) {}
+        collect_(std::find(c.stages.begin(), c.stages.end(), "simulate") == c.stages.end()),
+        blocks_(options_.max_blocks) {}
 
   bool block(const ResolvedBlock& b, Emitter&) override {
     if (collect_ && blocks_.size() < options_.max_blocks) blocks_.push_back(b);
@@ -213,7 +214,7 @@ class CompensateStage final : public pipeline::Stage {
   pipeline::Progress progress_;
   bool collect_;
   bool too_many_ = false;
-  std::vector<ResolvedBlock> blocks_;
+  BlockStore blocks_;  // the program when no simulate stage runs in this process (a DDS node)
   std::shared_ptr<const SimulatedProgram> simulated_;
   compensate::ProgramCompensation compensation_;
   std::optional<simulate::Evaluation> after_;
