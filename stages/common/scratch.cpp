@@ -41,10 +41,13 @@ std::size_t resident_pages() {
 /// Drops the spilled mappings' pages from the resident set. A page still in use faults back in
 /// from the page cache (a minor fault; a read fault maps 16 pages at a time), so this costs a
 /// little time and no value. It is done when the process's resident set has grown by kGrowth
-/// since the last time (a pass over a whole series touches hundreds of MB a second: looked at
-/// every kPoll, it stays within a few MB of that) and every kPeriod anyway. A thread, because the
-/// readers of a series are many loops in several stages, and a series read again (the read-back,
-/// the figures) would otherwise stay resident to the end.
+/// since the last time and every kPeriod anyway. A pass that computes on every tick touches at
+/// most hundreds of MB a second, so it stays within a few MB of kGrowth; a pass that reads a field
+/// or two per block maps the page cache at gigabytes a second (the whole program's blocks between
+/// two polls, measured), which no polling follows: that is what still grows with the program
+/// (stages/compensate/README.md, "Memory"). A thread, because the readers of a series are many
+/// loops in several stages, and a series read again (the read-back, the figures) would otherwise
+/// stay resident to the end.
 class ResidentSetTrimmer {
  public:
   static constexpr std::chrono::milliseconds kPoll{5};
