@@ -115,14 +115,22 @@ namespace {
 const char* plane_name(Plane p) { return p == Plane::kXY ? "XY" : p == Plane::kZX ? "ZX" : "YZ"; }
 }  // namespace
 
-void append_json(std::string& o, const ResolvedBlock& b) {
-  auto key = [&](const char* k) {
+namespace {
+
+/// One JSON object's fields, appended to `o` in order.
+struct JsonFields {
+  std::string& o;
+  void key(const char* k) {
     if (o.back() != '{') o.push_back(',');
     o.push_back('"');
     o += k;
     o += "\":";
-  };
-  auto arr = [&](const char* k, const double* v, int n) {
+  }
+  void num(const char* k, double v) {
+    key(k);
+    append_json_number(o, v);
+  }
+  void arr(const char* k, const double* v, int n) {
     key(k);
     o.push_back('[');
     for (int i = 0; i < n; ++i) {
@@ -130,92 +138,96 @@ void append_json(std::string& o, const ResolvedBlock& b) {
       append_json_number(o, v[i]);
     }
     o.push_back(']');
-  };
-  auto num = [&](const char* k, double v) {
+  }
+  void text(const char* k, const char* v) {  // a fixed name: no escaping needed
     key(k);
-    append_json_number(o, v);
-  };
-  o.push_back('{');
-  num("line", static_cast<double>(b.line));
-  key("text");
-  append_json_string(o, b.text);
+    o.push_back('"');
+    o += v;
+    o.push_back('"');
+  }
+  void flag(const char* k, bool v) {
+    key(k);
+    o += v ? "true" : "false";
+  }
+};
+
+void append_slot_json(JsonFields& f, const TrochoidSlot& t) {
+  f.key("slot");
+  f.o.push_back('{');
+  f.arr("start", t.start.data(), 3);
+  f.arr("end", t.end.data(), 3);
+  f.num("bottom", t.bottom);
+  f.num("clearance", t.clearance);
+  f.num("width", t.width);
+  f.num("step", t.step);
+  f.num("depth_step", t.depth_step);
+  f.num("tool_diameter", t.tool_diameter);
+  f.flag("climb", t.climb);
+  f.o.push_back('}');
+}
+
+/// The line, its text and the move: what the block does.
+void append_motion_json(JsonFields& f, const ResolvedBlock& b) {
+  f.num("line", static_cast<double>(b.line));
+  f.key("text");
+  append_json_string(f.o, b.text);
   if (!b.comment.empty()) {
-    key("comment");
-    append_json_string(o, b.comment);
+    f.key("comment");
+    append_json_string(f.o, b.comment);
   }
-  key("motion");
-  o += '"';
-  o += to_string(b.motion);
-  o += '"';
-  arr("start", b.start.data(), kNumAxes);
-  arr("target", b.target.data(), kNumAxes);
+  f.text("motion", to_string(b.motion));
+  f.arr("start", b.start.data(), kNumAxes);
+  f.arr("target", b.target.data(), kNumAxes);
   if (b.motion == Motion::kArcCW || b.motion == Motion::kArcCCW) {
-    key("plane");
-    o += '"';
-    o += plane_name(b.plane);
-    o += '"';
-    arr("centre", b.centre.data(), 3);
-    num("radius", b.radius);
-    num("turns", b.turns);
+    f.text("plane", plane_name(b.plane));
+    f.arr("centre", b.centre.data(), 3);
+    f.num("radius", b.radius);
+    f.num("turns", b.turns);
   }
-  if (b.motion == Motion::kDwell) num("dwell", b.dwell);
-  if (b.motion == Motion::kTrochoidSlot) {
-    const TrochoidSlot& t = b.slot;
-    key("slot");
-    o.push_back('{');
-    arr("start", t.start.data(), 3);
-    arr("end", t.end.data(), 3);
-    num("bottom", t.bottom);
-    num("clearance", t.clearance);
-    num("width", t.width);
-    num("step", t.step);
-    num("depth_step", t.depth_step);
-    num("tool_diameter", t.tool_diameter);
-    key("climb");
-    o += t.climb ? "true" : "false";
-    o.push_back('}');
-  }
-  num("feed", b.feed);
-  key("feed_mode");
-  o += b.feed_mode == FeedMode::kInverseTime ? "\"G93\"" : "\"G94\"";
-  num("spindle_speed", b.spindle_speed);
-  num("path_tolerance", b.path_tolerance);
-  key("path_mode");
-  o += b.path_mode == PathMode::kExactStop ? "\"G61\"" : b.path_mode == PathMode::kExactPath ? "\"G61.1\"" : "\"G64\"";
-  key("spindle");
-  o += b.spindle == Spindle::kCW ? "\"M3\"" : b.spindle == Spindle::kCCW ? "\"M4\"" : "\"M5\"";
-  num("tool", b.tool);
-  num("tool_in_spindle", b.tool_in_spindle);
-  num("tool_length_offset", b.tool_length_offset);
-  num("tool_length", b.tool_length);
-  key("tool_length_active");
-  o += b.tool_length_active ? "true" : "false";
-  key("tcp");
-  o += b.tcp ? "true" : "false";
+  if (b.motion == Motion::kDwell) f.num("dwell", b.dwell);
+  if (b.motion == Motion::kTrochoidSlot) append_slot_json(f, b.slot);
+}
+
+/// The modal state in force for it, and what the line ends with (tool change, stop, %).
+void append_modal_json(JsonFields& f, const ResolvedBlock& b) {
+  f.num("feed", b.feed);
+  f.text("feed_mode", b.feed_mode == FeedMode::kInverseTime ? "G93" : "G94");
+  f.num("spindle_speed", b.spindle_speed);
+  // Only where the program sets them (G64 P, G61, G61.1), so that other programs' JSON is unchanged.
+  if (b.path_tolerance > 0) f.num("path_tolerance", b.path_tolerance);
+  if (b.path_mode != PathMode::kBlend) f.text("path_mode", b.path_mode == PathMode::kExactStop ? "G61" : "G61.1");
+  f.text("spindle", b.spindle == Spindle::kCW ? "M3" : b.spindle == Spindle::kCCW ? "M4" : "M5");
+  f.num("tool", b.tool);
+  f.num("tool_in_spindle", b.tool_in_spindle);
+  f.num("tool_length_offset", b.tool_length_offset);
+  f.num("tool_length", b.tool_length);
+  f.flag("tool_length_active", b.tool_length_active);
+  f.flag("tcp", b.tcp);
   if (b.tool_vector_mode) {  // only in G43.5 mode, so that other programs' JSON is unchanged
-    key("tool_vector_mode");
-    o += "true";
-    arr("tool_vector", b.tool_vector.data(), 3);
+    f.flag("tool_vector_mode", true);
+    f.arr("tool_vector", b.tool_vector.data(), 3);
   }
-  num("coolant", b.coolant);
-  num("work_offset", b.work_offset);
-  arr("work_origin", b.work_origin.data(), kNumAxes);
-  key("source_units");
-  o += b.source_units == Units::kInch ? "\"inch\"" : "\"mm\"";
-  if (b.tool_change) {
-    key("tool_change");
-    o += "true";
-  }
-  if (b.stop != ProgramStop::kNone) {
-    key("stop");
-    o += b.stop == ProgramStop::kStop ? "\"M0\"" : b.stop == ProgramStop::kOptionalStop ? "\"M1\""
-         : b.stop == ProgramStop::kEnd ? "\"M2\"" : "\"M30\"";
-  }
-  if (b.program_number >= 0) num("program_number", b.program_number);
-  if (b.percent) {
-    key("percent");
-    o += "true";
-  }
+  f.num("coolant", b.coolant);
+  f.num("work_offset", b.work_offset);
+  f.arr("work_origin", b.work_origin.data(), kNumAxes);
+  f.text("source_units", b.source_units == Units::kInch ? "inch" : "mm");
+  if (b.tool_change) f.flag("tool_change", true);
+  if (b.stop != ProgramStop::kNone)
+    f.text("stop", b.stop == ProgramStop::kStop           ? "M0"
+                   : b.stop == ProgramStop::kOptionalStop ? "M1"
+                   : b.stop == ProgramStop::kEnd          ? "M2"
+                                                          : "M30");
+  if (b.program_number >= 0) f.num("program_number", b.program_number);
+  if (b.percent) f.flag("percent", true);
+}
+
+}  // namespace
+
+void append_json(std::string& o, const ResolvedBlock& b) {
+  JsonFields f{o};
+  o.push_back('{');
+  append_motion_json(f, b);
+  append_modal_json(f, b);
   o.push_back('}');
 }
 

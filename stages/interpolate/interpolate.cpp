@@ -274,15 +274,20 @@ InterpolateResult Interpolator::add(const ResolvedBlock& b, SampleSink& sink) {
 // only keep by stopping): the end point is held until every axis's smoothed command is within
 // in_position of it, as a control's in-position check holds the next block (here on the command:
 // the drives come after the interpolator). The time held [s] belongs to the block.
-double Interpolator::hold_until_in_position(SampleSink& sink) {
+double Interpolator::hold_until_in_position(SampleSink& sink) { return hold_end(sink, opt_.in_position); }
+
+// Holds the raw end until every smoother is within `tolerance` of it (at most their settling
+// time); the first sample completes the partial period so that the raw clock and the sample
+// clock agree again. Returns the time held [s].
+double Interpolator::hold_end(SampleSink& sink, double tolerance) {
   const double t0 = t_block_;
   std::size_t need = 0;
   for (const auto& s : smooth_) need = std::max(need, s.settle_samples());
   for (std::size_t i = 0; i < need + 1; ++i) {
     bool all = true;
-    for (std::size_t a = 0; a < kNumAxes; ++a) all = all && smooth_[a].settled(raw_end_[a], opt_.in_position);
+    for (std::size_t a = 0; a < kNumAxes; ++a) all = all && smooth_[a].settled(raw_end_[a], tolerance);
     if (all && i > 0) break;
-    ++n_;  // the first completes the block's partial period, as finish() does
+    ++n_;
     emit(raw_end_, sink);
   }
   t_block_ = static_cast<double>(n_) * opt_.period;
@@ -619,18 +624,6 @@ void Interpolator::sample(const ResolvedBlock& b, const BlockPlan& plan, SampleS
   raw_end_ = plan.tcp ? plan.tcp_end : path.to;
 }
 
-void Interpolator::finish(SampleSink& sink) {
-  std::size_t need = 0;
-  for (const auto& s : smooth_) need = std::max(need, s.settle_samples());
-  // Complete the partial period first so the raw clock and the sample clock agree again.
-  for (std::size_t i = 0; i < need + 1; ++i) {
-    bool all = true;
-    for (std::size_t a = 0; a < kNumAxes; ++a) all = all && smooth_[a].settled(raw_end_[a], 1e-9);
-    if (all && i > 0) break;
-    ++n_;
-    emit(raw_end_, sink);
-  }
-  t_block_ = static_cast<double>(n_) * opt_.period;
-}
+void Interpolator::finish(SampleSink& sink) { hold_end(sink, 1e-9); }
 
 }  // namespace gcpipe::interpolate

@@ -167,6 +167,7 @@ class Interpolator {
   void sample(const ResolvedBlock& b, const BlockPlan& plan, SampleSink& sink);
   void emit(const Axes& raw, SampleSink& sink);
   double hold_until_in_position(SampleSink& sink);
+  double hold_end(SampleSink& sink, double tolerance);
   InterpolateOptions opt_;
   bool tcp_space_ = false;    // the last moving block was a TCP block (targets were tool tips)
   bool pole_turn_ = false;    // inside the C turn that precedes a G43.5 block leaving the pole

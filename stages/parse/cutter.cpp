@@ -278,16 +278,16 @@ bool Parser::Impl::offset_path(const ModalState& ns, const ResolvedBlock& b, Off
   // tolerance can leave it, and output.nc (or a control) would reject the arc written. The
   // programmed arc is the one to fix, so it is rejected here, at its line.
   if (!arc_radii_agree(rs + grow, re + grow, arc_radius_tolerance(ns.units == Units::kInch))) {
-    const double k = ns.units == Units::kInch ? 1 / kInch : 1;
+    const bool inch = ns.units == Units::kInch;
+    const double k = inch ? 1 / kInch : 1, diff = std::fabs(rs - re), r = std::max(rs, re);
+    const char* unit = inch ? "inch" : "mm";
     char buf[320];
     std::snprintf(buf, sizeof buf,
                   "%s: with %s the tool path's radii differ by %.4g %s, %.4f %% of its radius %.4g %s: past the "
                   "0.1 %% an arc may have (the programmed arc, %.4f %% of %.4g %s, is within it); put the arc's "
                   "end on the circle through its start",
-                  g, side_name(ns.comp_side), std::fabs(rs - re) * k, ns.units == Units::kInch ? "inch" : "mm",
-                  100 * std::fabs(rs - re) / (std::max(rs, re) + grow), (std::max(rs, re) + grow) * k,
-                  ns.units == Units::kInch ? "inch" : "mm", 100 * std::fabs(rs - re) / std::max(rs, re),
-                  std::max(rs, re) * k, ns.units == Units::kInch ? "inch" : "mm");
+                  g, side_name(ns.comp_side), diff * k, unit, 100 * diff / (r + grow), (r + grow) * k, unit,
+                  100 * diff / r, r * k, unit);
     return fail(move_col(sc), buf);
   }
   m.radius = rs + grow;

@@ -3,7 +3,6 @@
 // machine file's reference positions (G28/G30), coordinate shifts (G92 family, G52), offsets set
 // from the program (G10), and the G275 slot.
 #include <cmath>
-#include <numbers>
 
 #include "parse_internal.hpp"
 

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <deque>
 #include <map>
+#include <numbers>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -33,7 +34,7 @@ constexpr double kMaxSpindle = 1e6;  // [rev/min]
 constexpr double kInch = 25.4;       // [mm]
 
 /// LinuxCNC's absolute radius tolerance of a centre-format arc [mm] in the program's units.
-inline double arc_radius_tolerance(bool inch) { return (inch ? 2 * 0.001 * kInch : 2 * 0.01) * 1.4142135623730951; }
+inline double arc_radius_tolerance(bool inch) { return (inch ? 2 * 0.001 * kInch : 2 * 0.01) * std::numbers::sqrt2; }
 /// Whether an arc's start and end radii agree as LinuxCNC asks (motion.cpp, offset_centre): the
 /// one check for programmed arcs and for the offset paths cutter compensation makes of them.
 inline bool arc_radii_agree(double r1, double r2, double t_abs) {

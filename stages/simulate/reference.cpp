@@ -562,8 +562,9 @@ class ChunkedPlan {
         N_(nom.raw.size()), moving_(moving_steps(model, nom)), chunk_(ticks(plan.chunk_seconds, c_.T)),
         min_margin_(ticks(2.0, c_.T)), state_(c_.ma, c_.mb, c_.m1, c_.m2) {
     // The reference and its progress grow in scratch arrays (gcpipe/scratch.hpp), which never
-    // copy to grow: no room is reserved (a reservation for max_machine_time cost resident memory
-    // that grew with that bound: 14 MB more at 7300 s than at 3600 s on the one-hour program).
+    // copy to grow: no room is reserved (with a reservation for max_machine_time the one-hour
+    // program peaked at 70 MB with that bound at 7300 s against 56 MB at 3600 s, twice each; the
+    // spread between runs is up to 10 MB, so the cost is measured only roughly).
     nom.reference.release();
     nom.progress.release();
   }

@@ -479,8 +479,8 @@ class RunAccumulator {
 
 namespace {
 
-/// The recorded run's series grew sample by sample, so up to half of what they hold is spare: it
-/// goes before the planner, whose peak it would add to (20 MB on a one-hour program).
+/// The recorded run's series grew by doubling, so up to half of their room is spare: scratch-file
+/// disk taken ahead (gcpipe/scratch.hpp), given back before the planner.
 void shrink_recorded(Nominal& nom) {
   nom.raw.shrink_to_fit();
   nom.block.shrink_to_fit();
