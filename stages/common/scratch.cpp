@@ -43,11 +43,11 @@ std::size_t resident_pages() {
 /// little time and no value. It is done when the process's resident set has grown by kGrowth
 /// since the last time and every kPeriod anyway. A pass that computes on every tick touches at
 /// most hundreds of MB a second, so it stays within a few MB of kGrowth; a pass that reads a field
-/// or two per block maps the page cache at gigabytes a second (the whole program's blocks between
-/// two polls, measured), which no polling follows: that is what still grows with the program
-/// (stages/compensate/README.md, "Memory"). A thread, because the readers of a series are many
-/// loops in several stages, and a series read again (the read-back, the figures) would otherwise
-/// stay resident to the end.
+/// or two per element maps the page cache at gigabytes a second (a whole program's blocks between
+/// two polls, measured), which no polling follows: such passes read the blocks' briefs instead
+/// (BlockBrief) or call trim_scratch_if_grown() as they go. A thread, because the readers of a
+/// series are many loops in several stages, and a series read again (the read-back, the figures)
+/// would otherwise stay resident to the end.
 class ResidentSetTrimmer {
  public:
   static constexpr std::chrono::milliseconds kPoll{5};
@@ -65,6 +65,12 @@ class ResidentSetTrimmer {
     std::lock_guard<std::mutex> lock(mutex_);
     regions_.erase(p);
   }
+  /// The trim, now, if the resident set has grown by kGrowth since the last: for a pass that maps
+  /// scratch pages faster than the thread's poll follows.
+  void trim_if_grown() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!regions_.empty() && resident_pages() >= after_trim_ + kGrowth / page_size()) trim();
+  }
   ~ResidentSetTrimmer() {
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -77,26 +83,27 @@ class ResidentSetTrimmer {
  private:
   void run() {
     const std::size_t growth_pages = kGrowth / page_size();
-    std::size_t after_trim = 0;
-    auto last = std::chrono::steady_clock::now();
     std::unique_lock<std::mutex> lock(mutex_);
     while (!stop_) {
       if (regions_.empty()) wake_.wait(lock, [this] { return stop_ || !regions_.empty(); });
       else wake_.wait_for(lock, kPoll, [this] { return stop_; });
-      const std::size_t now_pages = resident_pages();
-      const auto now = std::chrono::steady_clock::now();
-      if (now_pages < after_trim + growth_pages && now - last < kPeriod) continue;
-      // Under the lock: a region removed (and then unmapped, its addresses perhaps reused) is
-      // never advised. MADV_DONTNEED on a shared file mapping keeps the contents (the file has them).
-      for (const auto& [p, bytes] : regions_) ::madvise(p, bytes, MADV_DONTNEED);
-      after_trim = resident_pages();
-      last = now;
+      if (resident_pages() < after_trim_ + growth_pages && std::chrono::steady_clock::now() - last_ < kPeriod) continue;
+      trim();
     }
+  }
+  // Under the lock: a region removed (and then unmapped, its addresses perhaps reused) is never
+  // advised. MADV_DONTNEED on a shared file mapping keeps the contents (the file has them).
+  void trim() {
+    for (const auto& [p, bytes] : regions_) ::madvise(p, bytes, MADV_DONTNEED);
+    after_trim_ = resident_pages();
+    last_ = std::chrono::steady_clock::now();
   }
   std::mutex mutex_;
   std::condition_variable wake_;
   std::map<std::byte*, std::size_t> regions_;
   bool stop_ = false;
+  std::size_t after_trim_ = 0;  // resident pages after the last trim
+  std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
   std::thread thread_;
 };
 
@@ -131,6 +138,8 @@ void warn_once_in_memory(const std::string& dir, int error) {
 }
 
 }  // namespace
+
+void trim_scratch_if_grown() { trimmer().trim_if_grown(); }
 
 std::string scratch_directory() {
   const char* dir = std::getenv("GCPIPE_SCRATCH_DIR");

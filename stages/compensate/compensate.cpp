@@ -84,13 +84,12 @@ void project_step(const Axes& from, Axes& to, const Axes& vmax, double dt) {
 struct ReferenceClock {
   const Model& model;
   const Nominal& nom;
-  std::span<const ResolvedBlock> program;
   std::uint32_t block_at(std::uint64_t tick) const {
     const std::size_t p = nom.progress[std::min<std::size_t>(tick, nom.progress.size() - 1)];
     return nom.block[std::min<std::size_t>(p, nom.block.size() - 1)];
   }
   Vec3 tip_at(const Axes& j, std::uint64_t tick) const {
-    return forward_kinematics(model.kin, j, tool_length_of(model, program[block_at(tick)])).tip;
+    return forward_kinematics(model.kin, j, tool_length_of(model, nom.brief[block_at(tick)])).tip;
   }
 };
 
@@ -148,10 +147,12 @@ std::vector<std::uint64_t> linearised_grid(const ReferenceClock& clock, std::uin
 
 // What the source's own TCP blocks would do if run joint-linearly between their IK end points
 // (a control without TCP): reported, since it is the error the node program removes.
-void measure_source_joint_linear_deviation(const Model& model, std::span<const ResolvedBlock> program, double tolerance,
-                                           Result& res) {
-  for (const ResolvedBlock& b : program) {
-    if (!b.tcp || b.motion != Motion::kLinear) continue;
+void measure_source_joint_linear_deviation(const Model& model, std::span<const ResolvedBlock> program,
+                                           const Nominal& nom, double tolerance, Result& res) {
+  for (std::size_t i = 0; i < program.size(); ++i) {
+    // The briefs are read first: a CAM program without TCP maps none of its blocks' pages here.
+    if (!nom.brief[i].tcp || nom.brief[i].motion != Motion::kLinear) continue;
+    const ResolvedBlock& b = program[i];
     const double L = tool_length_of(model, b);
     const IkResult s = inverse_kinematics_ac(model.kin, {b.start[kX], b.start[kY], b.start[kZ]}, b.start[kA], b.start[kC], L);
     const IkResult e = inverse_kinematics_ac(model.kin, {b.target[kX], b.target[kY], b.target[kZ]}, b.target[kA], b.target[kC], L);
@@ -309,7 +310,7 @@ class WindowedLearning {
   WindowedLearning(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program, const Axes& start,
                    const Evaluation& before, const CompensateOptions& opt, Result& res, const NodeSink& sink)
       : model_(model), nom_(nom), program_(program), opt_(opt), res_(res), sink_(sink), T_(nom.period), E_(nom.reference.size()),
-        clock_{model, nom, program}, m_(static_cast<std::uint64_t>(std::max(1L, std::lround(opt.node_period / T_)))),
+        clock_{model, nom}, m_(static_cast<std::uint64_t>(std::max(1L, std::lround(opt.node_period / T_)))),
         chain_inverse_(design_chain_inverse(model)), vbound_(interpolate::speed_bound(model.interp)),
         Wt_(static_cast<std::uint64_t>(std::max(1L, std::lround(1.0 / T_)))),
         window_ticks_(round_up(static_cast<std::uint64_t>(std::lround(kWindowSeconds / T_)), m_)),
@@ -321,7 +322,7 @@ class WindowedLearning {
         R_(static_cast<std::uint64_t>(std::lround(0.1 / T_))), base_(before.demand),
         state_(model, start, clock_.block_at(0)), nodes_(nom.reference, grid_), best_(nom.reference, grid_),
         totals_(static_cast<std::size_t>(opt.max_iterations) + 1) {
-    measure_source_joint_linear_deviation(model, program, opt.linearisation_tolerance, res);
+    measure_source_joint_linear_deviation(model, program, nom, opt.linearisation_tolerance, res);
     last_committed_ = Node{0, start, clock_.block_at(0)};
     committed_.push_back(last_committed_);
     // The operator's design is freed: its pages go back before the windows.
@@ -370,7 +371,7 @@ class WindowedLearning {
   void open(const Window& w) {
     // Every run of the window is measured against the same stretch of the nominal path: it is
     // made once, on the first run, and searched again by the others.
-    meter_ = std::make_unique<simulate::ContourMeter>(model_, nom_, program_, true, w.a, true);
+    meter_ = std::make_unique<simulate::ContourMeter>(model_, nom_, true, w.a, true);
     grid_ = linearised_grid(clock_, m_, opt_.linearisation_tolerance, w.a, w.c, w.last ? w.c + 1 : w.b, res_);
     nodes_ = NodeJoints(nom_.reference, grid_);
     start_iterate();

@@ -69,8 +69,16 @@ class JointSeries {
   void compact_before(std::size_t n) {
     if (!exact_) return;
     n = std::min(n, values_.size());
-    for (; compacted_ < n; ++compacted_) push_compact(values_[compacted_]);
-    values_.discard_before(compacted_);
+    // In steps of 65,536 ticks (2.5 MB exact), the exact values freed behind each: a program
+    // whose plan stopped early (longer than max_machine_time) is compacted whole here, at
+    // gigabytes a second.
+    constexpr std::size_t kStep = std::size_t{1} << 16;
+    while (compacted_ < n) {
+      const std::size_t step_end = std::min(n, compacted_ + kStep);
+      for (; compacted_ < step_end; ++compacted_) push_compact(values_[compacted_]);
+      values_.discard_before(compacted_);
+      trim_scratch_if_grown();
+    }
   }
   /// From here on compact: every tick read at the compact series' precision; the exact values freed.
   void compact() {

@@ -21,9 +21,9 @@ class NominalPolyline {
  public:
   /// From raw tick `first_tick` on (a window of a run that began earlier). `keep_all`: every
   /// tick's index is kept, so that rewind() can start a new run over the same points.
-  NominalPolyline(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program, ContourSearch& search,
-                  std::size_t first_tick = 0, bool keep_all = false)
-      : model_(model), nom_(nom), program_(program), search_(search), walked_(first_tick), first_tick_(first_tick),
+  NominalPolyline(const Model& model, const Nominal& nom, ContourSearch& search, std::size_t first_tick = 0,
+                  bool keep_all = false)
+      : model_(model), nom_(nom), search_(search), walked_(first_tick), first_tick_(first_tick),
         origin_(first_tick), asked_(first_tick), keep_all_(keep_all) {}
 
   /// The polyline index of raw tick k (clamped to the last); k never decreases between calls
@@ -54,14 +54,13 @@ class NominalPolyline {
  private:
   void walk() {
     const std::size_t k = walked_++;
-    const Vec3 tip = forward_kinematics(model_.kin, nom_.raw[k], tool_length_of(model_, program_[nom_.block[k]])).tip;
+    const Vec3 tip = forward_kinematics(model_.kin, nom_.raw[k], tool_length_of(model_, nom_.brief[nom_.block[k]])).tip;
     if (search_.size() == 0 || dist3(last_, tip) > 1e-9) search_.push(tip), last_ = tip;
     index_.push_back(static_cast<std::uint32_t>(search_.size() - 1));
   }
 
   const Model& model_;
   const Nominal& nom_;
-  std::span<const ResolvedBlock> program_;
   ContourSearch& search_;
   std::size_t walked_ = 0;               // raw ticks turned into points so far (from first_tick_)
   Vec3 last_{};                          // the newest point

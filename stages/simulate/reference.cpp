@@ -69,7 +69,7 @@ MovingSteps moving_steps(const Model& model, const Nominal& nom) {
 
 /// The path from raw sample `first` to `last` (inclusive), its sigma counted on from `sigma0`
 /// (the sigma at `first`: the same sums in the same order as over the whole program).
-RawPath raw_path(const Model& model, std::span<const ResolvedBlock> program, const Nominal& nom, std::size_t first,
+RawPath raw_path(const Model& model, const Nominal& nom, std::size_t first,
                  std::size_t last, double sigma0, const MovingSteps& moving) {
   RawPath p;
   p.first = first;
@@ -89,7 +89,7 @@ RawPath raw_path(const Model& model, std::span<const ResolvedBlock> program, con
   for (std::size_t k = 0; k < S; ++k) {
     if (p.ds[k] > kStill) continue;
     const std::size_t g = first + k;
-    const ResolvedBlock& b = program[nom.block[g + 1]];
+    const BlockBrief& b = nom.brief[nom.block[g + 1]];
     p.rest[k] = g < moving.first || g > moving.last || b.motion == Motion::kDwell || b.stop != ProgramStop::kNone ||
                 b.path_mode != PathMode::kBlend;
   }
@@ -167,14 +167,14 @@ std::vector<double> step_speed_limits(const Model& model, const Nominal& nom, co
 /// side, and reachable with acceleration `a` (a forward and a backward pass over the whole
 /// program: the look-ahead of a planner with an unbounded block buffer).
 std::vector<double> sample_speeds(const RawPath& p, const std::vector<double>& w, double a,
-                                  std::span<const ResolvedBlock> program, const Nominal& nom, std::size_t from,
+                                  const Nominal& nom, std::size_t from,
                                   double seed, std::size_t keep, double& forward_at_keep) {
   const std::size_t n = p.samples();
   std::vector<double> W(n, 0.0);
   for (std::size_t k = from + 1; k + 1 < n; ++k) {
     const std::size_t g = p.first + k;
-    const bool rapid_a = program[nom.block[g - 1]].motion == Motion::kRapid;
-    const bool rapid_b = program[nom.block[g + 1]].motion == Motion::kRapid;
+    const bool rapid_a = nom.brief[nom.block[g - 1]].motion == Motion::kRapid;
+    const bool rapid_b = nom.brief[nom.block[g + 1]].motion == Motion::kRapid;
     if (rapid_a != rapid_b) continue;
     if (p.rest[k - 1] || p.rest[k]) continue;
     const double inf = std::numeric_limits<double>::infinity();
@@ -348,15 +348,14 @@ class Excursions {
  public:
   /// The polyline from raw tick `first_tick` on: a chunk of the plan measures from far enough
   /// back to hold the points its reference may still be near (ContourMeter's look-back).
-  Excursions(const Model& model, std::span<const ResolvedBlock> program, const Nominal& nom, std::size_t h,
-             double tolerance, std::size_t first_tick = 0)
-      : model_(model), program_(program), nom_(nom), path_(model, nom, program, search_, first_tick), h_(h),
+  Excursions(const Model& model, const Nominal& nom, std::size_t h, double tolerance, std::size_t first_tick = 0)
+      : model_(model), nom_(nom), path_(model, nom, search_, first_tick), h_(h),
         tolerance_(tolerance) {}
 
   /// Reference tick n (in order) is at joints r, with raw index k its progress.
   void add(const Axes& r, std::size_t k) {
     k = std::min(k, nom_.raw.size() - 1);
-    const double length = tool_length_of(model_, program_[nom_.block[k]]);
+    const double length = tool_length_of(model_, nom_.brief[nom_.block[k]]);
     // Where the tool length changes (G43 H, G49, a tool change) the nominal tool tip jumps by the
     // change while the joints move on smoothly: a reference blended across the change has no tip
     // on either side's path, and measuring it would slow the plan there without end (a 14 s
@@ -367,7 +366,7 @@ class Excursions {
     path_.fill(std::max<std::size_t>(limit, 1) + 1);  // as the search over a whole polyline takes them
     Vec3 c;
     // The program's own G64 P where it has one, else the config's.
-    const double given = program_[nom_.block[k]].path_tolerance;
+    const double given = nom_.brief[nom_.block[k]].path_tolerance;
     const double tolerance = given > 0 ? given : tolerance_;
     // Only the ticks beyond the tolerance matter, with their distance: most are found within it
     // near the previous match, without searching the whole window (the same ticks, the same
@@ -383,13 +382,12 @@ class Excursions {
   bool tool_length_changes_near(std::size_t k, double length) const {
     const std::size_t last = nom_.raw.size() - 1;
     for (const std::size_t j : {k > h_ ? k - h_ : 0, std::min(k + h_ + 2, last)})
-      if (tool_length_of(model_, program_[nom_.block[j]]) != length) return true;
+      if (tool_length_of(model_, nom_.brief[nom_.block[j]]) != length) return true;
     return false;
   }
 
  private:
   const Model& model_;
-  std::span<const ResolvedBlock> program_;
   const Nominal& nom_;
   ContourSearch search_;
   NominalPolyline path_;
@@ -556,9 +554,8 @@ std::size_t margin_end(const Model& model, const Nominal& nom, std::size_t k1, s
 /// (next()): what a learning that asks for the reference as it goes would drive.
 class ChunkedPlan {
  public:
-  ChunkedPlan(const Model& model, std::span<const ResolvedBlock> program, const ReferencePlan& plan, double max_ticks,
-              Nominal& nom)
-      : model_(model), program_(program), c_(plan_settings(model, plan, nom.period)), max_ticks_(max_ticks), nom_(nom),
+  ChunkedPlan(const Model& model, const ReferencePlan& plan, double max_ticks, Nominal& nom)
+      : model_(model), c_(plan_settings(model, plan, nom.period)), max_ticks_(max_ticks), nom_(nom),
         N_(nom.raw.size()), moving_(moving_steps(model, nom)), chunk_(ticks(plan.chunk_seconds, c_.T)),
         min_margin_(ticks(2.0, c_.T)), state_(c_.ma, c_.mb, c_.m1, c_.m2) {
     // The reference and its progress grow in scratch arrays (gcpipe/scratch.hpp), which never
@@ -575,7 +572,7 @@ class ChunkedPlan {
     const std::size_t k1 = std::min(k0_ + chunk_, N_ - 1);
     const std::size_t k2 = k1 == N_ - 1 ? N_ - 1 : margin_end(model_, nom_, k1, min_margin_, c_.a_sigma, c_.T);
     const std::size_t first = lead_in_start();
-    RawPath p = raw_path(model_, program_, nom_, first, k2, k0_ == 0 ? 0.0 : prev_.sigma[first - prev_.first], moving_);
+    RawPath p = raw_path(model_, nom_, first, k2, k0_ == 0 ? 0.0 : prev_.sigma[first - prev_.first], moving_);
     Chunk ch{k0_ - first, k1 - first, p.ends_program && k1 == N_ - 1};
     std::vector<double> w = step_speed_limits(model_, nom_, p, c_.T, c_.T1, c_.a_sigma);
     std::copy_n(carried_w_.begin(), std::min(carried_w_.size(), w.size() - ch.from), w.begin() + static_cast<std::ptrdiff_t>(ch.from));
@@ -623,7 +620,7 @@ class ChunkedPlan {
   /// The chunk's reference with limits `w`, from the committed state; false when the plan runs
   /// past max_ticks.
   bool plan_round(const RawPath& p, const Chunk& ch, const std::vector<double>& w, Round& r) {
-    PlannedSigma sig(p, sample_speeds(p, w, c_.a_sigma, program_, nom_, ch.from, seed_, ch.commit, r.forward_at_commit),
+    PlannedSigma sig(p, sample_speeds(p, w, c_.a_sigma, nom_, ch.from, seed_, ch.commit, r.forward_at_commit),
                      c_.T, c_.a_sigma, ch.from, t0_, tick0_, ch.last ? SIZE_MAX : ch.commit);
     if (sig.longer_than(max_ticks_)) {
       nom_.reference.release();
@@ -632,7 +629,7 @@ class ChunkedPlan {
       return false;
     }
     ReferenceBlend blend = state_;
-    Excursions check(model_, program_, nom_, c_.spread, c_.tolerance,
+    Excursions check(model_, nom_, c_.spread, c_.tolerance,
                      blend.progress() > kLookBack ? blend.progress() - kLookBack : 0);
     const ReferenceBlend::Out out{nom_.reference, nom_.progress, check};
     r.next.reset();
@@ -672,7 +669,6 @@ class ChunkedPlan {
   }
 
   const Model& model_;
-  std::span<const ResolvedBlock> program_;
   const PlanSettings c_;
   double max_ticks_;
   Nominal& nom_;
@@ -689,9 +685,8 @@ class ChunkedPlan {
 
 }  // namespace
 
-void plan_reference(const Model& model, std::span<const ResolvedBlock> program, const ReferencePlan& plan,
-                    double max_ticks, Nominal& nom) {
-  ChunkedPlan chunks(model, program, plan, max_ticks, nom);
+void plan_reference(const Model& model, const ReferencePlan& plan, double max_ticks, Nominal& nom) {
+  ChunkedPlan chunks(model, plan, max_ticks, nom);
   while (chunks.next()) {
   }
   // The plan was made on the exact raw samples; from here on (the learning, the contour metric,

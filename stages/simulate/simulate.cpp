@@ -139,6 +139,10 @@ double tool_length_of(const Model& model, const ResolvedBlock& b) {
   return b.tool_length_active ? b.tool_length : model.kin.tool_length;
 }
 
+double tool_length_of(const Model& model, const BlockBrief& b) {
+  return b.tool_length_active ? b.tool_length : model.kin.tool_length;
+}
+
 namespace {
 interpolate::InterpolateOptions run_options(const Model& model, std::uint64_t max_ticks) {
   interpolate::InterpolateOptions io = model.interp;
@@ -256,13 +260,13 @@ namespace {
 
 /// Segments of the program, from its blocks alone: a dwell or a program stop ends one (the
 /// machine is at rest or about to be), and positioning (rapids) and cutting are separate segments.
-std::vector<std::uint32_t> segment_blocks(std::span<const ResolvedBlock> program, std::size_t& count) {
+std::vector<std::uint32_t> segment_blocks(std::span<const BlockBrief> program, std::size_t& count) {
   std::vector<std::uint32_t> of_block(program.size(), 0);
   std::uint32_t seg = 0;
   bool seg_has_motion = false;
   Motion last_motion = Motion::kNone;
   for (std::size_t i = 0; i < program.size(); ++i) {
-    const ResolvedBlock& b = program[i];
+    const BlockBrief& b = program[i];
     if (is_motion(b.motion) && b.motion != Motion::kRapid && last_motion == Motion::kRapid && seg_has_motion) ++seg;
     if (is_motion(b.motion)) seg_has_motion = true, last_motion = b.motion;
     of_block[i] = seg;
@@ -275,22 +279,28 @@ std::vector<std::uint32_t> segment_blocks(std::span<const ResolvedBlock> program
   return of_block;
 }
 
+/// Passes over the raw samples that do little per tick map them faster than the trimmer thread
+/// follows: they trim as they go, every this many ticks (2.5 MB of exact samples).
+constexpr std::size_t kTrimEvery = std::size_t{1} << 16;
+
 /// Every tick of a recorded run on a feed move that moves the nominal tip: its segment and tip.
 template <class F>
-void for_each_cutting_tip(const Model& model, std::span<const ResolvedBlock> program, const Nominal& nom, F&& f) {
+void for_each_cutting_tip(const Model& model, const Nominal& nom, F&& f) {
   for (std::size_t n = 0; n < nom.raw.size(); ++n) {
-    const ResolvedBlock& b = program[nom.block[n]];
+    if (n % kTrimEvery == 0) trim_scratch_if_grown();
+    const BlockBrief& b = nom.brief[nom.block[n]];
     if (is_motion(b.motion) && b.motion != Motion::kRapid && (n == 0 || nom.raw[n] != nom.raw[n - 1]))
       f(nom.segment_of_block[nom.block[n]], forward_kinematics(model.kin, nom.raw[n], tool_length_of(model, b)).tip);
   }
 }
 
 /// Times, lines and circles of the segments, from the recorded nominal run.
-void describe_segments(const Model& model, std::span<const ResolvedBlock> program, Nominal& nom) {
+void describe_segments(const Model& model, Nominal& nom) {
   const std::size_t nseg = nom.segments.size();
   std::vector<bool> seen(nseg, false);
   std::uint32_t last_block = std::numeric_limits<std::uint32_t>::max();
   for (std::size_t n = 0; n < nom.raw.size(); ++n) {
+    if (n % kTrimEvery == 0) trim_scratch_if_grown();
     const std::uint32_t b = nom.block[n];
     const std::uint32_t s = nom.segment_of_block[b];
     Segment& g = nom.segments[s];
@@ -298,17 +308,17 @@ void describe_segments(const Model& model, std::span<const ResolvedBlock> progra
     if (!seen[s]) {
       seen[s] = true;
       g.t_begin = t;
-      g.first_line = program[b].line;
+      g.first_line = nom.brief[b].line;
     }
     g.t_end = t;
-    if (b != last_block && is_motion(program[b].motion)) g.last_line = std::max(g.last_line, program[b].line);
+    if (b != last_block && is_motion(nom.brief[b].motion)) g.last_line = std::max(g.last_line, nom.brief[b].line);
     last_block = b;
   }
   std::vector<CircleFit> fits(nseg);
-  for_each_cutting_tip(model, program, nom, [&](std::uint32_t s, const Vec3& tip) { fits[s].sum(tip); });
+  for_each_cutting_tip(model, nom, [&](std::uint32_t s, const Vec3& tip) { fits[s].sum(tip); });
   bool any = false;
   for (CircleFit& f : fits) any = f.solve() || any;
-  if (any) for_each_cutting_tip(model, program, nom, [&](std::uint32_t s, const Vec3& tip) { fits[s].check(tip); });
+  if (any) for_each_cutting_tip(model, nom, [&](std::uint32_t s, const Vec3& tip) { fits[s].check(tip); });
   for (std::size_t s = 0; s < nseg; ++s) {
     if (nom.segments[s].last_line == 0) nom.segments[s].last_line = nom.segments[s].first_line;
     fits[s].describe(nom.segments[s]);
@@ -548,7 +558,7 @@ OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> progra
           nom.raw.push_back(t.raw);
           nom.block.push_back(t.block);
         }
-        const double tool = tool_length_of(model, program[t.block]);
+        const double tool = tool_length_of(model, nom.brief[t.block]);
         evaluation.push({t, forward_kinematics(model.kin, t.raw, tool).tip, forward_kinematics(model.kin, t.actual, tool).tip});
       },
       max_ticks);
@@ -573,11 +583,13 @@ Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program
       tick_bound(max_ticks));
   if (nom.raw.empty() || !nom.stats.ok) return nom;
   shrink_recorded(nom);
+  nom.brief.reserve(program.size());
+  for (const ResolvedBlock& b : program) nom.brief.push_back(brief_of(b));
   std::size_t nseg = 0;
-  nom.segment_of_block = segment_blocks(program, nseg);
+  nom.segment_of_block = segment_blocks({nom.brief.data(), nom.brief.size()}, nseg);
   nom.segments.assign(nseg, Segment{});
-  describe_segments(model, program, nom);
-  plan_reference(model, program, plan, max_ticks, nom);
+  describe_segments(model, nom);
+  plan_reference(model, plan, max_ticks, nom);
   return nom;
 }
 
@@ -602,10 +614,10 @@ std::size_t first_raw_tick(const Nominal& nom, bool on_reference_clock, std::uin
 }
 }  // namespace
 
-ContourMeter::ContourMeter(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
-                           bool on_reference_clock, std::uint64_t first_tick, bool reusable)
+ContourMeter::ContourMeter(const Model& model, const Nominal& nom, bool on_reference_clock, std::uint64_t first_tick,
+                           bool reusable)
     : model_(model), nom_(nom), on_reference_clock_(on_reference_clock),
-      path_(std::make_unique<NominalPolyline>(model, nom, program, search_, first_raw_tick(nom, on_reference_clock, first_tick),
+      path_(std::make_unique<NominalPolyline>(model, nom, search_, first_raw_tick(nom, on_reference_clock, first_tick),
                                               reusable)) {
   if (reusable) search_.keep_all_points();
 }
@@ -639,7 +651,7 @@ double ContourMeter::distance_beyond(const Tick& t, const ResolvedBlock& b, doub
 
 RunEvaluation::RunEvaluation(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
                              const Axes& start, bool on_reference_clock)
-    : nom_(nom), program_(program), meter_(model, nom, program, on_reference_clock),
+    : nom_(nom), program_(program), meter_(model, nom, on_reference_clock),
       acc_(std::make_unique<RunAccumulator>(model, nom.segments.size())),
       ref_end_(nom.reference.empty() ? start : nom.reference.back()) {}
 
@@ -687,9 +699,9 @@ std::string travel_error(const Model& model, const interpolate::InterpolateStats
 
 namespace {
 
-/// simulate_program's run of `p`, its feeds multiplied by `feed_factor`, into `run` (whose
-/// program is `p` or left empty).
-void simulate_into(SimulationRun& run, const Model& model, std::span<const ResolvedBlock> p, double feed_factor,
+/// simulate_program's run of `p` (a BlockStore: its briefs are what the passes read), its feeds
+/// multiplied by `feed_factor`, into `run` (whose program is `p` or left empty).
+void simulate_into(SimulationRun& run, const Model& model, const BlockStore& p, double feed_factor,
                    const RunBounds& bounds, const std::function<void(const Tick&)>& on_tick, const Progress& progress) {
   std::size_t first = 0;
   while (first < p.size() && p[first].motion == Motion::kNone) ++first;
@@ -702,7 +714,8 @@ void simulate_into(SimulationRun& run, const Model& model, std::span<const Resol
   Nominal& nom = run.nominal.emplace();
   nom.period = model.interp.period;
   std::size_t nseg = 0;
-  nom.segment_of_block = segment_blocks(p, nseg);
+  nom.brief.assign(p.briefs().begin(), p.briefs().end());
+  nom.segment_of_block = segment_blocks(p.briefs(), nseg);
   nom.segments.assign(nseg, Segment{});
   const double max_ticks = max_ticks_of(model, bounds.max_machine_time);
   OwnRun own = run_own_program(model, p, run.start, nom, bounds.record_nominal, tick_bound(max_ticks), on_tick,
@@ -721,8 +734,8 @@ void simulate_into(SimulationRun& run, const Model& model, std::span<const Resol
   }
   if (bounds.record_nominal) {
     shrink_recorded(nom);
-    describe_segments(model, p, nom);
-    plan_reference(model, p, bounds.plan, max_ticks, nom);
+    describe_segments(model, nom);
+    plan_reference(model, bounds.plan, max_ticks, nom);
     add_tracking_against_reference(model, p, run.start, nom, tick_bound(max_ticks), own.eval.axes);
   }
   run.before = std::move(own.eval);
@@ -753,7 +766,7 @@ namespace {
 
 }  // namespace
 
-SlowedBaseline slowed_original(const Model& model, std::span<const ResolvedBlock> program, double target_cycle_time,
+SlowedBaseline slowed_original(const Model& model, const BlockStore& program, double target_cycle_time,
                                double cycle_at_one, const RunBounds& bounds) {
   // Only the program's own run is needed (its cycle and contour error): no planned reference,
   // no recorded nominal.

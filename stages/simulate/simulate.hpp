@@ -298,6 +298,7 @@ Axes machine_start(const MachineKinematics& kin, const ResolvedBlock& first_moti
 
 /// Tool length in force for a block [mm].
 double tool_length_of(const Model& model, const ResolvedBlock& b);
+double tool_length_of(const Model& model, const BlockBrief& b);
 
 /// Contour and axis error figures of one simulated run against the nominal path.
 struct ErrorStats {
@@ -363,6 +364,8 @@ struct Nominal {
   ScratchArray<std::uint32_t> progress; //!< p_n, the raw index r_n has reached (whole samples:
                                        //!< every user asks which sample, and 4 bytes a tick)
   bool reference_too_long = false;     //!< the reference would exceed max_machine_time (empty)
+  ScratchArray<BlockBrief> brief;               //!< per program block: what the passes over
+                                                //!< the raw samples read (not the blocks' pages)
   std::vector<std::uint32_t> segment_of_block;  //!< per program block
   std::vector<Segment> segments;
   RunStats stats;
@@ -400,8 +403,7 @@ Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program
 /// two moving averages; where the blend leaves the path by more than `plan.tolerance` the speed
 /// is lowered and the plan made again. Fills reference and progress, or sets
 /// reference_too_long when the plan would run past `max_ticks`.
-void plan_reference(const Model& model, std::span<const ResolvedBlock> program, const ReferencePlan& plan,
-                    double max_ticks, Nominal& nom);
+void plan_reference(const Model& model, const ReferencePlan& plan, double max_ticks, Nominal& nom);
 
 /// Hands the heap's free pages back to the system (glibc's malloc_trim; elsewhere nothing). Called
 /// where a phase has freed its long series (the planner's, the learning's): the next phase's
@@ -418,8 +420,8 @@ class ContourMeter {
  public:
   /// `reusable`: the points are kept for runs after the first (rewind()), as the compensation's
   /// learning measures run after run of one window against the same stretch of the path.
-  ContourMeter(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program, bool on_reference_clock,
-               std::uint64_t first_tick = 0, bool reusable = false);
+  ContourMeter(const Model& model, const Nominal& nom, bool on_reference_clock, std::uint64_t first_tick = 0,
+               bool reusable = false);
   ~ContourMeter();
   ContourMeter(const ContourMeter&) = delete;
   ContourMeter& operator=(const ContourMeter&) = delete;
@@ -535,7 +537,7 @@ struct SlowedBaseline {
 
 /// Searches the feed factor that gives the program `target_cycle_time` [s] (to 2 %, at most 8
 /// runs of its own, unplanned run), from its cycle at full feed `cycle_at_one` [s].
-SlowedBaseline slowed_original(const Model& model, std::span<const ResolvedBlock> program, double target_cycle_time,
+SlowedBaseline slowed_original(const Model& model, const BlockStore& program, double target_cycle_time,
                                double cycle_at_one, const RunBounds& bounds);
 
 }  // namespace gcpipe::simulate

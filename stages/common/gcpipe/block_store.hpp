@@ -18,7 +18,9 @@ namespace gcpipe {
 /// Blocks in a scratch file's pages (gcpipe/scratch.hpp), in address space reserved for
 /// `max_blocks` up front: a block holds std::strings, which cannot be moved bitwise, so the
 /// blocks are never moved at all; no growth copies them and no spare room is left to give back.
-/// What stays in the process per block is only its strings' heap (long source lines).
+/// What stays in the process per block is only its strings' heap (long source lines). Beside the
+/// blocks the store keeps their briefs (BlockBrief, 32 bytes): the passes over the whole program
+/// read those, so that they do not map the blocks' pages faster than they can be dropped.
 class BlockStore {
  public:
   explicit BlockStore(std::size_t max_blocks = 0) : max_(max_blocks) {}
@@ -30,11 +32,12 @@ class BlockStore {
     return *this;
   }
   BlockStore(BlockStore&& o) noexcept
-      : bytes_(std::move(o.bytes_)), size_(std::exchange(o.size_, 0)), max_(o.max_) {}
+      : bytes_(std::move(o.bytes_)), briefs_(std::move(o.briefs_)), size_(std::exchange(o.size_, 0)), max_(o.max_) {}
   BlockStore& operator=(BlockStore&& o) noexcept {
     if (this != &o) {
       clear();
       bytes_ = std::move(o.bytes_);
+      briefs_ = std::move(o.briefs_);
       size_ = std::exchange(o.size_, 0);
       max_ = o.max_;
     }
@@ -43,13 +46,29 @@ class BlockStore {
   ~BlockStore() { clear(); }
 
   /// Throws std::length_error past max_blocks (the caller bounds the program before).
-  void push_back(const ResolvedBlock& b) { new (room()) ResolvedBlock(b); ++size_; }
-  void push_back(ResolvedBlock&& b) { new (room()) ResolvedBlock(std::move(b)); ++size_; }
-  /// The blocks destroyed and their memory given back.
+  void push_back(const ResolvedBlock& b) {
+    void* at = room_with_brief(b);
+    new (at) ResolvedBlock(b);
+    ++size_;
+  }
+  void push_back(ResolvedBlock&& b) {
+    void* at = room_with_brief(b);
+    new (at) ResolvedBlock(std::move(b));
+    ++size_;
+  }
+  /// The blocks destroyed and their memory given back. Destroying a block reads it (its strings),
+  /// so the pages are dropped behind as it goes: destroying a whole program at once mapped all
+  /// of its pages in milliseconds, which was the peak of a long run's memory (22 MB at the end of
+  /// the one-hour program).
   void clear() {
-    for (std::size_t i = size_; i > 0; --i) data()[i - 1].~ResolvedBlock();
+    constexpr std::size_t kDropEvery = (std::size_t{1} << 20) / sizeof(ResolvedBlock);
+    for (std::size_t i = 0; i < size_; ++i) {
+      data()[i].~ResolvedBlock();
+      if ((i + 1) % kDropEvery == 0) bytes_.discard_before((i + 1) * sizeof(ResolvedBlock));
+    }
     size_ = 0;
     bytes_.release();
+    briefs_.release();
   }
 
   std::size_t size() const { return size_; }
@@ -66,6 +85,7 @@ class BlockStore {
   const ResolvedBlock* end() const { return data() + size_; }
   std::span<const ResolvedBlock> span() const { return {data(), size_}; }
   operator std::span<const ResolvedBlock>() const { return span(); }
+  std::span<const BlockBrief> briefs() const { return {briefs_.data(), size_}; }
 
  private:
   void* room() {
@@ -74,7 +94,15 @@ class BlockStore {
     bytes_.back((size_ + 1) * sizeof(ResolvedBlock));
     return bytes_.data() + size_ * sizeof(ResolvedBlock);
   }
+  // (A block whose copy throws leaves its brief behind: briefs() counts size_ of them.)
+  void* room_with_brief(const ResolvedBlock& b) {
+    void* at = room();
+    briefs_.resize(size_);
+    briefs_.push_back(brief_of(b));
+    return at;
+  }
   ScratchBytes bytes_;
+  ScratchArray<BlockBrief> briefs_;
   std::size_t size_ = 0;
   std::size_t max_;
 };

@@ -72,6 +72,12 @@ class ScratchBytes {
   std::size_t backed_ = 0;    // reserve_address(): bytes with disk under them
 };
 
+/// For a pass that maps scratch pages at gigabytes a second (a field or two read per element, or
+/// a series converted whole), faster than the trimmer thread's 5 ms poll follows: call it every
+/// megabyte or so. When the resident set has grown 8 MB since the last trim, the spilled pages are
+/// dropped now (a syscall to read the size; the trim itself when due).
+void trim_scratch_if_grown();
+
 /// Where spilled series go: $GCPIPE_SCRATCH_DIR, else /var/tmp (on disk by the FHS; /tmp is often
 /// a tmpfs, which would hold the pages in memory again).
 std::string scratch_directory();
