@@ -188,6 +188,23 @@ TEST(ParseModal, ToolLengthTcpSpindleCoolant) {
   EXPECT_EQ(p.blocks[6].spindle, Spindle::kOff);
 }
 
+// G09 (Fanuc, group 00): the block it is on stops exactly at its end, as in G61; the mode in
+// force (G64 and its P) goes on in the next block. LinuxCNC has no G9 (rs274: "Unknown g code
+// used"): there it is rejected with what to write instead.
+TEST(ParseModal, G09StopsItsOwnBlockExactly) {
+  Parsed p = parse_text("G21 G64 P0.02\nG1 X10 F600\nG09 G1 X20\nG1 Y10\nG9 X0 Y0\nG61 X5\nG9 X6\nG64 X7\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.blocks.size(), 8u);
+  const PathMode modes[] = {PathMode::kBlend,     PathMode::kBlend,     PathMode::kExactStop, PathMode::kBlend,
+                            PathMode::kExactStop, PathMode::kExactStop, PathMode::kExactStop, PathMode::kBlend};
+  for (std::size_t i = 0; i < 8; ++i) EXPECT_EQ(p.blocks[i].path_mode, modes[i]) << "line " << i + 1;
+  EXPECT_DOUBLE_EQ(p.blocks[2].path_tolerance, 0);     // as a G61 block: it stops
+  EXPECT_DOUBLE_EQ(p.blocks[3].path_tolerance, 0.02);  // G64 P0.02 goes on after the G09 block
+  ParseOptions lc;
+  lc.dialect = Dialect::kLinuxCnc;
+  expect_error("G1 X1 F100\nG9 X2\n", "G9 (exact stop for one block) is Fanuc G-code, not LinuxCNC's: parse with dialect fanuc", 1, lc);
+}
+
 TEST(ParseModal, TcpSpellingsPerDialect) {
   ParseOptions lc;
   lc.dialect = Dialect::kLinuxCnc;

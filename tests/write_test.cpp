@@ -168,6 +168,17 @@ TEST(WriteRoundTrip, PathModeAndTolerance) {
   expect_round_trip_in_both_dialects(p);
 }
 
+// A G09 block (Fanuc) is written as G61 on its line and the mode in force again on the next: the
+// same stop in both dialects, since LinuxCNC has no G9.
+TEST(WriteRoundTrip, G09IsWrittenAsG61ForItsBlock) {
+  Parsed p = parse_text("G21 G64 P0.02 G1 X1 F100\nG09 X2\nX3\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  const std::string out = write_all(p, {});
+  EXPECT_NE(out.find("G61 X2."), std::string::npos) << out;
+  EXPECT_NE(out.find("G64 P0.02 X3."), std::string::npos) << out;
+  expect_round_trip_in_both_dialects(p);
+}
+
 // Seeded random programs: every combination of modes the generator can draw must round-trip.
 // GCPIPE_ROUNDTRIP_PROGRAMS sets how many (default 200).
 TEST(WriteRoundTrip, SeededRandomPrograms) {

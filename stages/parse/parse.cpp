@@ -69,6 +69,7 @@ void Parser::Impl::reset_block(std::string_view line, std::uint64_t lineno) {
   b.stop = ProgramStop::kNone;
   b.percent = false;
   b.program_number = -1;
+  exact_stop_once = false;
 }
 
 // Runs one line; its blocks go to the sink. A rejected or skipped line says why in `why`/`col`.
@@ -150,8 +151,9 @@ void Parser::Impl::publish(ResolvedBlock& b, const ModalState& s) const {
   b.feed = s.feed;
   b.feed_mode = s.feed_mode;
   b.spindle_speed = s.spindle_speed;
-  b.path_tolerance = s.path_tolerance;
-  b.path_mode = s.path_mode;
+  // A G09 block is a G61 block (no tolerance: it stops); the modes in force go on after it.
+  b.path_tolerance = exact_stop_once ? 0 : s.path_tolerance;
+  b.path_mode = exact_stop_once ? PathMode::kExactStop : s.path_mode;
   b.spindle = s.spindle;
   b.tool = s.tool;
   b.tool_in_spindle = s.tool_in_spindle;

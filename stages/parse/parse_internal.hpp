@@ -59,6 +59,7 @@ struct Code {
 enum Group : int {
   kGNonModal = 0, kGMotion = 1, kGPlane = 2, kGDistance = 3, kGArcDistance = 4, kGFeedMode = 5,
   kGUnits = 6, kGCutterComp = 7, kGToolLength = 8, kGCycleCancel = 9, kGCycleReturn = 10,
+  kGExactStopOnce = 11,  // Fanuc G09: group 00 there, apart here so it may share a block with G10..G92
   kGCoordSystem = 12, kGPathMode = 13, kGLookAhead = 14, kGSpindleMode = 15, kGUnsupported = 99
 };
 
@@ -284,6 +285,7 @@ struct Parser::Impl {
   std::array<Axes, 6> offsets{};
   std::vector<parse_detail::Move> moves;  // expansion of the current line, empty for one block
   ResolvedBlock block;                    // the block being resolved (reused: no allocation)
+  bool exact_stop_once = false;           // G09 in the line: its blocks stop exactly at their end
   ResolvedBlock expanded;                 // one move of an expansion
   parse_detail::CutterComp comp;          // cutter compensation's held moves (cutter.cpp)
   parse_detail::CutterComp comp_next;     // the same after the current line, until it commits

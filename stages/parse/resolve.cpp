@@ -56,6 +56,7 @@ int g_group(int code, Dialect d) {
     case 430: case 434: case 435: case 490: return kGToolLength;
     case 540: case 550: case 560: case 570: case 580: case 590: return kGCoordSystem;
     case 610: case 611: case 640: return kGPathMode;
+    case 90: return d == Dialect::kFanuc ? kGExactStopOnce : kGUnsupported;
     // G80 is group 09 on Fanuc, with the cycles; LinuxCNC files it under motion but accepts
     // `G0 G80` (G80 then yields to G0). Both: G80 may share a block with G0..G3.
     case 800: return kGCycleCancel;
@@ -93,6 +94,9 @@ std::string unsupported_g(int code, Dialect d) {
                  ? g + " (LinuxCNC spline) is not supported: output lines and arcs from CAM"
                  : g + " is not a supported G code";
     case 80: return "G8 (LinuxCNC lathe radius mode) is not supported on this milling machine";
+    case 90:
+      return "G9 (exact stop for one block) is Fanuc G-code, not LinuxCNC's: parse with dialect fanuc, or put G61 "
+             "before the block and G64 after it";
     case 591: case 592: case 593: return g + " is not supported: use G54..G59";
     default: return g + " is not a supported G code";
   }
@@ -418,6 +422,8 @@ GCPIPE_STEP bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, 
   // is read and not used). G64 without P, G61 (exact stop) and G61.1 (exact path) give none:
   // the planner then takes compensate.path_tolerance. G61 and G61.1 stop at every block end (the
   // interpolator holds until every axis is in position).
+  // G09 (Fanuc, non-modal): this line's blocks stop as in G61; the mode in force stays.
+  exact_stop_once = c.has(kGExactStopOnce);
   if (c.has(kGPathMode)) {
     const int code = c.group_code[kGPathMode];
     ns.path_mode = code == 610 ? PathMode::kExactStop : code == 611 ? PathMode::kExactPath : PathMode::kBlend;
