@@ -573,6 +573,8 @@ Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program
                       const ReferencePlan& plan, double max_machine_time) {
   Nominal nom;
   nom.period = model.interp.period;
+  nom.brief.reserve(program.size());
+  for (const ResolvedBlock& b : program) nom.brief.push_back(brief_of(b));
   const double max_ticks = max_ticks_of(model, max_machine_time);
   nom.stats = run_program(
       model, program, start,
@@ -583,8 +585,6 @@ Nominal build_nominal(const Model& model, std::span<const ResolvedBlock> program
       tick_bound(max_ticks));
   if (nom.raw.empty() || !nom.stats.ok) return nom;
   shrink_recorded(nom);
-  nom.brief.reserve(program.size());
-  for (const ResolvedBlock& b : program) nom.brief.push_back(brief_of(b));
   std::size_t nseg = 0;
   nom.segment_of_block = segment_blocks({nom.brief.data(), nom.brief.size()}, nseg);
   nom.segments.assign(nseg, Segment{});
