@@ -130,6 +130,26 @@ TEST(OutputFolder, MissingCompensatedProgramIsAFailureWithItsReason) {
   EXPECT_TRUE(fs::exists(dir / "out" / "output.nc")) << "the streaming stages' output stays";
 }
 
+// A program the control runs within compensate.max_machine_time but whose planned reference would
+// not (five_axis_demo: 15.99 s on the control, 17.16 s planned; bound 16.5 s) is refused with the
+// bound, the control's cycle and what to change.
+TEST(OutputFolder, APlanLongerThanTheBoundSaysWhatToRaise) {
+  const fs::path dir = tmpdir("planlong");
+  {
+    std::ofstream c(dir / "bound.yaml");
+    c << "machine: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/machines/mx330.yaml\n"
+      << "servo:\n  drives: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/drives/seed002.yaml\n"
+      << "compensate:\n  max_machine_time: 16.5\n";
+  }
+  Outcome r = gcpipe({"batch", kSamples + "five_axis_demo.nc", "-o", (dir / "out").string(), "--config",
+                      (dir / "bound.yaml").string(), "--quiet"});
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "out" / "compensated.nc"));
+  for (const char* part : {"planned reference would run longer than compensate.max_machine_time (16.5 s",
+                           "the control runs the program in 16.0 s", "raise compensate.max_machine_time"})
+    EXPECT_NE(r.err.find(part), std::string::npos) << part << "\n" << r.err;
+}
+
 // Limits are errors, not flags: a move past an axis's travel is rejected at its line with the
 // axis, the position and the limit; nothing is compensated and the exit status says so.
 TEST(Limits, TravelViolationIsAnErrorAtItsLine) {

@@ -869,7 +869,14 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
                   const Progress& progress, const NodeSink& sink) {
   Result res;
   if (nom.reference_too_long) {
-    res.note = "not compensated: the planned reference would run longer than compensate.max_machine_time";
+    // The plan stops at the bound, so its own length is unknown; the control's cycle is known.
+    char msg[320];
+    std::snprintf(msg, sizeof msg,
+                  "not compensated: the planned reference would run longer than compensate.max_machine_time (%g s; "
+                  "the control runs the program in %.1f s, and the plan slows its corners to the path tolerance): "
+                  "raise compensate.max_machine_time in the pipeline config",
+                  opt.max_machine_time, static_cast<double>(nom.stats.ticks) * nom.period);
+    res.note = msg;
     return res;
   }
   if (nom.reference.empty() || program.empty()) {
