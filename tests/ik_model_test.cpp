@@ -219,4 +219,8 @@ TEST(ShippedIkModel, ThreeAxisMovesAreNotFlaggedForTheArbitraryC) {
                 o.neural_tolerance[static_cast<std::size_t>(a)]);
   }
   EXPECT_EQ(points, 3);
+  // The summary says these flags only inform, in its text and its count.
+  EXPECT_EQ(stage.summary().envelope_flag_only, 3u);
+  EXPECT_NE(format_summary(stage.summary(), true).find("3 of them ok: the tool is along C there"), std::string::npos)
+      << format_summary(stage.summary(), true);
 }

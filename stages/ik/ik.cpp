@@ -193,6 +193,7 @@ void IkStage::account(const IkPoint& p) {
   }
   for (int bit = 0; bit < 16; ++bit)
     if (p.flags & (1u << bit)) ++s.flag_counts[bit];
+  if ((p.flags & kIkNeuralOutsideEnvelope) != 0 && p.status == IkStatus::kOk) ++s.envelope_flag_only;
   if (p.has_neural && (p.flags & kIkNeuralFailed) == 0) {
     ++s.neural_points;
     for (std::size_t a = 0; a < kNumAxes; ++a) {
@@ -222,6 +223,12 @@ std::string format_summary(const IkSummary& s, bool with_neural) {
                   ik_flags_to_string(1u << bit).c_str(),
                   static_cast<unsigned long long>(s.flag_counts[bit]));
     out += buf;
+    if ((1u << bit) == kIkNeuralOutsideEnvelope && s.envelope_flag_only > 0) {
+      std::snprintf(buf, sizeof buf, " (%llu of them ok: the tool is along C there, any C is right and the neural C "
+                    "is not compared; the flag only informs)",
+                    static_cast<unsigned long long>(s.envelope_flag_only));
+      out += buf;
+    }
   }
   if (!with_neural) {
     out += "\nik: no neural model given (--model): neural columns empty";

@@ -103,6 +103,9 @@ struct IkSummary {
   Axes neural_max_abs_diff{};          //!< max |neural - analytic| per axis [mm, deg]
   Axes neural_sum_sq_diff{};           //!< for the RMS [mm^2, deg^2]
   std::uint64_t first_failed_line = 0; //!< 0 when none failed
+  /// Points flagged neural_outside_envelope and still ok: the tool along C, where every C is right
+  /// and the neural C is not compared (the flag informs; a real excursion degrades the point).
+  std::uint64_t envelope_flag_only = 0;
 };
 
 /// Readable multi-line summary (no trailing newline).

@@ -42,6 +42,7 @@ nlohmann::ordered_json summary_json(const IkSummary& s, bool neural, const Axes&
           {"failed", s.failed},
           {"first_failed_line", s.first_failed_line},
           {"flags", flags},
+          {"outside_envelope_informational", s.envelope_flag_only},
           {"neural", neural ? neural_json(s, tolerance) : nlohmann::ordered_json(nullptr)}};
 }
 
