@@ -8,8 +8,8 @@
 // files whose pages leave the resident set as a run moves on (gcpipe/scratch.hpp); the passes over
 // the whole program read the blocks' 32-byte briefs, and the passes that convert or destroy a
 // whole series drop its pages behind them. What is left to grow is heap a block or a second of
-// machine time keeps (long source lines, the limits met per second): 0.001-0.002 MB a
-// machine-second measured (README, "Memory"). The history of this bound: before issue 12's memory
+// machine time keeps (long source lines, the limits met per second): 0.001 MB a
+// machine-second measured (two runs) (README, "Memory"). The history of this bound: before issue 12's memory
 // work 0.71 MB a machine-second (71 -> 222 MB); after the first round 0.15; then 0.065; with the
 // planner in chunks and the text by windows 0.050; with the scratch files 0.012 between 4000 and
 // 16,000 segments (and 0.007 between 4000 and 48,000), which fails this bound. The programs are

@@ -112,16 +112,20 @@ TEST(OutputFolder, ReusedFolderKeepsNothingOfTheEarlierRun) {
 
 // No compensated.nc (here: the program runs longer than compensate.max_machine_time) is a
 // failure: non-zero exit status and the reason in summary.json, not exit 0.
+// A config of the MX-330 with its drives whose compensate.max_machine_time is `seconds`.
+fs::path config_with_max_machine_time(const fs::path& dir, const std::string& seconds) {
+  const fs::path path = dir / "bound.yaml";
+  std::ofstream c(path);
+  c << "machine: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/machines/mx330.yaml\n"
+    << "servo:\n  drives: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/drives/seed002.yaml\n"
+    << "compensate:\n  max_machine_time: " << seconds << "\n";
+  return path;
+}
+
 TEST(OutputFolder, MissingCompensatedProgramIsAFailureWithItsReason) {
   const fs::path dir = tmpdir("nocomp");
-  {
-    std::ofstream c(dir / "short.yaml");
-    c << "machine: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/machines/mx330.yaml\n"
-      << "servo:\n  drives: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/drives/seed002.yaml\n"
-      << "compensate:\n  max_machine_time: 2\n";
-  }
   Outcome r = gcpipe({"batch", kSamples + "five_axis_demo.nc", "-o", (dir / "out").string(), "--config",
-                      (dir / "short.yaml").string(), "--quiet"});
+                      config_with_max_machine_time(dir, "2").string(), "--quiet"});
   EXPECT_EQ(r.status, 1) << r.err;
   EXPECT_FALSE(fs::exists(dir / "out" / "compensated.nc"));
   const auto summary = read_json(dir / "out" / "summary.json");
@@ -135,14 +139,8 @@ TEST(OutputFolder, MissingCompensatedProgramIsAFailureWithItsReason) {
 // bound, the control's cycle and what to change.
 TEST(OutputFolder, APlanLongerThanTheBoundSaysWhatToRaise) {
   const fs::path dir = tmpdir("planlong");
-  {
-    std::ofstream c(dir / "bound.yaml");
-    c << "machine: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/machines/mx330.yaml\n"
-      << "servo:\n  drives: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/drives/seed002.yaml\n"
-      << "compensate:\n  max_machine_time: 16.5\n";
-  }
   Outcome r = gcpipe({"batch", kSamples + "five_axis_demo.nc", "-o", (dir / "out").string(), "--config",
-                      (dir / "bound.yaml").string(), "--quiet"});
+                      config_with_max_machine_time(dir, "16.5").string(), "--quiet"});
   EXPECT_EQ(r.status, 1) << r.err;
   EXPECT_FALSE(fs::exists(dir / "out" / "compensated.nc"));
   for (const char* part : {"planned reference would run longer than compensate.max_machine_time (16.5 s",

@@ -46,16 +46,8 @@ class BlockStore {
   ~BlockStore() { clear(); }
 
   /// Throws std::length_error past max_blocks (the caller bounds the program before).
-  void push_back(const ResolvedBlock& b) {
-    void* at = room_with_brief(b);
-    new (at) ResolvedBlock(b);
-    ++size_;
-  }
-  void push_back(ResolvedBlock&& b) {
-    void* at = room_with_brief(b);
-    new (at) ResolvedBlock(std::move(b));
-    ++size_;
-  }
+  void push_back(const ResolvedBlock& b) { add(*new (room()) ResolvedBlock(b)); }
+  void push_back(ResolvedBlock&& b) { add(*new (room()) ResolvedBlock(std::move(b))); }
   /// The blocks destroyed and their memory given back. Destroying a block reads it (its strings),
   /// so the pages are dropped behind as it goes: destroying a whole program at once mapped all
   /// of its pages in milliseconds, which was the peak of a long run's memory (22 MB at the end of
@@ -85,7 +77,7 @@ class BlockStore {
   const ResolvedBlock* end() const { return data() + size_; }
   std::span<const ResolvedBlock> span() const { return {data(), size_}; }
   operator std::span<const ResolvedBlock>() const { return span(); }
-  std::span<const BlockBrief> briefs() const { return {briefs_.data(), size_}; }
+  std::span<const BlockBrief> briefs() const { return {briefs_.data(), briefs_.size()}; }
 
  private:
   void* room() {
@@ -94,12 +86,16 @@ class BlockStore {
     bytes_.back((size_ + 1) * sizeof(ResolvedBlock));
     return bytes_.data() + size_ * sizeof(ResolvedBlock);
   }
-  // (A block whose copy throws leaves its brief behind: briefs() counts size_ of them.)
-  void* room_with_brief(const ResolvedBlock& b) {
-    void* at = room();
-    briefs_.resize(size_);
-    briefs_.push_back(brief_of(b));
-    return at;
+  // The block just made at room(): counted once its brief is kept too (a full scratch disk
+  // throws there, and the block is undone).
+  void add(ResolvedBlock& b) {
+    try {
+      briefs_.push_back(brief_of(b));
+    } catch (...) {
+      b.~ResolvedBlock();
+      throw;
+    }
+    ++size_;
   }
   ScratchBytes bytes_;
   ScratchArray<BlockBrief> briefs_;
