@@ -262,7 +262,7 @@ ProgramMatch check_trace_runs_program(const compensate::Model& model, std::span<
     if (in_trace) {
       const double v0 = c[clock.trace_start];
       std::size_t k = clock.trace_start;
-      while (std::abs(c[k] - v0) <= base[a]) ++k;
+      while (k + 1 < c.size() && std::abs(c[k] - v0) <= base[a]) ++k;  // a range above base[a] may stay within it of v0
       m.sample = k;
       m.t = trace.t[k];
       m.trace_value = c[k];
@@ -277,7 +277,7 @@ ProgramMatch check_trace_runs_program(const compensate::Model& model, std::span<
     } else {
       const double v0 = path.command[clock.nominal_start][a];
       std::size_t n = clock.nominal_start;
-      while (std::abs(path.command[n][a] - v0) <= base[a]) ++n;
+      while (n + 1 < N && std::abs(path.command[n][a] - v0) <= base[a]) ++n;
       m.t = trace_time_of_tick(n);
       m.sample = static_cast<std::size_t>(std::lower_bound(trace.t.begin(), trace.t.end(), m.t) - trace.t.begin());
       m.nominal_value = path.command[n][a];
