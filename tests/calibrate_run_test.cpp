@@ -109,6 +109,30 @@ TEST(CalibrateRun, TheCommandRunsTheRegisteredStageThroughThePipeline) {
   EXPECT_FALSE(fs::exists(dir / "rejected" / "calibration.json"));
 }
 
+TEST(CalibrateRun, EvaluateRefusesATraceOfAnotherProgram) {
+  // gcpipe evaluate with the circle's trace and the five-axis move as the program: exit status 1,
+  // where they part and what to do, and no figures (issue 29 item 6: it printed max 10557.6 um).
+  test::Scenario sc = test::circle_scenario();
+  const fs::path dir = test::scratch("evaluate_other");
+  test::write_csv(test::trace_of(sc, 3), dir / "circle_run.csv");
+  std::ofstream(dir / "five_axis.nc") << test::five_axis_program();
+  std::ofstream(dir / "circle.nc") << test::circle_program();
+  const fs::path cfg = test::write_config(sc.machine.drives, dir, "machine");
+  std::string said;
+  EXPECT_EQ(run_gcpipe("evaluate --trace " + (dir / "circle_run.csv").string() + " --program " + (dir / "five_axis.nc").string() +
+                           " --config " + cfg.string(), said), 1) << said;
+  EXPECT_NE(said.find("gcpipe evaluate: " + (dir / "circle_run.csv").string() + ": the commanded positions are not a run of " +
+                      (dir / "five_axis.nc").string() + ": axis Z moves in " + (dir / "five_axis.nc").string() + " (from line 3, at t = "),
+            std::string::npos) << said;
+  EXPECT_NE(said.find("Was the feed override at 100 %? Pass the program the trace ran"), std::string::npos) << said;
+  EXPECT_EQ(said.find("max"), std::string::npos) << said;
+  // The program it ran: measured.
+  said.clear();
+  EXPECT_EQ(run_gcpipe("evaluate --trace " + (dir / "circle_run.csv").string() + " --program " + (dir / "circle.nc").string() +
+                           " --config " + cfg.string(), said), 0) << said;
+  EXPECT_NE(said.find("cutting (G1 G2 G3): max "), std::string::npos) << said;
+}
+
 TEST(CalibrateRun, CircleWithXFrictionShowsTheQuadrantGlitches) {
   // The figures of stages/calibrate/README.md for friction come from this run.
   test::Scenario sc = test::circle_scenario();

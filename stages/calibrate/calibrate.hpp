@@ -37,7 +37,10 @@ int run_calibrate(const CalibrateRequest& request, std::ostream& out, std::ostre
 
 struct EvaluateRequest {
   std::string trace;                  //!< measured trace of a run of `program`
-  std::string program;                //!< the G-code that was run
+  std::string program;                //!< the G-code that was run (the nominal path measured against)
+  /// The G-code the machine ran when it is not `program` (its compensated.nc): the trace's
+  /// commands are checked against this one, the contour error is measured against `program`.
+  std::optional<std::string> ran;
   std::string config;                 //!< pipeline config (machine kinematics, parse options)
   std::optional<std::string> format;
   bool skip_bad_rows = false;
@@ -69,9 +72,45 @@ struct ContourFigures {
   std::uint64_t line_at_cutting_max = 0;
   std::size_t cutting_samples = 0, rapid_samples = 0, idle_samples = 0;
 };
-/// Throws std::runtime_error when the program cannot be run by the model.
+/// Throws std::runtime_error when the program cannot be run by the model. Does not check that the
+/// trace is a run of the program (run_evaluate does, with check_trace_runs_program, first).
 ContourFigures measured_contour_error(const compensate::Model& model, std::span<const ResolvedBlock> program,
                                       const MeasuredTrace& trace);
+
+/// Whether a trace's commanded positions are a run of `program`: the trace's commands against the
+/// program's nominal commands (the control model's smoothed interpolator output, compensate's
+/// Tick::command, the quantity a control logs as "commanded" and simulate_trace records), aligned
+/// at the first commanded motion as measured_contour_error does, then shifted by the best of a
+/// few ticks either side. Checked in this order: the axes that move (in one but not the other),
+/// the commands sample by sample over the overlap, the duration of the commanded motion. The
+/// rule and its numbers are in check_trace_runs_program's definition and the README (evaluate).
+struct ProgramMatch {
+  enum class Part : std::uint8_t { kNone, kAxes, kCommands, kDuration };
+  Part part = Part::kNone;    //!< kNone: the trace follows the program
+  bool ok() const { return part == Part::kNone; }
+  std::string message;        //!< when not ok: where they part, by how much, and what to do
+  // kAxes and kCommands: where they part
+  int axis = -1;
+  std::size_t sample = 0;     //!< trace sample index
+  double t = 0;               //!< [s] trace time of that sample
+  double trace_value = 0, nominal_value = 0;  //!< commanded in the trace, nominal there [mm, deg]
+  double deviation = 0, tolerance = 0;        //!< [mm, deg]: outside the nominal's time window, allowed
+  std::uint64_t line = 0;     //!< program line of the nominal block at that time
+  // kDuration
+  double trace_duration = 0, nominal_duration = 0;  //!< [s] first to last commanded motion
+  // always
+  long shift_ticks = 0;       //!< time shift chosen around the first-motion alignment
+  double worst = 0;           //!< largest deviation / tolerance over the compared samples
+  std::array<double, kNumAxes> resolution{};  //!< detected quantisation of the trace's commands (0: none)
+};
+/// The resolution of a logged command: the coarsest decimal grid (1, 0.5, 0.1, ... 0.0001 mm or
+/// deg) that 99 % of its values lie on; 0 when none is, or when it changes fewer than 5 times.
+/// UMich's commands: X 1 mm, Y and Z 0.1 mm.
+double command_resolution(const std::vector<double>& values);
+/// Throws std::runtime_error when the program cannot be run by the model or the trace's commands
+/// never move (as measured_contour_error).
+ProgramMatch check_trace_runs_program(const compensate::Model& model, std::span<const ResolvedBlock> program,
+                                      const MeasuredTrace& trace, const std::string& program_name = "the program");
 
 /// Radius at which rotary errors are stated in micrometres: 100 mm (a part's size on the
 /// MX-330 table); rms_deg is given beside it.

@@ -75,6 +75,7 @@ int run_evaluate(const EvaluateArgs& a) {
   q.period = a.period;
   q.skip_bad_rows = a.skip_bad_rows;
   if (!a.json.empty()) q.json = a.json;
+  if (!a.ran.empty()) q.ran = a.ran;
   return calibrate::run_evaluate(q, std::cout, std::cerr);
 }
 

@@ -81,7 +81,7 @@ struct CalibrateArgs {
 int run_calibrate(const CalibrateArgs& args);
 
 struct EvaluateArgs {
-  std::string trace, program, config, format, json;
+  std::string trace, program, config, format, json, ran;
   std::vector<std::string> columns;
   double period = 0;
   bool skip_bad_rows = false;

@@ -157,11 +157,14 @@ void add_evaluate(CLI::App& app, EvaluateArgs& a) {
   auto* s = app.add_subcommand("evaluate", "measured tool-tip contour error of a real run against its program");
   s->add_option("--trace", a.trace, "the measured trace of a run of the program")->required()->check(CLI::ExistingFile);
   s->add_option("--program", a.program, "the G-code that was run")->required()->check(CLI::ExistingFile);
+  s->add_option("--ran", a.ran, "the program the machine ran when it is --program's compensated.nc (the trace is checked against it)")
+      ->check(CLI::ExistingFile);
   s->add_option("--config", a.config, "pipeline config (machine kinematics; default: pipeline_configs/default.yaml)");
   add_trace_format_options(s, a.format, a.columns, a.period);
   s->add_flag("--skip-bad-rows", a.skip_bad_rows, "use the usable rest of a trace with bad rows");
   s->add_option("--json", a.json, "also write the figures as JSON to this file")->check(kNonEmpty);
-  s->footer("Cutting moves and rapids apart. Exit status: 0 done, 3 rows skipped, 1 stopped, 2 usage.");
+  s->footer("Cutting moves and rapids apart. A trace whose commands are not a run of the program (or of --ran) is\n"
+            "refused. Exit status: 0 done, 3 rows skipped, 1 stopped (also: not a run of the program), 2 usage.");
 }
 
 #ifdef GCPIPE_WITH_DDS
