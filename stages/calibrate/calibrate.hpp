@@ -166,6 +166,9 @@ std::vector<std::string> write_plots(const Calibration& c, const std::string& ou
 
 /// The calibrated drives file text (YAML, every axis, effects under `effects:`).
 std::string drives_yaml(const Calibration& c, const servo::DriveSet& configured);
+/// Warnings calibrated_drives.yaml carries (DriveSet::prediction_warnings): every driven axis
+/// whose calibrated prediction stays above 5x the noise or has a structural mismatch.
+std::vector<std::string> prediction_warnings(const Calibration& c);
 /// A drives file (pipeline_configs/drives/*.yaml layout) for `d`, after a comment `header`.
 std::string drives_text(const servo::DriveSet& d, const std::string& header);
 /// The NNOE `m`, fitted on samples every `period` s, as the servo's `nnoe` effect (the settings

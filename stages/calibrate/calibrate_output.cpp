@@ -170,6 +170,14 @@ std::string drives_text(const servo::DriveSet& d, const std::string& header) {
   std::ostringstream y;
   y << header << "substeps: " << d.substeps << "\nsaturation_margin: " << num(d.saturation_margin) << "\naxes:\n";
   for (int a = 0; a < kNumAxes; ++a) axis_yaml(y, a, d.axes[a]);
+  if (!d.prediction_warnings.empty()) {
+    y << "prediction_warnings:\n";
+    for (const auto& w : d.prediction_warnings) {
+      std::string q;
+      for (char ch : w) q += ch == '"' || ch == '\\' ? std::string("\\") + ch : std::string(1, ch);
+      y << "  - \"" << q << "\"\n";
+    }
+  }
   return y.str();
 }
 
@@ -188,13 +196,36 @@ servo::EffectSettings nnoe_effect(const NnoeModel& m, double period) {
   return e;
 }
 
+std::vector<std::string> prediction_warnings(const Calibration& c) {
+  std::vector<std::string> out;
+  for (int a = 0; a < kNumAxes; ++a) {
+    const auto& id = c.axes[a];
+    if (!id.moving || id.config.model != servo::DriveModel::kDrive) continue;
+    const bool rot = a == kA || a == kC;
+    const double noise_um = (rot ? c.noise[a] * M_PI / 180 * kRotaryRadiusMm : c.noise[a]) * 1000;
+    const double err = c.nnoe[a] ? c.with_nnoe.rms_um[a] : c.calibrated.rms_um[a];
+    if (id.base.structural_mismatch || err > 5 * std::max(noise_um, 0.05))
+      out.push_back(std::string(1, kAxisLetters[a]) + ": the calibrated model predicts the measured trace to " + num(err) + " um rms" +
+                    (rot ? " at 100 mm" : "") + " (noise " + num(noise_um) + " um)" +
+                    (id.base.structural_mismatch ? "; " + id.base.mismatch : "") +
+                    ": a compensation with it is no better than that");
+  }
+  return out;
+}
+
 std::string drives_yaml(const Calibration& c, const servo::DriveSet& configured) {
   std::string h = "# Drives calibrated by gcpipe calibrate from " + std::to_string(c.rows) + " rows of";
   for (const auto& t : c.traces) h += " " + t;
   h += ".\n# Fitted values and their 1-sigma: calibration.json (declared, effects). Keys: stages/servo/README.md.\n";
+  // Every value this file changes from the config, with its 1-sigma, where a reader sees it.
+  for (int a = 0; a < kNumAxes; ++a)
+    for (const auto& d : c.axes[a].declared)
+      if (!d.held && d.fitted != d.config)
+        h += "#   " + std::string(1, kAxisLetters[a]) + " " + d.name + " = " + num(d.fitted) + " +- " + num(d.sigma) + " " + d.unit + " (config " + num(d.config) + ")\n";
   servo::DriveSet d = c.drives;
   for (int a = 0; a < kNumAxes; ++a)
     if (c.nnoe[a]) d.axes[static_cast<std::size_t>(a)].effects.push_back(nnoe_effect(*c.nnoe[a], c.period));
+  d.prediction_warnings = prediction_warnings(c);
   d.substeps = configured.substeps;
   d.saturation_margin = configured.saturation_margin;
   return drives_text(d, h);
@@ -244,7 +275,7 @@ void report_axis(std::ostringstream& r, const Calibration& c, int a) {
       << num(id.torque_rms_calibrated) << " N*m\n";
   for (const auto& d : id.declared)
     r << "  " << d.name << " [" << d.unit << "]: config " << num(d.config) << ", fitted " << num(d.fitted) << " +- " << num(d.sigma)
-      << (d.held ? "  (held: " + d.why + ")" : "") << "\n";
+      << (d.held ? "  (held: " + d.why + ")" : d.why.empty() ? "" : "  (" + d.why + ")") << "\n";
   for (const auto& s : id.candidates) {
     r << "  round " << s.round << " " << s.effect << ": BIC " << fixed(s.criterion_before, 1) << " -> " << fixed(s.criterion_after, 1)
       << " (drop on the candidate's residual " << fixed(s.evidence, 1) << ")"
@@ -260,8 +291,54 @@ void report_axis(std::ostringstream& r, const Calibration& c, int a) {
 
 }  // namespace
 
+namespace {
+
+/// The lines a process engineer reads first (issue 29 item 8): per axis what was identified
+/// against the config, the effects named, what was seen and not named, what could not be
+/// identified and why, and the prediction error before and after.
+void summary(std::ostringstream& r, const Calibration& c) {
+  r << "SUMMARY\n";
+  if (c.period > 0.01)
+    r << "  samples every " << num(c.period * 1000) << " ms: a drive's loop (time constants of 5-30 ms), backlash reversals, delays of\n"
+      << "  milliseconds and any periodic error shorter than 10 samples at the feed are not visible at this rate; what such a\n"
+      << "  trace can show is slow: a scale or offset error, a gain on the velocity, friction from a current column.\n";
+  for (int a = 0; a < kNumAxes; ++a) {
+    const auto& id = c.axes[a];
+    if (!id.moving) { r << "  " << axis(a) << ": does not move in the trace\n"; continue; }
+    const bool rot = a == kA || a == kC;
+    r << "  " << axis(a) << ": prediction error rms " << fixed(c.declared.rms_um[a], 2) << " -> " << fixed(c.calibrated.rms_um[a], 2)
+      << (rot ? " um at 100 mm" : " um") << " (with the NNOE " << fixed(c.with_nnoe.rms_um[a], 2) << "), noise "
+      << fixed((rot ? c.noise[a] * M_PI / 180 * kRotaryRadiusMm : c.noise[a]) * 1000, 2) << "\n";
+    if (id.config.model != servo::DriveModel::kDrive) {
+      r << "     ideal axis in the config: nothing is written for it" << (c.nnoe[a] ? " (an NNOE explains " + fixed(100 * c.nnoe[a]->explained_fraction, 1) + " % of its residual)" : "")
+        << "; give it drives in the config to use what is found\n";
+      continue;
+    }
+    std::string fitted, held;
+    for (const auto& d : id.declared) {
+      if (!d.held && d.fitted != d.config) fitted += "  " + d.name + " " + num(d.fitted) + " +- " + num(d.sigma) + " (config " + num(d.config) + ")";
+      else if (d.held && d.why.find("feature off") == std::string::npos) held += (held.empty() ? "" : "; ") + d.name + ": " + d.why;
+    }
+    r << "     identified:" << (fitted.empty() ? " nothing (the configured drive stands)" : fitted) << "\n";
+    if (id.base.structural_mismatch) r << "     STRUCTURAL MISMATCH: " << id.base.mismatch << "\n";
+    if (id.named.empty()) r << "     effects named: none\n";
+    for (const auto& n : id.named) {
+      r << "     effect named: " << n.effect;
+      for (const auto& p : n.params) r << " " << p.name << " " << num(p.value) << " +- " << num(p.sigma) << " " << p.unit;
+      r << "\n";
+    }
+    for (const auto& s : id.candidates)
+      if (s.reason.rfind("seen, not named", 0) == 0) r << "     " << s.effect << " " << s.reason << "\n";
+    if (!held.empty()) r << "     kept at the config: " << held << "\n";
+  }
+  r << "\n";
+}
+
+}  // namespace
+
 std::string report_text(const Calibration& c) {
   std::ostringstream r;
+  summary(r, c);
   r << "gcpipe calibrate: " << c.rows << " rows at " << num(c.period) << " s";
   for (const auto& t : c.traces) r << ", " << t;
   r << "\nrows skipped (bad): " << c.rows_skipped << ", rows unused (outside the longest gap-free stretch): " << c.rows_unused

@@ -15,6 +15,7 @@
 
 #include <Eigen/Core>
 
+#include "base_model.hpp"
 #include "servo.hpp"
 
 namespace gcpipe::calibrate {
@@ -88,6 +89,7 @@ struct AxisIdentification {
   bool refit_kept = false;
   std::string refit_note;
   std::vector<DeclaredParam> declared;
+  BaseIdentification base;                 //!< the drive identified before any effect (README 3.1)
   std::vector<CandidateScore> candidates;  //!< every candidate of every round
   std::vector<CandidateScore> named;       //!< the named effects, in order
   std::vector<double> pred_declared, pred_refit, pred_calibrated;  //!< whole trace

@@ -320,8 +320,9 @@ DriveParams load_axis(const Config& a, int axis) {
 }  // namespace
 
 DriveSet load_drives(const Config& root) {
-  root.reject_unknown({"substeps", "saturation_margin", "axes"});
+  root.reject_unknown({"substeps", "saturation_margin", "axes", "prediction_warnings"});
   DriveSet d;
+  if (root.has("prediction_warnings")) d.prediction_warnings = root.strings("prediction_warnings");
   d.substeps = static_cast<int>(root.integer("substeps", d.substeps, 1, 1000));
   d.saturation_margin = root.number("saturation_margin", d.saturation_margin, "", 0.1, 1.0);
   const Config axes = root.section("axes");

@@ -83,6 +83,10 @@ struct DriveSet {
   int substeps = 8;                 //!< RK4 sub-steps per period on the nonlinear path
   double saturation_margin = 0.9;   //!< exact step is redone with RK4 when |tau| at either end
                                     //!< of a period exceeds this fraction of the limit
+  /// What the calibration that wrote this file knows its model gets wrong (an axis whose
+  /// prediction error stays well above the noise, a structural mismatch): a pipeline that
+  /// simulates or compensates with these drives repeats each as a warning.
+  std::vector<std::string> prediction_warnings;
 };
 
 /// Reads a drives file (pipeline_configs/drives/*.yaml, root mapping); unknown keys rejected;

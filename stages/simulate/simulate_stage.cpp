@@ -13,7 +13,19 @@ SimulateStage::SimulateStage(const pipeline::StageContext& c)
       file_(c.file),
       log_(*c.log),
       reports_(std::find(c.whole_pipeline().begin(), c.whole_pipeline().end(), "compensate") == c.whole_pipeline().end()),
-      program_(bounds_.max_blocks) {}
+      program_(bounds_.max_blocks) {
+  // A drives file written by gcpipe calibrate says where its model is known to predict badly;
+  // whoever simulates or compensates with it is told, not left to trust the figures.
+  for (const auto& w : model_.drives.prediction_warnings) {
+    Diagnostic d;
+    d.file = "servo.drives";
+    d.line = 1;
+    d.column = 1;
+    d.severity = Severity::kWarning;
+    d.message = "calibrated drives: " + w;
+    log_.report(d);
+  }
+}
 
 bool SimulateStage::block(const ResolvedBlock& b, pipeline::Emitter& out) {
   // The whole program is kept (the learning replays it), up to a bound on memory.
