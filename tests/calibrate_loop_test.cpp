@@ -46,6 +46,22 @@ TEST(CalibrateLoop, CalibratedCompensationBeatsTheUncalibratedOneOnTheMachine) {
   EXPECT_LT(cal.cutting_rms, 0.5 * uncal.cutting_rms);
 }
 
+// Issue 29 item 5's other half: when the machine is the config, calibrating must not make the
+// compensation worse (calibrated <= 1.1 x declared).
+TEST(CalibrateLoop, OnAMachineThatIsTheConfigTheCalibratedCompensationIsNoWorse) {
+  test::Scenario sc = test::circle_scenario();
+  sc.config = sc.machine;  // declared right
+  const Calibration c = calibrate_traces({test::trace_of(sc, 23)}, sc.config);
+  compensate::Model calibrated = sc.config;
+  calibrated.drives = c.drives;
+  const ContourFigures declared = compensated_on_machine(sc.config, sc.machine, sc);
+  const ContourFigures cal = compensated_on_machine(calibrated, sc.machine, sc);
+  std::cout << "machine = config, contour error on the machine (max, um): compensated with the config " << declared.cutting_max * 1000
+            << ", with calibrated.yaml " << cal.cutting_max * 1000 << "\n";
+  for (int a = 0; a < kNumAxes; ++a) EXPECT_TRUE(c.axes[static_cast<std::size_t>(a)].named.empty()) << kAxisLetters[a];
+  EXPECT_LE(cal.cutting_max, 1.1 * declared.cutting_max);
+}
+
 // The same loop with an effect outside the catalogue: a 40 Hz structural mode on X that only the
 // NNOE fallback models. calibrated.yaml carries it as the servo's `nnoe` effect, so the
 // compensation simulates the machine with it.
