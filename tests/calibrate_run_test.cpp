@@ -133,6 +133,26 @@ TEST(CalibrateRun, EvaluateRefusesATraceOfAnotherProgram) {
   EXPECT_NE(said.find("cutting (G1 G2 G3): max "), std::string::npos) << said;
 }
 
+// Issue 29 item 5: batch warns when the model it compensates with is one whose prediction error
+// the calibration knows to be large (calibrated_drives.yaml's prediction_warnings), on the
+// console and in diagnostics.txt.
+TEST(CalibrateRun, BatchWarnsWhenTheCalibratedModelPredictsBadly) {
+  test::Scenario sc = test::circle_scenario();
+  servo::DriveSet drives = sc.config.drives;
+  drives.prediction_warnings = {"X: the calibrated model predicts the measured trace to 8.9 um rms (noise 0.2 um)"};
+  const fs::path dir = test::scratch("run_prediction_warning");
+  const fs::path cfg = test::write_config(drives, dir, "config");
+  std::ofstream(dir / "circle.nc") << test::circle_program();
+  std::string output;
+  ASSERT_EQ(run_gcpipe("batch " + (dir / "circle.nc").string() + " -o " + (dir / "batch").string() + " --config " + cfg.string(), output), 0)
+      << output;
+  EXPECT_NE(output.find("warning: calibrated drives: X: the calibrated model predicts the measured trace to 8.9 um rms"), std::string::npos)
+      << output;
+  std::ifstream diag(dir / "batch" / "diagnostics.txt");
+  const std::string text((std::istreambuf_iterator<char>(diag)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("calibrated drives: X:"), std::string::npos);
+}
+
 TEST(CalibrateRun, CircleWithXFrictionShowsTheQuadrantGlitches) {
   // The figures of stages/calibrate/README.md for friction come from this run.
   test::Scenario sc = test::circle_scenario();

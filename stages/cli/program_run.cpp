@@ -16,7 +16,10 @@ void PrintedLog::report(const Diagnostic& d) {
     kept_ += '\n';
     file_->write(kept_);
   }
-  if (quiet_ || d.severity != Severity::kError) return;
+  // Errors are shown; warnings go to diagnostics.txt only, except the one a model known to
+  // predict badly raises (calibrated drives): a user compensating with it must see it.
+  const bool shown = d.severity == Severity::kError || d.message.rfind("calibrated drives:", 0) == 0;
+  if (quiet_ || !shown) return;
   if (shown_max_ == 0 || shown_++ < shown_max_) std::fprintf(stderr, "%s\n", format(d).c_str());
   else ++not_shown_;
 }
