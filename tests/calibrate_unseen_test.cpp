@@ -174,6 +174,8 @@ Calibration judge(const Case& c, const compensate::Model& config, const Pipeline
     const auto& id = cal.axes[static_cast<std::size_t>(a)];
     std::cout << "  " << kAxisLetters[a] << ": named " << named_on(id) << (id.base.structural_mismatch ? "; mismatch: " + id.base.mismatch : "") << "\n";
   }
+  if (std::getenv("GCPIPE_UNSEEN_VERBOSE"))
+    for (int a : kUnseenAxes) test::print(cal.axes[static_cast<std::size_t>(a)]);
   for (int a : kUnseenAxes)
     for (const auto& n : cal.axes[static_cast<std::size_t>(a)].named)
       if (std::none_of(c.effects.begin(), c.effects.end(), [&](const Truth& t) { return t.axis == a && t.effect == n.effect; })) {
@@ -244,8 +246,8 @@ double compensated_on_machine(const compensate::Model& model, const compensate::
 TEST(CalibrateUnseen, CalibratedCompensationBeatsTheDeclaredOneOnTheMachine) {
   const PipelineConfig pc = test::circle_config();
   const compensate::Model config = compensate::load_model(pc);
-  const int machines = env_count("GCPIPE_UNSEEN_LOOP", 1);
-  for (int i = 0; i < machines; ++i) {
+  const int machines = env_count("GCPIPE_UNSEEN_LOOP", 1), first = env_count("GCPIPE_UNSEEN_FIRST", 0);
+  for (int i = first; i < first + machines; ++i) {
     const Case c = make_case(i, config);
     Score s;
     const Calibration cal = judge(c, config, pc, s);
