@@ -1349,6 +1349,17 @@ bool greedy_round(const Ctx& c, AxisIdentification& id, int round, int& k) {
   return true;
 }
 
+/// True when every number of every effect of `p` lies in the range the servo registry accepts.
+bool effects_in_range(const servo::DriveParams& p) {
+  for (const auto& e : p.effects)
+    for (const auto& type : servo::effect_types())
+      if (e.type == type.name)
+        for (const auto& [k, v] : e.values)
+          for (const auto& key : type.keys)
+            if (k == key.name && k != "phase" && (!std::isfinite(v) || v < key.min || v > key.max)) return false;
+  return true;
+}
+
 /// Issue 29 rule 3: a declared value whose relative sigma exceeds 30 % (judged against the scale
 /// at which it matters where its zero is physical: base_model.hpp relative_sigma), or that sits
 /// on the edge of its physical range, is not written: the calibrated drive keeps the configured
@@ -1382,7 +1393,11 @@ void write_only_identified(const Ctx& c, AxisIdentification& id) {
       if (j != i && !id.declared[j].held) rest.push_back(static_cast<int>(j));
     servo::DriveParams m = id.calibrated;
     m.*(slot->field) = d.config;
-    (void)joint_fit(c, m, rest, refs, dynamic, c.tau(id.pred_calibrated), dynamic ? 40 : 200);
+    servo::DriveParams refit = m;
+    (void)joint_fit(c, refit, rest, refs, dynamic, c.tau(id.pred_calibrated), dynamic ? 40 : 200);
+    // The refit may move a named effect out of what a machine has (a delay below zero): then the
+    // value alone goes back to the config and nothing else moves.
+    if (effects_in_range(refit)) m = refit;
     const std::vector<double> y = c.predict(m, c.n());
     const double cost = (c.fit_sse(y) - c.fit_sse(id.pred_calibrated)) / (noise2 * c.tau(id.pred_calibrated));
     if (cost > 9 && !at_edge) {
