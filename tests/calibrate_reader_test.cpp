@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "calibrate_test_util.hpp"
 #include "measured_trace.hpp"
 
 namespace gcpipe::calibrate {
@@ -289,16 +290,10 @@ namespace gcpipe::calibrate {
 namespace {
 
 TEST(CalibrateUmich, FitOnFourExperimentsPredictTheOtherTwo) {
-  const std::filesystem::path dir = std::filesystem::path(GCPIPE_SHARED_DATA) / "traces/umich_smart_cnc_mill";
-  if (!std::filesystem::exists(dir)) GTEST_SKIP() << "shared data absent: " << dir;
-  std::vector<MeasuredTrace> fit, pred;
-  for (int i = 1; i <= 6; ++i) {
-    ReadOptions o;
-    o.skip_bad_rows = true;
-    auto r = read_trace_file(dir / ("experiment_0" + std::to_string(i) + ".csv"), o);
-    ASSERT_TRUE(r.trace) << i;
-    (i <= 4 ? fit : pred).push_back(std::move(*r.trace));
-  }
+  std::vector<MeasuredTrace> all = test::umich_experiments();
+  if (all.empty()) GTEST_SKIP() << "shared data absent: " << GCPIPE_SHARED_DATA << "/traces/umich_smart_cnc_mill";
+  ASSERT_EQ(all.size(), 6u);
+  std::vector<MeasuredTrace> fit(all.begin(), all.begin() + 4), pred(all.begin() + 4, all.end());
   const auto res = umich_analysis(fit, pred);
   for (int a = 0; a < 3; ++a) {
     const auto& x = res[static_cast<std::size_t>(a)];

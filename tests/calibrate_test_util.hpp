@@ -214,6 +214,22 @@ inline double param(const AxisIdentification& id, const std::string& effect, con
 
 namespace gcpipe::calibrate::test {
 
+/// The University of Michigan mill's six experiments (../shared/data), bad rows skipped; empty
+/// when the shared data is absent (the caller skips and says so), a failure when one is rejected.
+inline std::vector<MeasuredTrace> umich_experiments() {
+  const std::filesystem::path dir = std::filesystem::path(GCPIPE_SHARED_DATA) / "traces/umich_smart_cnc_mill";
+  std::vector<MeasuredTrace> out;
+  if (!std::filesystem::exists(dir)) return out;
+  for (int i = 1; i <= 6; ++i) {
+    ReadOptions o;
+    o.skip_bad_rows = true;
+    auto r = read_trace_file(dir / ("experiment_0" + std::to_string(i) + ".csv"), o);
+    if (!r.trace) ADD_FAILURE() << "UMich experiment " << i << " rejected";
+    else out.push_back(std::move(*r.trace));
+  }
+  return out;
+}
+
 /// A fresh directory under the build tree for one test.
 inline std::filesystem::path scratch(const std::string& name) {
   const auto d = std::filesystem::path(GCPIPE_BINARY_DIR) / "calibrate_tests" / name;

@@ -300,16 +300,14 @@ namespace {
 // is named that fails rule 2: the 0.5 mm "lead error" that was the distance moved in one sample is
 // seen and not named, and the report says what such samples cannot show.
 TEST(CalibrateRealData, UmichTracesNameNothingThatIsASamplingArtefact) {
-  const std::filesystem::path dir = std::filesystem::path(GCPIPE_SHARED_DATA) / "traces/umich_smart_cnc_mill";
-  if (!std::filesystem::exists(dir)) GTEST_SKIP() << "shared data absent: " << dir;
+  const std::vector<MeasuredTrace> experiments = test::umich_experiments();
+  if (experiments.empty()) GTEST_SKIP() << "shared data absent: " << GCPIPE_SHARED_DATA << "/traces/umich_smart_cnc_mill";
+  ASSERT_EQ(experiments.size(), 6u);
   const PipelineConfig pc = test::circle_config();
   const compensate::Model config = compensate::load_model(pc);
-  for (int i = 1; i <= 6; ++i) {
-    ReadOptions o;
-    o.skip_bad_rows = true;
-    auto r = read_trace_file(dir / ("experiment_0" + std::to_string(i) + ".csv"), o);
-    ASSERT_TRUE(r.trace) << i;
-    const Calibration c = calibrate_traces({*r.trace}, config);
+  for (std::size_t n = 0; n < experiments.size(); ++n) {
+    const std::size_t i = n + 1;
+    const Calibration c = calibrate_traces({experiments[n]}, config);
     const std::string report = report_text(c);
     EXPECT_NE(report.find("are not visible at this rate"), std::string::npos);
     EXPECT_FALSE(std::regex_search(report, std::regex("\\b-?nan\\b"))) << report.substr(0, 2000);

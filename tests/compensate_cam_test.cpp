@@ -3,7 +3,7 @@
 // goes through `gcpipe batch`; the written compensated.nc, read back and simulated, must keep the
 // planned cycle time (at most 1.02x), bring the cutting contour error down at least tenfold (the
 // issue's target), and beat the sceptic's baseline: the original slowed to the same cycle time.
-// Four seeds: 18.5x, 24.3x, 14.0x, 15.2x measured (README.md, "Compensation figures"); with the
+// Four seeds: 18.5x, 24.3x, 14.0x, 15.2x measured (docs/benchmarks.md, "Compensation figures"); with the
 // first-order learning operator used before the chain inverse, seeds 1 and 2 stopped at 5.5x and 9.0x.
 #include <gtest/gtest.h>
 

@@ -196,14 +196,9 @@ void keep_in_range(servo::DriveParams& p, double period, double configured_ffp) 
   // The ranges of base_slots (base_model.cpp), J-relative ones on this drive's J: a local fit
   // that leaves them finds a model no drive is (measured: Ta 1e-9 s on a two-mass Y, whose
   // compensation then cut 15.9 mm off the path on that machine).
-  const double J = p.J + p.J1;
-  p.Kpp = std::clamp(p.Kpp, 1.0, 1000.0);
-  p.Kvp = std::clamp(p.Kvp, 0.5 * J, 1e5 * J);
-  p.C = std::clamp(p.C, 1e-6 * J, 1e3 * J);
-  p.Kvi = std::clamp(p.Kvi, 1e-6 * J, 1e10 * J);
-  p.Ta = std::clamp(p.Ta, 1e-4, 0.5);
-  p.K_FFP = std::clamp(p.K_FFP, 0.0, std::max(100.0, configured_ffp));
-  p.Tp = std::clamp(p.Tp, 0.0, std::min(0.05, 60 * period));
+  servo::DriveParams range_of = p;
+  range_of.K_FFP = configured_ffp;  // the feed-forward's range opens to a higher configured value
+  for (const BaseSlot& b : base_slots(range_of, false, period)) p.*(b.field) = std::clamp(p.*(b.field), b.lo, b.hi);
 }
 
 /// Fits multipliers of the free declared parameters of `start`; returns the multipliers and sigmas.
