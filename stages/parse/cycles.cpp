@@ -24,7 +24,6 @@ struct CycleGeometry {
   int code;
   double r, bottom, clear;  // levels along the drilling axis [mm, machine]
   double q, dwell;          // peck depth [mm] and dwell [s]
-  double du, dv;            // G91: the hole step in the plane [mm]
   double shift[kNumAxes];   // G76/G87: the shift at the oriented spindle stop [mm]
   bool incremental;
   long repeats;
@@ -285,23 +284,31 @@ bool Parser::Impl::cycle_words(ModalState& ns, CycleGeometry& g, const std::stri
   return true;
 }
 
-// The holes' moves, repeat by repeat. In-plane target: G90 the block's words (or where the tool
-// is); G91 a step per repeat.
+// Where the next hole is in the plane, the tool standing at `pos`: G90 the block's words (or
+// where the tool is), the same hole each repeat; G91 a step per repeat. Polar words (@ ^, G17
+// only) give X and Y from `pos`: in G91 each repeat adds the distance and the angle again, as
+// rs274 drills a bolt circle `G91 G81 @0 ^60 L6`.
+void Parser::Impl::next_hole(const ModalState& ns, const CycleGeometry& g, std::uint8_t mask, const Axes& pos,
+                             Axes& hole) const {
+  hole = pos;
+  if (polar_words()) return polar_point(ns, pos, hole);
+  for (int a : {g.pa.u, g.pa.v}) {
+    if (!(mask & (1u << a))) continue;
+    const double w = linear_value(sc.w(kAxisLetters[a]), ns.units);
+    hole[a] = g.incremental ? pos[a] + w : w + ns.origin[a];
+  }
+}
+
+// The holes' moves, repeat by repeat.
 void Parser::Impl::drill_holes(ResolvedBlock& b, ModalState& ns, CycleGeometry& g, std::uint8_t mask) {
-  const Scan& s = sc;
-  Axes target = ns.position;
   const int u = g.pa.u, v = g.pa.v;
-  for (int a : {u, v})
-    if (mask & (1u << a)) target[a] = ns.incremental ? target[a] : linear_value(s.w(kAxisLetters[a]), ns.units) + ns.origin[a];
-  g.du = (mask & (1u << u)) && g.incremental ? linear_value(s.w(kAxisLetters[u]), ns.units) : 0;
-  g.dv = (mask & (1u << v)) && g.incremental ? linear_value(s.w(kAxisLetters[v]), ns.units) : 0;
   Axes pos = ns.position;
   HoleWriter h(moves, pos, g.pa.n);
   if (pos[g.pa.n] < g.r && g.code != 870) h.rapid_to(g.r);  // preliminary move, once
+  Axes hole{};
   for (long i = 0; i < g.repeats; ++i) {
-    const double pu = g.incremental ? pos[u] + g.du : target[u];
-    const double pv = g.incremental ? pos[v] + g.dv : target[v];
-    h.rapid_in_plane(u, pu, v, pv);
+    next_hole(ns, g, mask, pos, hole);
+    h.rapid_in_plane(u, hole[u], v, hole[v]);
     if (g.code == 870) {  // R is below the part: reached shifted, by back_bore
       back_bore(h, g, ns.spindle);
       continue;

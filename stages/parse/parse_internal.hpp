@@ -245,7 +245,7 @@ struct Frame {
   std::uint64_t skip_from = 0;  // line that started the skip (for notes)
   long goto_target = -1;        // Fanuc GOTO n: the N number looked for
   std::array<double, 30> saved_args{};                 // caller's #1..#30
-  std::vector<std::pair<std::string, double>> saved_named;  // caller's local named parameters
+  bool local_scope = false;  // an o-word call: its named parameters are its own (LinuxCNC)
   long repeats = 1;  // Fanuc M98 L: runs of the body still to go, this one included
   // A Fanuc M98 whose subprogram is not defined yet: the call waits, the lines after it too.
   std::string pending_call;
@@ -311,6 +311,11 @@ struct Parser::Impl {
     bool ret = false;   // M99
   } fanuc;
   bool input_done = false;
+  // The program end that ran (M2, M30, or the '%' that closes the tape): nothing after it runs,
+  // and each later line is reported as not run (Fanuc subprograms after M30 are still collected).
+  std::uint64_t end_line = 0;  // 0: not ended
+  const char* end_word = "";
+  bool program_started = false;  // a line with words has run: a '%' from now on closes the tape
   bool abort_requested = false;  // an expansion failed: run_ready unwinds it after the step
   struct Owner {
     std::uint64_t line = 0;  // the newest main-program line run (0: none open)
@@ -350,6 +355,9 @@ struct Parser::Impl {
   bool scan_word(std::string_view s, std::size_t& p, char L, std::uint32_t col);
   bool scan_polar(std::string_view s, std::size_t& p, std::uint32_t col);
   bool polar_target(const ModalState& ns, Axes& target, std::uint8_t& mask);
+  double polar_distance(const ModalState& ns, const Axes& from) const;
+  void polar_point(const ModalState& ns, const Axes& from, Axes& to) const;
+  bool polar_words() const { return sc.polar_r.col != 0 || sc.polar_a.col != 0; }
   bool reject_character(std::string_view s, std::size_t p, char c, std::uint32_t col);
   bool read_number(std::string_view s, std::size_t& p, char letter, Word& w);
   bool read_expression_number(std::string_view s, std::size_t& p, char letter, Word& w);
@@ -414,6 +422,8 @@ struct Parser::Impl {
   bool cycle_levels_of(ModalState& ns, parse_detail::CycleGeometry& g, const std::string& name, std::uint32_t col);
   bool cycle_words(ModalState& ns, parse_detail::CycleGeometry& g, const std::string& name, std::uint32_t col);
   void drill_holes(ResolvedBlock& b, ModalState& ns, parse_detail::CycleGeometry& g, std::uint8_t mask);
+  void next_hole(const ModalState& ns, const parse_detail::CycleGeometry& g, std::uint8_t mask, const Axes& pos,
+                 Axes& hole) const;
 
   // -- flow.cpp
   bool feed(std::string_view line, std::size_t overlong);
@@ -437,6 +447,9 @@ struct Parser::Impl {
   bool run_plain(const parse_detail::SourceLine& l, bool first_visit);
   void collect_definition(const parse_detail::SourceLine& l);
   void open_owner(std::uint64_t line);
+  void note_program_end(ModalState& ns);
+  void stop_after_end();
+  bool note_after_end(const parse_detail::SourceLine& l, bool first);
   bool close_owner();
   bool note_skipped(const parse_detail::SourceLine& l, const parse_detail::Frame& f);
   void trim_window();

@@ -668,17 +668,30 @@ bool Parser::Impl::polar_target(const ModalState& ns, Axes& target, std::uint8_t
   for (char L : {'X', 'Y'})
     if (sc.has(L))
       return fail(sc.w(L).col, std::string("polar coordinates (@ ^) and ") + L + " in one block: keep one way");
-  const double x0 = ns.position[kX] - ns.origin[kX], y0 = ns.position[kY] - ns.origin[kY];
-  const double r0 = std::hypot(x0, y0), a0 = std::atan2(y0, x0) * 180 / std::numbers::pi;
-  const double dr = sc.polar_r.col ? linear_value(sc.polar_r, ns.units) : 0;
-  const double da = sc.polar_a.col ? angle_value(sc.polar_a) : 0;
-  const double r = ns.incremental ? r0 + dr : (sc.polar_r.col ? dr : r0);
-  const double a = (ns.incremental ? a0 + da : (sc.polar_a.col ? da : a0)) * std::numbers::pi / 180;
+  const double r = polar_distance(ns, ns.position);
   if (!(std::fabs(r) <= kMaxLinear)) return fail(col, "polar distance " + show(r) + " mm is out of range (|@| <= 100000 mm)");
-  target[kX] = r * std::cos(a) + ns.origin[kX];
-  target[kY] = r * std::sin(a) + ns.origin[kY];
+  polar_point(ns, ns.position, target);
   mask = static_cast<std::uint8_t>(mask | (1u << kX) | (1u << kY));
   return true;
+}
+
+// The distance the block's @ ^ give when the tool stands at `from` [mm].
+double Parser::Impl::polar_distance(const ModalState& ns, const Axes& from) const {
+  const double r0 = std::hypot(from[kX] - ns.origin[kX], from[kY] - ns.origin[kY]);
+  const double dr = sc.polar_r.col ? linear_value(sc.polar_r, ns.units) : 0;
+  return ns.incremental ? r0 + dr : (sc.polar_r.col ? dr : r0);
+}
+
+// X and Y of the block's @ ^ seen from `from` into `to`: a canned cycle's repeats in G91 call it
+// once per hole, from the hole before, so they step in distance and angle as rs274's do.
+void Parser::Impl::polar_point(const ModalState& ns, const Axes& from, Axes& to) const {
+  const double x0 = from[kX] - ns.origin[kX], y0 = from[kY] - ns.origin[kY];
+  const double a0 = std::atan2(y0, x0) * 180 / std::numbers::pi;
+  const double da = sc.polar_a.col ? angle_value(sc.polar_a) : 0;
+  const double a = (ns.incremental ? a0 + da : (sc.polar_a.col ? da : a0)) * std::numbers::pi / 180;
+  const double r = polar_distance(ns, from);
+  to[kX] = r * std::cos(a) + ns.origin[kX];
+  to[kY] = r * std::sin(a) + ns.origin[kY];
 }
 
 // G4: Fanuc P in ms or X in s, LinuxCNC P in s. A motion code in the same block only sets the
