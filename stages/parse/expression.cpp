@@ -82,8 +82,9 @@ bool ParameterStore::get_numbered(int n, double& v) const {
   return true;
 }
 bool ParameterStore::get_named(const std::string& name, double& v) const {
-  auto it = named_.find(name);
-  if (it == named_.end()) return false;
+  const auto& named = named_map(name);
+  auto it = named.find(name);
+  if (it == named.end()) return false;
   v = it->second;
   return true;
 }
@@ -91,7 +92,7 @@ void ParameterStore::set_numbered(int n, double v) {
   numbered_[static_cast<std::size_t>(n)] = v;
   set_[static_cast<std::size_t>(n)] = 1;
 }
-void ParameterStore::set_named(const std::string& name, double v) { named_[name] = v; }
+void ParameterStore::set_named(const std::string& name, double v) { named_map(name)[name] = v; }
 
 bool ExpressionReader::fail(std::size_t pos, std::string msg) {
   error_ = std::move(msg);
@@ -133,7 +134,11 @@ bool ExpressionReader::parameter(std::string_view s, std::size_t& p, double& out
     p = close + 1;
     if (name.empty()) return fail(at, "empty parameter name '#<>'");
     if (!params_.get_named(name, out))
-      return fail(at, "parameter #<" + name + "> is used before it is set");
+      return fail(at, "parameter #<" + name + "> is used before it is set" +
+                          (ParameterStore::is_global_name(name)
+                               ? std::string()
+                               : std::string(" (a name without a leading '_' is local to the subroutine call that "
+                                             "sets it; #<_" + name + "> would be global)")));
     vacant_ = false;
     return true;
   }

@@ -14,6 +14,11 @@ namespace gcpipe {
 
 /// Numbered (#1..#5399) and named (#<name>) parameters. Names are case-insensitive, spaces ignored.
 ///
+/// Named parameters are scoped as in LinuxCNC: a name with a leading underscore (`#<_depth>`) is
+/// global; any other is local to the subroutine call that set it (the main program is a level of
+/// its own), so a recursive subroutine keeps each call's `#<level>` and a caller never sees its
+/// callee's names. enter_call()/leave_call() bracket each o-word call.
+///
 /// Fanuc Custom Macro B has vacant ("null") variables: #0 always, and every variable that was never
 /// set or was set from a vacant one. With enable_vacancy() (dialect fanuc) the store keeps that
 /// state and #0 reads as vacant; without it (LinuxCNC) a parameter never set reads 0, as rs274's.
@@ -24,6 +29,11 @@ class ParameterStore {
   bool get_named(const std::string& name, double& v) const;  //!< false when never set
   void set_numbered(int n, double v);
   void set_named(const std::string& name, double v);
+  void enter_call() { local_named_.emplace_back(); }  //!< a call starts with no local names
+  void leave_call() {                                  //!< the call's local names are gone
+    if (local_named_.size() > 1) local_named_.pop_back();
+  }
+  static bool is_global_name(const std::string& name) { return !name.empty() && name[0] == '_'; }
   void enable_vacancy() { vacancy_ = true; }
   bool vacancy() const { return vacancy_; }
   /// With vacancy: #n holds no value (never set, set from a vacant value, or n = 0).
@@ -33,7 +43,16 @@ class ParameterStore {
  private:
   std::vector<double> numbered_ = std::vector<double>(kMaxNumbered + 1, 0.0);
   std::vector<std::uint8_t> set_ = std::vector<std::uint8_t>(kMaxNumbered + 1, 0);
-  std::unordered_map<std::string, double> named_;
+  std::unordered_map<std::string, double> global_named_;
+  // One map of local names per call level; [0] is the main program's.
+  std::vector<std::unordered_map<std::string, double>> local_named_ =
+      std::vector<std::unordered_map<std::string, double>>(1);
+  std::unordered_map<std::string, double>& named_map(const std::string& name) {
+    return is_global_name(name) ? global_named_ : local_named_.back();
+  }
+  const std::unordered_map<std::string, double>& named_map(const std::string& name) const {
+    return is_global_name(name) ? global_named_ : local_named_.back();
+  }
   bool vacancy_ = false;
 };
 

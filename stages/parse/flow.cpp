@@ -737,7 +737,7 @@ bool Parser::Impl::loop_end(Frame& f, const SourceLine& l, const Statement& s) {
 }
 
 // o<name> call [arg] ...: #1..#30 take the arguments in the subroutine and are restored after,
-// as in LinuxCNC. A call to a subroutine defined further down waits for its definition.
+// and the call has named parameters of its own (#<_name> stays global), as in LinuxCNC. A call to a subroutine defined further down waits for its definition.
 bool Parser::Impl::call(Frame& f, const SourceLine& l, const Statement& s, bool& waiting) {
   auto it = subs.find(s.label);
   if (it == subs.end() || it->second.end_line == 0) {
@@ -782,6 +782,8 @@ bool Parser::Impl::call(Frame& f, const SourceLine& l, const Statement& s, bool&
     params.get_numbered(n + 1, callee.saved_args[static_cast<std::size_t>(n)]);
     params.set_numbered(n + 1, args[static_cast<std::size_t>(n)]);
   }
+  callee.local_scope = true;
+  params.enter_call();  // after the arguments: they are read in the caller's scope
   frames.push_back(std::move(callee));
   return true;
 }
@@ -794,6 +796,7 @@ bool Parser::Impl::do_return(std::size_t level) {
     return true;
   }
   for (int n = 0; n < 30; ++n) params.set_numbered(n + 1, f.saved_args[static_cast<std::size_t>(n)]);
+  if (f.local_scope) params.leave_call();
   frames.pop_back();
   return true;
 }
