@@ -188,6 +188,14 @@ bool has_m_code(std::string_view line, int code) {
 
 bool is_loop(Control::Kind k) { return k != Control::kIf; }
 
+// A '%' tape marker: after the program end it is still written out (it moves nothing), so that the
+// output keeps the tape's frame.
+bool percent_line(std::string_view line) {
+  std::size_t p = 0;
+  skip_blanks(line, p);
+  return p < line.size() && line[p] == '%';
+}
+
 }  // namespace
 
 // A Fanuc macro program (# variables, IF/GOTO/WHILE) keeps its lines: GOTO may jump back.
@@ -255,7 +263,7 @@ bool Parser::Impl::feed(std::string_view line, std::size_t overlong) {
   if (n == 1 && line.substr(0, 3) == "\xEF\xBB\xBF") line.remove_prefix(3);  // UTF-8 byte-order mark
   if (alarm_line != 0) return skip_after_alarm(n);
   if (opt.dialect == Dialect::kFanuc && !macro_mode) note_macro_program(line);
-  if (idle() && frames[0].pc == n && !maybe_statement(line) && !fanuc_line_to_keep(line)) {
+  if (idle() && end_line == 0 && frames[0].pc == n && !maybe_statement(line) && !fanuc_line_to_keep(line)) {
     // The hot path: nothing open, the line runs at once and is counted.
     open_owner(n);
     std::string why;
@@ -345,6 +353,31 @@ bool Parser::Impl::close_owner() {
   return !stopped;
 }
 
+// The program has ended (M2 or M30 inside a call or a loop too): the calls return and the loops
+// close without running on, as the control stops there. Definitions keep being collected.
+void Parser::Impl::stop_after_end() {
+  while (frames.size() > 1) {
+    frames.back().repeats = 1;
+    do_return(frames.size() - 1);
+  }
+  Frame& m = frames[0];
+  m.controls.clear();
+  m.pending_call.clear();
+  if (m.skip != Skip::kSubDefinition) m.skip = Skip::kNone;
+}
+
+// A line after the program end: read and accounted for, never run (rs274 stops reading there).
+bool Parser::Impl::note_after_end(const SourceLine& l, bool first) {
+  ++frames[0].pc;
+  if (!first) return true;
+  ++summary.lines_deleted;
+  ++summary.lines_not_run;
+  classified = l.number;
+  return emit_diagnostic(l.number, 1, Severity::kNote,
+                         std::string("not run: after the program end (") + end_word + " at line " +
+                             std::to_string(end_line) + ")") || true;
+}
+
 bool Parser::Impl::note_skipped(const SourceLine& l, const Frame& f) {
   ++summary.lines_deleted;
   ++summary.lines_not_run;
@@ -372,6 +405,7 @@ bool Parser::Impl::note_skipped(const SourceLine& l, const Frame& f) {
 bool Parser::Impl::run_ready() {
   if (abort_requested) unwind_expansion();
   while (!stopped) {
+    if (end_line != 0) stop_after_end();
     Frame& f = frames.back();
     if (!f.pending_call.empty()) {
       const bool ran = try_pending_call(f);
@@ -431,6 +465,8 @@ bool Parser::Impl::step(Frame& f, const SourceLine& l) {
       return true;
     }
   }
+  if (f.sub == nullptr && end_line != 0 && !(stmt && s.keyword == "sub") && !percent_line(l.text))
+    return note_after_end(l, first);
   if (first) open_owner(l.number);
   if (++owner.steps > opt.max_loop_passes * 1000) {
     flow_error(l, 1, "more than " + std::to_string(opt.max_loop_passes * 1000) +

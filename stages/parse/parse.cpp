@@ -135,7 +135,7 @@ void Parser::Impl::hand_out_compensated() {
 }
 
 void Parser::Impl::commit(ModalState& ns) {
-  if (block.stop == ProgramStop::kEnd || block.stop == ProgramStop::kEndRewind) ns.ended = true;
+  note_program_end(ns);
   st = ns;
   for (int i = 0; i < sc.nassign; ++i) {
     const Assignment& a = sc.assign[i];
@@ -143,6 +143,19 @@ void Parser::Impl::commit(ModalState& ns) {
     else if (a.vacant) params.set_vacant(a.number);
     else params.set_numbered(a.number, a.value);
   }
+}
+
+// M2, M30, or a '%' line once the program has started (the first '%' opens the tape, the next
+// closes it, as rs274 reads a file that starts with '%'): the program ends at the first of them.
+void Parser::Impl::note_program_end(ModalState& ns) {
+  const bool stop = block.stop == ProgramStop::kEnd || block.stop == ProgramStop::kEndRewind;
+  const bool closing_percent = sc.percent && program_started;
+  if (!sc.percent && (sc.any_word || sc.nassign > 0 || sc.program_number >= 0)) program_started = true;
+  if (!stop && !closing_percent) return;
+  ns.ended = true;
+  if (end_line != 0) return;  // a '%' after M30 closes the tape of a program already ended
+  end_line = block.line;
+  end_word = closing_percent ? "%" : block.stop == ProgramStop::kEnd ? "M2" : "M30";
 }
 
 // The modal state in force after the line, into its block.
