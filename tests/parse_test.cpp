@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <numbers>
 #include <random>
 #include <regex>
 #include <fstream>
@@ -1402,4 +1403,160 @@ TEST(ParseIssue14, FanucCutterCompRandomContoursStayContinuous) {
     }
   }
   EXPECT_GT(checked, 300u);
+}
+
+namespace {
+
+// The plunges of canned-cycle holes (the feed moves down to the bottom), in program coordinates.
+std::vector<Axes> plunges(const Parsed& p, double bottom) {
+  std::vector<Axes> out;
+  for (const Axes& e : ends(p))
+    if (std::fabs(e[kZ] - bottom) < 1e-9) out.push_back(e);
+  return out;
+}
+
+// Notes of lines the program does not run, by line number.
+std::map<std::uint64_t, std::string> notes(const Parsed& p) {
+  std::map<std::uint64_t, std::string> out;
+  for (const auto& d : p.diags)
+    if (d.severity == Severity::kNote) out[d.line] = d.message;
+  return out;
+}
+
+void expect_counts_add_up(const Parsed& p) {
+  EXPECT_EQ(p.summary.lines_read, p.summary.blocks_emitted + p.summary.lines_rejected + p.summary.lines_deleted);
+}
+
+}  // namespace
+
+// Bug: @ ^ in a canned-cycle block were read as X0 Y0 (holes up to 101.6 mm out of place).
+// Expected holes worked by hand (r cos a, r sin a) and checked against rs274's output.
+TEST(ParseRound2, PolarWordsPlaceCannedCycleHoles) {
+  Parsed p = parse_text("G21 G90 G17 F100\nG0 X0 Y0 Z5\nG81 @10 ^60 Z-2 R1\n@20 ^90\n^0\nG80\n", linuxcnc());
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  const auto holes = plunges(p, -2);
+  ASSERT_EQ(holes.size(), 3u);
+  const double want[3][2] = {{5, 10 * std::sqrt(3.0) / 2}, {0, 20}, {20, 0}};  // ^0 keeps @20
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_NEAR(holes[i][kX], want[i][0], 1e-9) << "hole " << i;
+    EXPECT_NEAR(holes[i][kY], want[i][1], 1e-9) << "hole " << i;
+  }
+  // G91 L6: each repeat adds the distance and the angle again (rs274: a bolt circle from ^60 L6).
+  Parsed circle = parse_text("G21 G90 G17 F100\nG55 G0 X10 Y0 Z5\nG91 G81 ^60 Z-2 R-4 L6\nG90 G80\n", linuxcnc());
+  ASSERT_EQ(circle.first_error(), nullptr) << format(*circle.first_error());
+  const auto bolt = plunges(circle, -1);
+  ASSERT_EQ(bolt.size(), 6u);
+  for (std::size_t i = 0; i < 6; ++i) {
+    const double a = 60.0 * static_cast<double>(i + 1) * std::numbers::pi / 180;
+    EXPECT_NEAR(bolt[i][kX], 10 * std::cos(a), 1e-9) << "hole " << i;
+    EXPECT_NEAR(bolt[i][kY], 10 * std::sin(a), 1e-9) << "hole " << i;
+  }
+  // G91 @1 ^60 L3 from X10: the spiral rs274 drills, distance 11, 12, 13 at 60, 120, 180 deg.
+  Parsed spiral = parse_text("G21 G90 G17 F100\nG0 X10 Y0 Z5\nG91 G81 @1 ^60 Z-2 R-4 L3\n", linuxcnc());
+  const auto s = plunges(spiral, -1);
+  ASSERT_EQ(s.size(), 3u);
+  EXPECT_NEAR(s[0][kX], 5.5, 1e-9);
+  EXPECT_NEAR(s[1][kY], 12 * std::sin(std::numbers::pi * 2 / 3), 1e-9);
+  EXPECT_NEAR(s[2][kX], -13, 1e-9);
+  expect_error("G81 @1 X1 Z-1 R1 F100\n", "polar coordinates (@ ^) and X", 8, linuxcnc());
+}
+
+// Bug: #<name> was global, so a recursive subroutine's `#<level>` was the innermost call's in
+// every caller (X0 X0 X0 where rs274 moves X0 X1 X2). LinuxCNC: a name without a leading '_' is
+// local to the call that sets it (the main program has its own); #<_name> is global.
+TEST(ParseRound2, NamedParametersAreLocalToEachCall) {
+  Parsed rec = parse_text("o100 sub\n#<level> = #1\no1 if [#1 gt 0]\no100 call [#1 - 1]\no1 endif\nG0 X#<level>\n"
+                          "o100 endsub\no100 call [2]\n",
+                          linuxcnc());
+  ASSERT_EQ(rec.first_error(), nullptr) << format(*rec.first_error());
+  ASSERT_EQ(ends(rec).size(), 3u);
+  for (std::size_t i = 0; i < 3; ++i) EXPECT_DOUBLE_EQ(ends(rec)[i][kX], static_cast<double>(i));
+  // Ten levels deep with a local counter and a global one: X10..X1 on the way down, Y0..Y10 on
+  // the way up, and #<_calls> counts all eleven calls.
+  Parsed deep = parse_text("#<_calls> = 0\no<r> sub\n#<n> = #1\n#<_calls> = [#<_calls> + 1]\no1 if [#<n> gt 0]\n"
+                           "G0 X#<n>\no<r> call [#<n> - 1]\no1 endif\nG0 Y#<n>\no<r> endsub\no<r> call [10]\nG0 Z#<_calls>\n",
+                           linuxcnc());
+  ASSERT_EQ(deep.first_error(), nullptr) << format(*deep.first_error());
+  const auto d = ends(deep);
+  ASSERT_EQ(d.size(), 10u + 11 + 1);
+  for (std::size_t i = 0; i < 10; ++i) EXPECT_DOUBLE_EQ(d[i][kX], 10.0 - static_cast<double>(i));
+  for (std::size_t i = 0; i < 11; ++i) EXPECT_DOUBLE_EQ(d[10 + i][kY], static_cast<double>(i));
+  EXPECT_DOUBLE_EQ(d.back()[kZ], 11);
+  // The main program's names are its own; a callee's vanish when it returns; _names are shared.
+  Parsed scope = parse_text("#<a> = 5\n#<_h> = 4\n#31 = 9\no100 sub\n#<b> = 7\n#31 = 8\n#<a> = 6\nG0 X#<a> Y#<_h>\n"
+                            "#<_h> = 1\no100 endsub\no100 call\nG0 X#<a> Y#<_h> Z#31\nG0 Y#<b>\n",
+                            linuxcnc());
+  const auto e = ends(scope);
+  ASSERT_EQ(e.size(), 2u);
+  EXPECT_DOUBLE_EQ(e[0][kX], 6);
+  EXPECT_DOUBLE_EQ(e[0][kY], 4);
+  EXPECT_DOUBLE_EQ(e[1][kX], 5);  // the caller's #<a> again
+  EXPECT_DOUBLE_EQ(e[1][kY], 1);  // #<_h> set in the call
+  EXPECT_DOUBLE_EQ(e[1][kZ], 8);  // #31 is global
+  ASSERT_NE(scope.first_error(), nullptr);
+  EXPECT_EQ(scope.first_error()->line, 13u);
+  EXPECT_NE(scope.first_error()->message.find("#<b> is used before it is set"), std::string::npos);
+  EXPECT_NE(scope.first_error()->message.find("local to the subroutine call"), std::string::npos);
+  // A subroutine does not see its caller's local names either (rs274: "not defined").
+  expect_error("#<a> = 1\no<s> sub\nG0 X#<a>\no<s> endsub\no<s> call\n", "#<a> is used before it is set", 5,
+               linuxcnc());
+}
+
+// Bug: lines after M2, M30 or a closing '%' ran (`G1 X150` after `M30 %` added 9.4 s of machine
+// time). rs274 reads nothing after the end; gcpipe reads each line and notes it as not run.
+TEST(ParseRound2, NothingRunsAfterTheProgramEnd) {
+  Parsed p = parse_text("G0 X1\nM30\n%\nG1 X150 F100\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(ends(p).size(), 1u);
+  EXPECT_TRUE(p.blocks.back().percent);  // the tape's closing '%' is still written
+  EXPECT_EQ(notes(p)[4], "not run: after the program end (M30 at line 2)");
+  EXPECT_EQ(p.summary.lines_not_run, 1u);
+  expect_counts_add_up(p);
+  EXPECT_EQ(p.summary.lines_read, 4u);
+  // The '%' that closes a tape opened by '%' ends the program without M2.
+  Parsed tape = parse_text("%\nG0 X1\n%\nG0 X2\n", linuxcnc());
+  ASSERT_EQ(ends(tape).size(), 1u);
+  EXPECT_EQ(notes(tape)[4], "not run: after the program end (% at line 3)");
+  expect_counts_add_up(tape);
+  // M2 in a subroutine ends the program: the call and the caller do not go on.
+  Parsed sub = parse_text("o<s> sub\nG0 X1\nM2\nG0 X5\no<s> endsub\no<s> call\nG0 X9\n", linuxcnc());
+  ASSERT_EQ(sub.first_error(), nullptr) << format(*sub.first_error());
+  ASSERT_EQ(ends(sub).size(), 1u);
+  EXPECT_EQ(notes(sub)[7], "not run: after the program end (M2 at line 3)");
+  expect_counts_add_up(sub);
+  // M2 in a loop: the loop stops; its end and the lines after are not run, and no error says
+  // the loop was left open.
+  Parsed loop = parse_text("o1 repeat [3]\nG0 X1\nM2\no1 endrepeat\nG0 X2\n", linuxcnc());
+  ASSERT_EQ(loop.first_error(), nullptr) << format(*loop.first_error());
+  ASSERT_EQ(ends(loop).size(), 1u);
+  EXPECT_EQ(notes(loop).size(), 2u);
+  expect_counts_add_up(loop);
+  // LinuxCNC: a call before M2 reaches a definition after it (rs274 searches the file forward).
+  Parsed later = parse_text("o100 call\nG0 Y1\nM2\no100 sub\nG0 X1\no100 endsub\nG0 Z9\n", linuxcnc());
+  ASSERT_EQ(later.first_error(), nullptr) << format(*later.first_error());
+  const auto l = ends(later);
+  ASSERT_EQ(l.size(), 2u);
+  EXPECT_DOUBLE_EQ(l[0][kX], 1);
+  EXPECT_DOUBLE_EQ(l[1][kY], 1);
+  EXPECT_NE(notes(later)[5].find("part of the definition of subroutine o100"), std::string::npos);
+  EXPECT_EQ(notes(later)[7], "not run: after the program end (M2 at line 3)");
+  expect_counts_add_up(later);
+}
+
+// Fanuc subprograms written after M30 are still found and called (M98); the other lines after
+// M30 are not run.
+TEST(ParseRound2, FanucSubprogramsAfterM30AreCalledAndOtherLinesNotRun) {
+  Parsed p = parse_text("%\nO0001\nG90 G0 X0 Y0\nM98 P2000\nG0 X1\nM30\nG1 X150 F100\nO2000\nG0 Y5\nM99\nG0 Z7\n%\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  const auto e = ends(p);
+  ASSERT_EQ(e.size(), 3u);
+  EXPECT_DOUBLE_EQ(e[1][kY], 5);  // the subprogram
+  EXPECT_DOUBLE_EQ(e[2][kX], 1);
+  const auto n = notes(p);
+  EXPECT_EQ(n.at(7), "not run: after the program end (M30 at line 6)");
+  EXPECT_NE(n.at(8).find("part of the definition of subroutine O2000"), std::string::npos);
+  EXPECT_EQ(n.at(11), "not run: after the program end (M30 at line 6)");
+  EXPECT_TRUE(p.blocks.back().percent);
+  EXPECT_EQ(p.summary.lines_not_run, 5u);
+  expect_counts_add_up(p);
 }
