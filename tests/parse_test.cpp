@@ -1459,6 +1459,7 @@ TEST(ParseRound2, PolarWordsPlaceCannedCycleHoles) {
   EXPECT_NEAR(s[1][kY], 12 * std::sin(std::numbers::pi * 2 / 3), 1e-9);
   EXPECT_NEAR(s[2][kX], -13, 1e-9);
   expect_error("G81 @1 X1 Z-1 R1 F100\n", "polar coordinates (@ ^) and X", 8, linuxcnc());
+  expect_error("G18 G81 X1 Y-1 Z1 R1 F100\nG17 G80\nG18 G81 @1 ^0\n", "in the G17 plane only", 9, linuxcnc());
 }
 
 // Bug: #<name> was global, so a recursive subroutine's `#<level>` was the innermost call's in
@@ -1541,6 +1542,13 @@ TEST(ParseRound2, NothingRunsAfterTheProgramEnd) {
   EXPECT_NE(notes(later)[5].find("part of the definition of subroutine o100"), std::string::npos);
   EXPECT_EQ(notes(later)[7], "not run: after the program end (M2 at line 3)");
   expect_counts_add_up(later);
+  // ...but not past the tape's closing '%' (rs274: "Failed to find sub 'Olate' before EOF").
+  Parsed closed = parse_text("%\no<late> call\n%\no<late> sub\nG0 X1\no<late> endsub\n", linuxcnc());
+  ASSERT_NE(closed.first_error(), nullptr);
+  EXPECT_NE(closed.first_error()->message.find("no subroutine o<late> is defined"), std::string::npos);
+  EXPECT_TRUE(ends(closed).empty());
+  EXPECT_EQ(notes(closed)[4], "not run: after the program end (% at line 3)");
+  expect_counts_add_up(closed);
 }
 
 // Fanuc subprograms written after M30 are still found and called (M98); the other lines after

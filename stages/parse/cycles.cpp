@@ -218,6 +218,10 @@ bool Parser::Impl::cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, 
   g.incremental = ns.incremental;
   for (char L : {'A', 'C'})
     if (sc.has(L)) return fail(sc.w(L).col, name + " with " + L + ": rotary axes cannot move in a canned cycle");
+  // rs274 refuses them too ("Y value unspecified in xz plane canned cycle"): @ ^ give X and Y.
+  if (polar_words() && ns.plane != Plane::kXY)
+    return fail(sc.polar_r.col ? sc.polar_r.col : sc.polar_a.col,
+                name + " with @ ^: polar coordinates place holes in the G17 plane only");
   if (!cycle_levels_of(ns, g, name, col) || !cycle_words(ns, g, name, col)) return false;
   const Motion saved = ns.motion;
   ns.motion = Motion::kLinear;

@@ -196,6 +196,21 @@ bool percent_line(std::string_view line) {
   return p < line.size() && line[p] == '%';
 }
 
+// Whether the line holds anything but blanks and comments.
+bool has_code(std::string_view line) {
+  for (std::size_t p = 0; p < line.size(); ++p) {
+    const char c = line[p];
+    if (c == ';') return false;
+    if (c == '(') {
+      p = line.find(')', p);
+      if (p == std::string_view::npos) return false;
+    } else if (c != ' ' && c != '\t' && c != '\r') {
+      return true;
+    }
+  }
+  return false;
+}
+
 }  // namespace
 
 // A Fanuc macro program (# variables, IF/GOTO/WHILE) keeps its lines: GOTO may jump back.
@@ -261,6 +276,7 @@ bool Parser::Impl::feed(std::string_view line, std::size_t overlong) {
   summary.bytes_read += (overlong ? overlong : line.size()) + 1;
   const std::uint64_t n = summary.lines_read;
   if (n == 1 && line.substr(0, 3) == "\xEF\xBB\xBF") line.remove_prefix(3);  // UTF-8 byte-order mark
+  if (tape_close_line == 0) note_tape_marks(line, n);
   if (alarm_line != 0) return skip_after_alarm(n);
   if (opt.dialect == Dialect::kFanuc && !macro_mode) note_macro_program(line);
   if (idle() && end_line == 0 && frames[0].pc == n && !maybe_statement(line) && !fanuc_line_to_keep(line)) {
@@ -299,8 +315,20 @@ bool Parser::Impl::feed(std::string_view line, std::size_t overlong) {
   return !stopped;
 }
 
+// A '%' line before any code opens the tape; the first one after code closes it.
+void Parser::Impl::note_tape_marks(std::string_view line, std::uint64_t n) {
+  if (percent_line(line)) {
+    if (code_read) tape_close_line = n;
+    return;
+  }
+  code_read = code_read || has_code(line);
+}
+
 // Subroutine definitions are taken as their lines arrive, before the main program reaches them.
+// LinuxCNC's ends at the tape's closing '%': rs274 searches no further for a definition ("Failed
+// to find sub ... before EOF"), while Fanuc subprograms follow M30 and may follow a '%'.
 void Parser::Impl::collect_definition(const SourceLine& l) {
+  if (opt.dialect == Dialect::kLinuxCnc && tape_close_line != 0 && defining.empty()) return;
   std::string label;
   if (!defining.empty() && defining[0] == 'O') {  // a Fanuc subprogram runs to its M99
     Subroutine& sub = subs[defining];
@@ -364,6 +392,13 @@ void Parser::Impl::stop_after_end() {
   m.controls.clear();
   m.pending_call.clear();
   if (m.skip != Skip::kSubDefinition) m.skip = Skip::kNone;
+}
+
+// Whether the definition of `label` starts at this line (after a LinuxCNC tape's closing '%' none
+// is collected: such a `sub` line is only a line after the end).
+bool Parser::Impl::collected_here(const std::string& label, std::uint64_t line) const {
+  const auto it = subs.find(label);
+  return it != subs.end() && it->second.line == line;
 }
 
 // A line after the program end: read and accounted for, never run (rs274 stops reading there).
@@ -465,7 +500,8 @@ bool Parser::Impl::step(Frame& f, const SourceLine& l) {
       return true;
     }
   }
-  if (f.sub == nullptr && end_line != 0 && !(stmt && s.keyword == "sub") && !percent_line(l.text))
+  if (f.sub == nullptr && end_line != 0 && !(stmt && s.keyword == "sub" && collected_here(s.label, l.number)) &&
+      !percent_line(l.text))
     return note_after_end(l, first);
   if (first) open_owner(l.number);
   if (++owner.steps > opt.max_loop_passes * 1000) {

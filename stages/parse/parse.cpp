@@ -145,12 +145,11 @@ void Parser::Impl::commit(ModalState& ns) {
   }
 }
 
-// M2, M30, or a '%' line once the program has started (the first '%' opens the tape, the next
-// closes it, as rs274 reads a file that starts with '%'): the program ends at the first of them.
+// M2, M30, or the '%' that closes the tape (note_tape_marks): the program ends at the first of
+// them, as rs274 reads a file that starts with '%'.
 void Parser::Impl::note_program_end(ModalState& ns) {
   const bool stop = block.stop == ProgramStop::kEnd || block.stop == ProgramStop::kEndRewind;
-  const bool closing_percent = sc.percent && program_started;
-  if (!sc.percent && (sc.any_word || sc.nassign > 0 || sc.program_number >= 0)) program_started = true;
+  const bool closing_percent = sc.percent && tape_close_line != 0 && block.line >= tape_close_line;
   if (!stop && !closing_percent) return;
   ns.ended = true;
   if (end_line != 0) return;  // a '%' after M30 closes the tape of a program already ended

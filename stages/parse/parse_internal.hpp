@@ -315,7 +315,10 @@ struct Parser::Impl {
   // and each later line is reported as not run (Fanuc subprograms after M30 are still collected).
   std::uint64_t end_line = 0;  // 0: not ended
   const char* end_word = "";
-  bool program_started = false;  // a line with words has run: a '%' from now on closes the tape
+  // The tape: a '%' line before any code opens it, the next closes it (known as lines arrive,
+  // since a LinuxCNC call searches forward for its definition only up to there, as rs274 does).
+  bool code_read = false;           // a line with code outside comments has been read
+  std::uint64_t tape_close_line = 0;  // the first '%' line after code (0: none yet)
   bool abort_requested = false;  // an expansion failed: run_ready unwinds it after the step
   struct Owner {
     std::uint64_t line = 0;  // the newest main-program line run (0: none open)
@@ -448,8 +451,10 @@ struct Parser::Impl {
   void collect_definition(const parse_detail::SourceLine& l);
   void open_owner(std::uint64_t line);
   void note_program_end(ModalState& ns);
+  void note_tape_marks(std::string_view line, std::uint64_t n);
   void stop_after_end();
   bool note_after_end(const parse_detail::SourceLine& l, bool first);
+  bool collected_here(const std::string& label, std::uint64_t line) const;
   bool close_owner();
   bool note_skipped(const parse_detail::SourceLine& l, const parse_detail::Frame& f);
   void trim_window();
