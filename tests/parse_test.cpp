@@ -1460,6 +1460,7 @@ TEST(ParseRound2, PolarWordsPlaceCannedCycleHoles) {
   EXPECT_NEAR(s[2][kX], -13, 1e-9);
   expect_error("G81 @1 X1 Z-1 R1 F100\n", "polar coordinates (@ ^) and X", 8, linuxcnc());
   expect_error("G18 G81 X1 Y-1 Z1 R1 F100\nG17 G80\nG18 G81 @1 ^0\n", "in the G17 plane only", 9, linuxcnc());
+  expect_error("G0 X0 Y0\nG91 G0 @1 ^30\n", "with the tool at the origin", 8, linuxcnc());
 }
 
 // Bug: #<name> was global, so a recursive subroutine's `#<level>` was the innermost call's in
@@ -1567,4 +1568,21 @@ TEST(ParseRound2, FanucSubprogramsAfterM30AreCalledAndOtherLinesNotRun) {
   EXPECT_TRUE(p.blocks.back().percent);
   EXPECT_EQ(p.summary.lines_not_run, 5u);
   expect_counts_add_up(p);
+}
+
+// Found by the round-2 differential programs: in a series of cycles (no G80 between) rs274
+// measures a G91 R from the level the series began at, and G98 returns there, also after a
+// G99 block left the tool at R. By hand from Z5: R1 (G99, the tool stays at Z1); then G91 R-6
+// is 5 - 6 = -1 (not 1 - 6) and the bottom -1 - 1 = -2; then G98 returns to 5, not to the -1
+// the block started at. rs274 moves exactly these 12 end points.
+TEST(ParseRound2, LinuxCncCycleSeriesMeasuresFromTheLevelItBeganAt) {
+  Parsed p = parse_text("G21 G90 G17 F100\nG0 X0 Y0 Z5\nG99 G81 X0 Y0 Z-2 R1\nG91 G81 X1 Z-1 R-6\n"
+                        "G90 G98 G81 X3 Z-3 R-2\nG80\n",
+                        linuxcnc());
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  std::vector<double> z;
+  for (const Axes& e : ends(p)) z.push_back(e[kZ]);
+  const std::vector<double> want = {5, 1, -2, 1, 1, -1, -2, -1, -1, -2, -3, 5};
+  ASSERT_EQ(z.size(), want.size());
+  for (std::size_t i = 0; i < z.size(); ++i) EXPECT_NEAR(z[i], want[i], 1e-12) << "move " << i;
 }

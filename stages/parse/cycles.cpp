@@ -4,10 +4,10 @@
 //
 // Per repeat (L, or K on Fanuc): rapid to the hole in the plane at the current level, rapid down
 // to R, the cycle's own strokes, retract to the clear level: R in G99, in G98 the higher of R and
-// the level the series started at (Fanuc: the initial level; LinuxCNC: the level the block
-// started at). If the drilling axis starts below R it first rapids up to R (LinuxCNC's
-// preliminary move). G91: R is measured from the level at the block's start, the bottom from R,
-// the hole position step is repeated L times.
+// the level the series of cycle blocks started at (the initial level, in both dialects). If the
+// drilling axis starts below R it first rapids up to R (LinuxCNC's preliminary move). G91: R is
+// measured from the initial level (LinuxCNC; Fanuc: from the level at the block's start), the
+// bottom from R, and the hole position step (or the polar @ ^ step) is repeated L times.
 #include <algorithm>
 #include <cmath>
 
@@ -188,7 +188,7 @@ void set_boring_shift(CycleGeometry& g, double q, int rd) {
 }
 
 // Empty when the levels are right, else why not.
-std::string cycle_levels(CycleGeometry& g, const ModalState& ns, double start_n, Dialect dialect) {
+std::string cycle_levels(CycleGeometry& g, const ModalState& ns) {
   const std::string name = code_text('G', g.code);
   const char axis = kAxisLetters[g.pa.n];
   if (g.code == 870) {
@@ -199,8 +199,9 @@ std::string cycle_levels(CycleGeometry& g, const ModalState& ns, double start_n,
   }
   if (g.bottom > g.r)
     return name + ": the bottom " + axis + " is above the R plane: the cycle drills towards -" + axis;
-  const double old = dialect == Dialect::kFanuc ? ns.cycle_initial : std::max(start_n, g.r);
-  g.clear = ns.cycle_to_r ? g.r : std::max(g.r, old);
+  // G98: the level the series of cycles began at, in both dialects (rs274: a G98 block after a
+  // G99 block that left the tool at R still retracts to the series' start level).
+  g.clear = ns.cycle_to_r ? g.r : std::max(g.r, ns.cycle_initial);
   return {};
 }
 
@@ -244,13 +245,16 @@ bool Parser::Impl::cycle_levels_of(ModalState& ns, CycleGeometry& g, const std::
   if (ns.cycle_r.col == 0) return fail(col, name + " needs R (the retract plane), in this block or an earlier cycle block");
   if (ns.cycle_z.col == 0)
     return fail(col, name + " needs " + depth_letter + " (the hole bottom), in this block or an earlier cycle block");
-  const double start_n = ns.position[n];
+  // G91: R is measured from where the block starts on Fanuc (as before; not checked against a
+  // control), from the level the series of cycles began at in rs274, which a block after a G99
+  // block shows: `G91 G81 ... R-1` standing at R1 of a series begun at Z5 goes to R4, not R0.
+  const double base = opt.dialect == Dialect::kLinuxCnc ? ns.cycle_initial : ns.position[n];
   const double r_word = linear_value(ns.cycle_r, ns.units);
   const double z_word = linear_value(ns.cycle_z, ns.units);
-  g.r = g.incremental ? start_n + r_word : r_word + ns.origin[n];
+  g.r = g.incremental ? base + r_word : r_word + ns.origin[n];
   g.bottom = g.incremental ? g.r + z_word : z_word + ns.origin[n];
   if (ns.cycle == 870 && ns.cycle_to_r) return fail(col, "G87 (back boring) returns to the initial level: use G98, not G99");
-  if (const std::string why = cycle_levels(g, ns, start_n, opt.dialect); !why.empty())
+  if (const std::string why = cycle_levels(g, ns); !why.empty())
     return fail(s.has(depth_letter) ? s.w(depth_letter).col : col, why);
   return true;
 }

@@ -668,6 +668,11 @@ bool Parser::Impl::polar_target(const ModalState& ns, Axes& target, std::uint8_t
   for (char L : {'X', 'Y'})
     if (sc.has(L))
       return fail(sc.w(L).col, std::string("polar coordinates (@ ^) and ") + L + " in one block: keep one way");
+  // At the origin G91 @ ^ have no angle to add to; rs274 refuses the block rather than guess.
+  const double x0 = ns.position[kX] - ns.origin[kX], y0 = ns.position[kY] - ns.origin[kY];
+  if (ns.incremental && std::hypot(x0, y0) < 1e-12)
+    return fail(col, "G91 polar coordinates (@ ^) with the tool at the origin: the angle to add to is undefined "
+                     "(rs274 refuses it too); move off X0 Y0 or use G90");
   const double r = polar_distance(ns, ns.position);
   if (!(std::fabs(r) <= kMaxLinear)) return fail(col, "polar distance " + show(r) + " mm is out of range (|@| <= 100000 mm)");
   polar_point(ns, ns.position, target);
