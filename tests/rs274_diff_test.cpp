@@ -12,12 +12,23 @@
 //    a, b, c) whose axes follow the plane (XY: x y, z; XZ: z x, y; YZ: y z, x).
 //  - gcpipe's blocks give target - work origin, divided by 25.4 in inch programs.
 //  - A move that goes nowhere is dropped on both sides (rs274 states R when already there).
-//  - rs274 stops reading at M2/M30; gcpipe's blocks after the program end are not compared.
+//  - rs274 stops reading at M2/M30 (and at the '%' that closes a file opened with '%'); gcpipe
+//    reads on, but must hand out no motion after the end: its blocks after it are compared too.
 //  - rs274 gets the program with M2 appended (see run_rs274): gcpipe does not require a program
 //    end, rs274 in -n 0 mode repeats its complaint about a missing one without end.
 //  - "M-code greater than 199" for M428/M429/M430 is left out: they are user M codes of the
 //    xyzac_trt configuration that standalone rs274 does not load (gcpipe reads them as
 //    LinuxCNC's TCP switch; they move nothing, so the end points stay comparable).
+//
+// Where gcpipe and rs274 differ on purpose (none of it is in the programs compared here; also in
+// docs/reference.md, "LinuxCNC's interpreter as the oracle"):
+//  - Subroutine calls nest 64 deep in gcpipe (parse's max_call_depth), 9 in rs274 ("Too many
+//    subroutine levels" at the 10th): the generated recursions stay within 8.
+//  - A '%' line in a file that does not start with '%': rs274 rejects it ("Bad character '%'
+//    used") and, in -n 0 mode, reads on; gcpipe ends the program there, as a control that stops
+//    at the error would.
+//  - A call to a subroutine defined after the tape's closing '%': both reject it, rs274 on the
+//    '%' line (where its search ended), gcpipe on the call.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -201,30 +212,49 @@ Run run_gcpipe(const std::string& text, const std::string& name) {
       for (int a = 0; a < 5; ++a) pt[a] = b.target[a] * (a < 3 ? k : 1.0);  // machine coordinates
       if (add_point(r, pt) && b.motion != Motion::kRapid) r.feeds.push_back(b.feed * k);
     }
-    if (b.stop == ProgramStop::kEnd || b.stop == ProgramStop::kEndRewind) break;
   }
   return r;
 }
 
-void expect_same(const std::string& text, const fs::path& file, const std::string& what, bool lengths = false) {
+// What one comparison found: the end points paired, the largest difference of an axis on them
+// [program units], and whether the two runs agree (end points within kTol, same count, same
+// rejected lines).
+struct Agreement {
+  std::size_t points = 0;
+  double max_difference = 0;
+  bool same = true;
+};
+
+Agreement expect_same(const std::string& text, const fs::path& file, const std::string& what, bool lengths = false) {
   SCOPED_TRACE(what);
   const Run ours = run_gcpipe(text, file.string());
   const Run theirs = run_rs274(file, text);
+  Agreement a;
+  a.same = ours.rejected == theirs.rejected && ours.ends.size() == theirs.ends.size();
+  a.points = std::min(ours.ends.size(), theirs.ends.size());
+  for (std::size_t i = 0; i < a.points; ++i)
+    for (int k = 0; k < 5; ++k) a.max_difference = std::max(a.max_difference, std::fabs(ours.ends[i][k] - theirs.ends[i][k]));
+  a.same = a.same && a.max_difference <= kTol;
   EXPECT_EQ(ours.rejected, theirs.rejected) << "rejected lines differ";
   if (lengths) {
-    ASSERT_EQ(ours.lengths.size(), theirs.lengths.size()) << "number of tool length changes differs";
-    for (std::size_t i = 0; i < ours.lengths.size(); ++i)
+    EXPECT_EQ(ours.lengths.size(), theirs.lengths.size()) << "number of tool length changes differs";
+    for (std::size_t i = 0; i < std::min(ours.lengths.size(), theirs.lengths.size()); ++i)
       EXPECT_NEAR(ours.lengths[i], theirs.lengths[i], kTol) << "tool length " << i;
   }
   // The first end point that differs says where, which a count alone would not.
-  const std::size_t n = std::min(ours.ends.size(), theirs.ends.size());
-  for (std::size_t i = 0; i < n; ++i)
-    for (int a = 0; a < 5; ++a)
-      ASSERT_NEAR(ours.ends[i][a], theirs.ends[i][a], kTol)
-          << "end point " << i << " axis " << "XYZAC"[a] << "; gcpipe's previous end point "
+  for (std::size_t i = 0; i < a.points; ++i) {
+    bool near = true;
+    for (int k = 0; k < 5; ++k) {
+      EXPECT_NEAR(ours.ends[i][k], theirs.ends[i][k], kTol)
+          << "end point " << i << " axis " << "XYZAC"[k] << "; gcpipe's previous end point "
           << (i > 0 ? ours.ends[i - 1][0] : 0) << " " << (i > 0 ? ours.ends[i - 1][1] : 0) << " "
           << (i > 0 ? ours.ends[i - 1][2] : 0);
+      near = near && std::fabs(ours.ends[i][k] - theirs.ends[i][k]) <= kTol;
+    }
+    if (!near) break;  // the first that differs says where; the rest would only repeat it
+  }
   EXPECT_EQ(ours.ends.size(), theirs.ends.size()) << "number of distinct motion end points differs";
+  return a;
 }
 
 // Programs that exercise every feature the parser resolves into motion, in the LinuxCNC dialect.
@@ -272,6 +302,32 @@ std::vector<std::pair<std::string, std::string>> generated_programs() {
                                   "G0 X6 Z0.5\nG92.1\nG10 L1 P3 Z5\nG10 L1 P1\nG43 H1\nG0 X7 Z1\nG49\nG0 Z2\nM2\n"},
       // (B words are left out: rs274 has a B axis, this machine has none, so gcpipe rejects them.)
       {"rejected_lines", "G21 G90\nG0 X1\nG1 X2\nG1 X3 F100\nG81 X1 Z-1\nG80\nG2 X5 Y0 R1\nG0 X0\nM2\n"},
+      // Round 2, bug 1: @ ^ in cycle blocks (G90 holes, sticky cycle with @ ^ only, a G91 bolt
+      // circle and spiral by L, a G55 origin, pecking), and @ ^ in a G18 cycle block refused.
+      {"polar_in_cycles", "G21 G90 G17 F100\nG0 X0 Y0 Z5\nG81 @10 ^60 Z-2 R1\n@20 ^90\n^0\nG80\n"
+                          "G0 X10 Y0 Z5\nG91 G81 ^60 Z-2 R-4 L6\nG90 G80\nG0 X10 Y0 Z5\nG91 G98 G81 @1 ^60 Z-2 R-4 L3\n"
+                          "G90 G80\nG55 G0 X3 Y4 Z5\nG98 G83 @3 ^-45 Z-2 R1 Q0.5\nG91 G99 G73 ^90 Z-1 R-1 Q0.3 L2\nG90 G98 G81 @2 ^10 Z-1 R2\nG90 G80 G54\n"
+                          "G18 G81 X1 Y-1 Z1 R1\nG17 G80\nG18 G81 @1 ^0\nG17 G80\nM2\n"},
+      // Bug 2: named parameters local to each call, #<_global> shared, the main program's own.
+      {"named_parameters_local", "G21 G90\n#<a> = 5\n#<_h> = 4\n#31 = 9\no100 sub\n#<b> = 7\n#<_g> = 3\n#31 = 8\n"
+                                 "#<a> = 6\nG0 X#<a> Y#<_h>\n#<_h> = 1\nG0 Z#31\no100 endsub\no100 call\nG0 Z#<_g>\n"
+                                 "G0 X#<a>\nG0 Y#<_h>\nG0 Z#31\nG0 Y#<b>\n"
+                                 "o200 sub\n#<level> = #1\no1 if [#1 gt 0]\no200 call [#1 - 1]\no1 endif\nG0 X#<level>\n"
+                                 "o200 endsub\no200 call [2]\nM2\n"},
+      // A recursion 8 deep with a local counter (rs274 allows 9 levels) and a global count.
+      {"recursion_depth_8", "G21 G90\n#<_calls> = 0\no<r> sub\n#<n> = #1\n#<_calls> = [#<_calls> + 1]\n"
+                            "o1 if [#<n> gt 0]\nG0 X#<n>\no<r> call [#<n> - 1]\no1 endif\nG0 Y#<n>\no<r> endsub\n"
+                            "o<r> call [8]\nG0 Z#<_calls>\nM2\n"},
+      // Bug 3: nothing after the end: M30 then '%' and a move; M2 inside a call and a loop; a
+      // file opened and closed by '%'; a call before M2 to a definition after it.
+      {"after_m30_and_percent", "%\nG21 G90\nG0 X1\nM30\n%\nG1 X150 F100\nG0 Y5\n"},
+      {"m2_in_a_call_in_a_loop", "G21 G90\no<s> sub\nG0 X#1\no1 if [#1 eq 2]\nM2\no1 endif\no<s> endsub\n"
+                                 "#<_i> = 0\no2 repeat [5]\n#<_i> = [#<_i> + 1]\no<s> call [#<_i>]\no2 endrepeat\nG0 Y9\n"},
+      {"closing_percent_ends", "%\nG21 G90\nG0 X1 Y1\n%\nG0 X2\nM2\n"},
+      // G91 @ ^ at X0 Y0 (no angle to add to): rejected by both, in a plain move and a cycle.
+      {"g91_polar_at_the_origin", "G21 G90 F100\nG0 X0 Y0 Z5\nG91\nG0 @1 ^30\nG81 @1 ^30 Z-1 R-1\nG90 G80\nG0 X1\n"
+                                  "G91\nG0 @1 ^30\nG90\nM2\n"},
+      {"definition_after_m2", "G21 G90\no<late> call [2]\nG0 Y1\nM2\no<late> sub\nG0 X#1\no<late> endsub\nG0 Z9\n"},
   };
 }
 
@@ -370,7 +426,7 @@ TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
     expect_same(text, file, name, name.rfind("tool_entries", 0) == 0);
     ++n;
   }
-  EXPECT_EQ(n, 14);
+  EXPECT_EQ(n, 22);
 }
 
 TEST(Rs274Diff, CutterCompensationMatchesLinuxCnc) {
@@ -519,6 +575,114 @@ TEST(Rs274Diff, RandomCompensatedContoursMatchLinuxCnc) {
               kPrograms, compared, points, both_rejected, gcpipe_only);
   EXPECT_EQ(gcpipe_only, kGougesRs274Cuts.size());
   EXPECT_GE(compared, kPrograms / 2);
+}
+
+// Seeded small programs for the round-2 bugs: canned cycles placed by @ ^ (G90 holes, sticky
+// cycles given @ ^ only, G91 repeats that step in distance and angle), subroutines with local
+// #<names> and a #<_global> count (nested calls, a recursion at most 8 deep: rs274 allows 9
+// levels), the main program's own names, and lines after the end (M2, M30, M30 and '%', or the
+// tape's closing '%') that must not run. Every number has 3 decimals.
+class Round2Program {
+ public:
+  explicit Round2Program(unsigned seed) : rng_(seed) {}
+
+  std::string text() {
+    const int end = pick(4);  // 0 M2, 1 M30, 2 M30 then '%', 3 '%' alone
+    std::string t = end >= 2 ? "%\n" : "";
+    t += "G21 G90 G17 F150\nG0 X0 Y0 Z5\n#<_calls> = 0\n" + subroutines();
+    const int steps = 3 + pick(4);
+    for (int i = 0; i < steps; ++i) t += step();
+    t += "G0 Z#<_calls>\n";
+    t += end == 0 ? "M2\n" : end == 1 ? "M30\n" : end == 2 ? "M30\n%\n" : "%\n";
+    return t + after_the_end();
+  }
+
+ private:
+  int pick(int n) { return static_cast<int>(rng_() % static_cast<unsigned>(n)); }
+  std::string num(double lo, double hi) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.3f", std::uniform_real_distribution<double>(lo, hi)(rng_));
+    return b;
+  }
+  std::string cycle_code() { return std::string("G81 G82 G83 G73 G85").substr(4 * static_cast<std::size_t>(pick(5)), 3); }
+  // The words a cycle needs beyond the hole: Z R, a dwell for G82, a peck for G83/G73.
+  std::string cycle_words(const std::string& code, bool incremental) {
+    std::string w = incremental ? " Z" + num(-3, -0.5) + " R" + num(-3, -1) : " Z" + num(-3, -0.5) + " R" + num(0.5, 2);
+    if (code == "G82") w += " P0.2";
+    if (code == "G83" || code == "G73") w += " Q" + num(0.3, 1);
+    return w;
+  }
+  std::string polar() { return "@" + num(0.5, 30) + " ^" + num(-180, 360); }
+
+  // o<hole> drills one polar hole; o<ring> calls it on a circle with a local loop counter;
+  // o<rec> recurses with a local level and moves on its way back.
+  std::string subroutines() {
+    return "o<hole> sub\n#<r> = #1\n#<_calls> = [#<_calls> + 1]\nG90 G98 G81 @[#<r>] ^[#2] Z-1 R1\nG80\no<hole> endsub\n"
+           "o<ring> sub\n#<n> = #1\n#<i> = 0\no10 while [#<i> lt #<n>]\no<hole> call [#2] [#<i> * 360 / #<n> + #3]\n"
+           "#<i> = [#<i> + 1]\no10 endwhile\nG0 X#<i> Y#<n>\no<ring> endsub\n"
+           "o<rec> sub\n#<level> = #1\n#<_calls> = [#<_calls> + 1]\no20 if [#<level> gt 0]\n"
+           "o<rec> call [#<level> - 1] [#2]\no20 endif\nG0 X[#<level> * #2] Y#<level>\no<rec> endsub\n";
+  }
+
+  std::string step() {
+    switch (pick(7)) {
+      case 0: {  // holes in G90: polar words, then @ ^ alone on the lines after (the cycle is sticky)
+        const std::string code = cycle_code();
+        std::string t = "G90 G" + std::string(pick(2) ? "98 " : "99 ") + code + " " + polar() + cycle_words(code, false) + "\n";
+        for (int i = pick(3); i > 0; --i) t += pick(2) ? polar() + "\n" : "^" + num(-90, 270) + "\n";
+        return t + "G80\nG0 Z5\n";
+      }
+      case 1: {  // G91 repeats: each adds the distance and the angle again
+        const std::string code = cycle_code();
+        const std::string words = pick(3) == 0 ? "^" + num(10, 90) : "@" + num(-2, 2) + " ^" + num(-90, 90);
+        // Off X0 Y0 first: there G91 @ ^ are an error (a test of its own below).
+        return "G90 G0 X" + num(1, 10) + " Y" + num(-10, 10) + "\nG91 G98 " + code + " " + words +
+               cycle_words(code, true) + " L" + std::to_string(2 + pick(4)) + "\nG90 G80\nG0 Z5\n";
+      }
+      case 2: return "o<hole> call [" + num(1, 20) + "] [" + num(0, 360) + "]\n";
+      case 3: return "o<ring> call [" + std::to_string(2 + pick(4)) + "] [" + num(2, 15) + "] [" + num(0, 90) + "]\n";
+      case 4: return "o<rec> call [" + std::to_string(pick(9)) + "] [" + num(0.5, 3) + "]\n";
+      case 5: {  // the main program's #<level> is its own: a call does not change it
+        const std::string v = num(1, 9);
+        return "#<level> = " + v + "\no<rec> call [" + std::to_string(1 + pick(4)) + "] [1]\nG0 X#<level> Y-#<level>\n";
+      }
+      default: return "G0 " + polar() + "\n";
+    }
+  }
+
+  // Lines after the end, all of which would move: none may run.
+  std::string after_the_end() {
+    std::string t = "G1 X150 F100\no<rec> call [3] [2]\nG91 G81 @5 ^45 Z-1 R-1 L4\nG0 Y77\n";
+    if (pick(3) == 0) t += "%\nG0 X-50\n";
+    return t;
+  }
+
+  std::mt19937 rng_;
+};
+
+TEST(Rs274Diff, Round2GeneratedProgramsMatchLinuxCnc) {
+  if (rs274_path().empty())
+    GTEST_SKIP() << "rs274 is absent (Debian package linuxcnc-uspace): the LinuxCNC differential test did not run";
+  const fs::path dir = work_dir();
+  fs::create_directories(dir);
+  constexpr unsigned kPrograms = 60;
+  std::size_t points = 0, disagreements = 0;
+  double max_difference = 0;
+  for (unsigned seed = 1; seed <= kPrograms; ++seed) {
+    const std::string name = "round2_" + std::to_string(seed);
+    const std::string text = Round2Program(seed).text();
+    const fs::path file = dir / (name + ".ngc");
+    std::ofstream(file) << text;
+    const Agreement a = expect_same(text, file, name + "\n" + text);
+    points += a.points;
+    max_difference = std::max(max_difference, a.max_difference);
+    if (!a.same) ++disagreements;
+  }
+  std::printf("round 2 (polar cycles, call-local names, program end): %u programs, %zu end points paired, "
+              "max difference %.2g program units, %zu disagreements\n",
+              kPrograms, points, max_difference, disagreements);
+  EXPECT_EQ(disagreements, 0u);
+  EXPECT_GE(points, 20u * kPrograms);  // the programs move: a comparison of nothing would pass
 }
 
 TEST(Rs274Diff, SharedLinuxCncProgramsMatchLinuxCnc) {
