@@ -123,7 +123,8 @@ class Parser {
 
   const ParseSummary& summary() const;
   const ParseOptions& options() const;
-  /// True after M2/M30: lines after the program end are still read and accounted for.
+  /// True after M2/M30 or the tape's closing '%': later lines are still read and accounted for
+  /// (a note each: not run), but nothing after the end runs.
   bool ended() const;
 
  private:
