@@ -49,7 +49,7 @@ Material load_named_material(const Config& c) {
 }
 
 /// The VDI 3323 group named by `vdi3323_group`, by `grade` (and `condition`) or by both, which
-/// must then agree (README sec. 1: the grade-to-group mapping of the table's PROVENANCE.md).
+/// must then agree (README sec. 1b: the grade-to-group mapping of the table's PROVENANCE.md).
 int vdi3323_group_of(const Config& m) {
   if (m.has("condition") && !m.has("grade")) throw m.error("condition", "only with grade");
   std::vector<int> by_grade;
@@ -63,7 +63,7 @@ int vdi3323_group_of(const Config& m) {
   if (!m.has("vdi3323_group")) {
     if (by_grade.empty()) throw m.error("vdi3323_group", "needed (or a grade: C45, 1045, 42CrMo4, 4140, 1018, 316L, H13)");
     if (by_grade.size() > 1)
-      throw m.error("grade", "is in groups " + list_of(by_grade) + " by its strength: give vdi3323_group (README sec. 1)");
+      throw m.error("grade", "is in groups " + list_of(by_grade) + " by its strength: give vdi3323_group (stages/force/README.md sec. 1b)");
     return by_grade.front();
   }
   const int group = static_cast<int>(m.integer("vdi3323_group", 0, 1, 99));
@@ -136,7 +136,7 @@ ForceOptions load_force_options(const Config& c) {
   for (const char* key : {"target_force", "peak_force"})
     if (c.has(key) && c.number(key, 0, "N", 0, 1e6) > 0 && !o.material.resultant_known())
       throw c.error(key, "needs the radial and axial forces, which Kienzle's kc1/mc do not give: state "
-                         "material.radial_to_tangential, axial_to_tangential and ratio_source (README sec. 1)");
+                         "material.radial_to_tangential, axial_to_tangential and ratio_source (stages/force/README.md sec. 1b)");
   o.max_feed_factor = c.number("max_feed_factor", o.max_feed_factor, "", 1, 100);
   o.min_feed = c.number("min_feed", o.min_feed, "mm/min", 0.001, 1e5);
   return o;

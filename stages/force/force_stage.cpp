@@ -23,7 +23,7 @@ using pipeline::Emitter;
 constexpr const char* kDeflectionNeedsRatios =
     "not computed: Kienzle's kc1/mc give the tangential force only; the deflection needs the radial force: "
     "state material.radial_to_tangential, axial_to_tangential and ratio_source, or use a mechanistic set "
-    "(stages/force/README.md sec. 1)";
+    "(stages/force/README.md sec. 1b)";
 
 struct HeldDiagnostic {
   Diagnostic diag;

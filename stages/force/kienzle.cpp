@@ -195,7 +195,7 @@ ForceLaw kienzle_law(double kc1, double mc, const ForceRatios* ratios) {
 }
 
 std::vector<int> grade_groups(const std::string& grade, const std::string& condition) {
-  // PROVENANCE.md of the table, "grade names" (the only mapping shipped; README sec. 1).
+  // PROVENANCE.md of the table, "grade names" (the only mapping shipped; README sec. 1b).
   struct Entry {
     std::vector<std::string> names;
     std::vector<std::pair<std::string, std::vector<int>>> by_condition;  // "" = the grade's only one

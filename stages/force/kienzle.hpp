@@ -64,7 +64,7 @@ double specific_cutting_force(const KienzleGroup& g, double h);
 /// edge term; radial and axial as the stated ratios of the tangential force, or unknown (nullptr).
 ForceLaw kienzle_law(double kc1, double mc, const ForceRatios* ratios);
 
-/// The VDI 3323 groups a grade falls in, as PROVENANCE.md states them (README sec. 1): C45 / 1045
+/// The VDI 3323 groups a grade falls in, as PROVENANCE.md states them (README sec. 1b): C45 / 1045
 /// annealed 2, quenched_and_tempered 3; 42CrMo4 / 4140 quenched_and_tempered 7, 8 or 9 by
 /// strength; 1018: 1; 316L: 14; H13 annealed: 10. `condition` "" when the grade has one only.
 /// Throws std::invalid_argument naming the grades, or the conditions the grade has.
