@@ -154,7 +154,7 @@ PathForce straight_cut(double ymin, double ymax, const ForceOptions& o) {
 TEST(ForceStock, FullSlotThroughABlockGivesTheClosedFormForce) {
   const ForceOptions o = slot_options(0.02);
   const PathForce p = straight_cut(-30, 30, o);
-  const double closed = mean_force_closed_form(o.coefficients, paper_cut(0, kPi)).norm();
+  const double closed = mean_force_closed_form(material_coefficients("al7075"), paper_cut(0, kPi)).norm();
   int steady = 0;
   for (const ForceSample& s : p.samples) {
     if (s.x < 20 || s.x > 55) continue;  // the tool fully in the slot, away from the block's end
@@ -172,7 +172,7 @@ TEST(ForceStock, QuarterImmersionClimbCutAlongAWallGivesTheClosedFormForce) {
   const ForceOptions o = slot_options(0.02);
   const PathForce p = straight_cut(-40, -5, o);
   const auto ang = immersion_angles(5.0, 20.0, true);
-  const double closed = mean_force_closed_form(o.coefficients, paper_cut(ang[0], ang[1])).norm();
+  const double closed = mean_force_closed_form(material_coefficients("al7075"), paper_cut(ang[0], ang[1])).norm();
   ASSERT_NEAR(closed, 181.384, 1e-3);  // README sec. 2, hand-worked
   int steady = 0;
   for (const ForceSample& s : p.samples) {
@@ -190,7 +190,7 @@ TEST(ForceStock, QuarterImmersionClimbCutAlongAWallGivesTheClosedFormForce) {
 
 TEST(ForceConfig, DefaultsUnknownKeysAndBadValuesNameFileAndKey) {
   const ForceOptions d = load_force_options(Config::from_string("{}", "f.yaml"));
-  EXPECT_EQ(d.coefficients.Ktc, 767.01);
+  EXPECT_EQ(d.material.law.chip.tangential, 767.01);
   const auto message = [](const std::string& yaml) {
     try {
       (void)load_force_options(Config::from_string(yaml, "f.yaml").section("force"));
@@ -207,8 +207,8 @@ TEST(ForceConfig, DefaultsUnknownKeysAndBadValuesNameFileAndKey) {
   EXPECT_NE(message("force: {target_force: 500, peak_force: 100}").find("peak_force"), std::string::npos);
   const ForceOptions c = load_force_options(Config::from_string(
       "force: {material: custom, coefficients: [2000, 800, 300, 40, 50, 2], source: test}", "f.yaml").section("force"));
-  EXPECT_EQ(c.coefficients.Krc, 800);
-  EXPECT_EQ(c.coefficients.source, "test");
+  EXPECT_EQ(c.material.law.chip.radial, 800);
+  EXPECT_EQ(c.material.source, "test");
 }
 
 // --- the seed 000 slot ------------------------------------------------------------------------
@@ -249,7 +249,7 @@ TEST(ForceTrochoid, SteadyLoopForceMatchesTheClimbCutOfTheSameEngagement) {
   EXPECT_NEAR(max_cruise_angle, exact, 1.5 * kPi / 180);
   const double ae = 10 * (1 - std::cos(exact));
   const auto ang = immersion_angles(ae, 20, true);
-  const double closed = mean_force_closed_form(o.coefficients, paper_cut(ang[0], ang[1])).norm();
+  const double closed = mean_force_closed_form(material_coefficients("al7075"), paper_cut(ang[0], ang[1])).norm();
   std::printf("trochoid cruise: max angle %.2f deg, mean force there %.1f N, straight climb cut %.1f N\n",
               max_cruise_angle * 180 / kPi, force_there, closed);
   EXPECT_NEAR(force_there, closed, 0.10 * closed);

@@ -108,6 +108,10 @@ bool Config::has(std::string_view key) const {
          !impl_->node[std::string(key)].IsNull();
 }
 
+bool Config::is_mapping(std::string_view key) const {
+  return has(key) && impl_->node[std::string(key)].IsMap();
+}
+
 Config Config::section(std::string_view key) const {
   auto impl = std::make_shared<Impl>();
   impl->file = impl_->file;

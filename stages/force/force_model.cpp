@@ -33,6 +33,14 @@ CuttingCoefficients material_coefficients(const std::string& name) {
                               "coefficients with material: custom)");
 }
 
+ForceLaw::ForceLaw(const CuttingCoefficients& k)
+    : chip{k.Ktc, k.Krc, k.Kac}, edge{k.Kte, k.Kre, k.Kae}, feed_exponent(1), radial_axial_known(true) {}
+
+double ForceLaw::chip_factor(double h) const {
+  if (feed_exponent == 1) return h;
+  return h > 0 ? std::pow(h, feed_exponent) : 0.0;
+}
+
 double Force3::norm() const { return std::sqrt(x * x + y * y + z * z); }
 
 std::array<double, 2> immersion_angles(double radial_depth, double diameter, bool climb) {
@@ -42,23 +50,23 @@ std::array<double, 2> immersion_angles(double radial_depth, double diameter, boo
   return {0.0, sweep};
 }
 
-Force3 tooth_force(const CuttingCoefficients& k, const Cut& cut, double phi) {
+Force3 tooth_force(const ForceLaw& law, const Cut& cut, double phi) {
   const double p = wrap(phi);
   if (p < cut.phi_start || p > cut.phi_exit) return {};
   const double s = std::sin(p), c = std::cos(p);
-  const double h = cut.feed_per_tooth * s;
+  const double hp = law.chip_factor(cut.feed_per_tooth * s);
   const double a = cut.axial_depth;
-  const double ft = k.Ktc * a * h + k.Kte * a;
-  const double fr = k.Krc * a * h + k.Kre * a;
-  const double fa = k.Kac * a * h + k.Kae * a;
+  const double ft = law.chip.tangential * a * hp + law.edge.tangential * a;
+  const double fr = law.chip.radial * a * hp + law.edge.radial * a;
+  const double fa = law.chip.axial * a * hp + law.edge.axial * a;
   return {-ft * c - fr * s, ft * s - fr * c, fa};
 }
 
-Force3 instantaneous_force(const CuttingCoefficients& k, const Cut& cut, double phi) {
+Force3 instantaneous_force(const ForceLaw& law, const Cut& cut, double phi) {
   Force3 sum;
   const double pitch = kTwoPi / cut.flutes;
   for (int j = 0; j < cut.flutes; ++j) {
-    const Force3 f = tooth_force(k, cut, phi + j * pitch);
+    const Force3 f = tooth_force(law, cut, phi + j * pitch);
     sum.x += f.x;
     sum.y += f.y;
     sum.z += f.z;
@@ -91,20 +99,26 @@ double mean_tangential_force(const CuttingCoefficients& k, const Cut& cut) {
           k.Kte * (cut.phi_exit - cut.phi_start));
 }
 
-RevolutionForce revolution_force(const CuttingCoefficients& k, int flutes, double feed_per_tooth,
+RevolutionForce revolution_force(const ForceLaw& law, int flutes, double feed_per_tooth,
                                  const AxialProfile& depth, int steps) {
-  // Sample the edge length in cut once per immersion angle; the tooth force is affine in c, so
-  // the cutting part (per unit c) and the edge part are accumulated apart for the feed planner.
+  // Sample the edge length in cut once per immersion angle; the tooth force is affine in c^p
+  // (h^p = c^p sin^p), so the chip part (per unit c^p) and the edge part are accumulated apart
+  // for the feed planner.
   RevolutionForce out;
   const double dphi = kTwoPi / steps;
+  const EdgeForce& k = law.chip;
+  const EdgeForce& e = law.edge;
+  const double cp = law.chip_factor(feed_per_tooth);
   std::vector<Force3> cut_part(steps), edge_part(steps);
   for (int i = 0; i < steps; ++i) {
     const double phi = (i + 0.5) * dphi;
     const double a = depth(phi);
     const double s = std::sin(phi), co = std::cos(phi);
-    cut_part[i] = {a * s * (-k.Ktc * co - k.Krc * s), a * s * (k.Ktc * s - k.Krc * co), a * s * k.Kac};
-    edge_part[i] = {a * (-k.Kte * co - k.Kre * s), a * (k.Kte * s - k.Kre * co), a * k.Kae};
-    out.mean_tangential += a * (k.Ktc * feed_per_tooth * s + k.Kte);
+    const double sp = law.chip_factor(s);  // sin^p: the chip per unit c^p
+    cut_part[i] = {a * sp * (-k.tangential * co - k.radial * s), a * sp * (k.tangential * s - k.radial * co),
+                   a * sp * k.axial};
+    edge_part[i] = {a * (-e.tangential * co - e.radial * s), a * (e.tangential * s - e.radial * co), a * e.axial};
+    out.mean_tangential += a * (k.tangential * cp * sp + e.tangential);
   }
   const int pitch_steps = steps / flutes;  // teeth are `steps / flutes` samples apart
   Force3 m0;
@@ -112,9 +126,9 @@ RevolutionForce revolution_force(const CuttingCoefficients& k, int flutes, doubl
     Force3 f;
     for (int j = 0; j < flutes; ++j) {
       const int at = (i + j * pitch_steps) % steps;
-      f.x += feed_per_tooth * cut_part[at].x + edge_part[at].x;
-      f.y += feed_per_tooth * cut_part[at].y + edge_part[at].y;
-      f.z += feed_per_tooth * cut_part[at].z + edge_part[at].z;
+      f.x += cp * cut_part[at].x + edge_part[at].x;
+      f.y += cp * cut_part[at].y + edge_part[at].y;
+      f.z += cp * cut_part[at].z + edge_part[at].z;
     }
     out.peak = std::max(out.peak, f.norm());
     out.mean_per_feed.x += cut_part[i].x; out.mean_per_feed.y += cut_part[i].y; out.mean_per_feed.z += cut_part[i].z;
@@ -123,8 +137,8 @@ RevolutionForce revolution_force(const CuttingCoefficients& k, int flutes, doubl
   // Mean over a revolution of the N-tooth sum = N / (2 pi) * integral of one tooth = N/steps * sum.
   const double w = static_cast<double>(flutes) / steps;
   out.mean_per_feed = {w * out.mean_per_feed.x, w * out.mean_per_feed.y, w * out.mean_per_feed.z};
-  out.mean = {feed_per_tooth * out.mean_per_feed.x + w * m0.x, feed_per_tooth * out.mean_per_feed.y + w * m0.y,
-              feed_per_tooth * out.mean_per_feed.z + w * m0.z};
+  out.mean = {cp * out.mean_per_feed.x + w * m0.x, cp * out.mean_per_feed.y + w * m0.y,
+              cp * out.mean_per_feed.z + w * m0.z};
   out.mean_tangential *= w;
   return out;
 }

@@ -30,6 +30,39 @@ struct CuttingCoefficients {
 /// The shipped coefficient sets by name ("al7075"); throws std::invalid_argument otherwise.
 CuttingCoefficients material_coefficients(const std::string& name);
 
+/// Tangential, radial and axial components of an edge's force (or of a coefficient of it).
+struct EdgeForce {
+  double tangential = 0, radial = 0, axial = 0;
+};
+
+/// Radial and axial force as fractions of the tangential force that a user states, with where
+/// they come from (a law that gives the tangential force only, such as Kienzle's, needs them).
+struct ForceRatios {
+  double radial = 0;   //!< Fr / Ft
+  double axial = 0;    //!< Fa / Ft
+  std::string source;  //!< where the ratios come from (into the report)
+};
+
+/// The force on one edge per mm of edge length in cut, at chip thickness h [mm]:
+///
+///   F(h) = chip * h^p + edge        (each of tangential, radial, axial)
+///
+/// The mechanistic model is p = 1, chip = (Ktc, Krc, Kac), edge = (Kte, Kre, Kae). Kienzle's law
+/// (kienzle.hpp) is p = 1 - mc, chip = kc1 (1, Fr/Ft, Fa/Ft), edge = 0; without stated ratios only
+/// the tangential component is known (radial_axial_known false; radial and axial are 0 then and
+/// nothing that depends on them may be reported).
+struct ForceLaw {
+  EdgeForce chip;               //!< [N/mm^(1+p)]: N per mm of edge per mm^p of chip thickness
+  EdgeForce edge;               //!< [N/mm]
+  double feed_exponent = 1;     //!< p
+  bool radial_axial_known = true;
+
+  ForceLaw() = default;
+  ForceLaw(const CuttingCoefficients& k);  // NOLINT(google-explicit-constructor): a set is a law
+  /// h^p; 0 for h <= 0 when p != 1 (a power law has no negative chip; the affine law keeps h).
+  double chip_factor(double h) const;
+};
+
 /// Force on the cutter in the feed frame [N].
 struct Force3 {
   double x = 0, y = 0, z = 0;
@@ -50,9 +83,9 @@ struct Cut {
 std::array<double, 2> immersion_angles(double radial_depth, double diameter, bool climb);
 
 /// Force on one tooth at immersion phi (zero outside [phi_start, phi_exit]) [N].
-Force3 tooth_force(const CuttingCoefficients& k, const Cut& cut, double phi);
+Force3 tooth_force(const ForceLaw& law, const Cut& cut, double phi);
 /// Sum over the N teeth when tooth 0 is at rotation angle phi [N].
-Force3 instantaneous_force(const CuttingCoefficients& k, const Cut& cut, double phi);
+Force3 instantaneous_force(const ForceLaw& law, const Cut& cut, double phi);
 /// Mean force over one revolution in closed form (Altintas ch. 2; README sec. 2) [N].
 Force3 mean_force_closed_form(const CuttingCoefficients& k, const Cut& cut);
 /// Mean tangential force summed over the teeth, so mean torque = D/2 times it [N].
@@ -64,13 +97,14 @@ using AxialProfile = std::function<double(double phi)>;
 
 /// Mean force and largest instantaneous resultant over one revolution for a tool whose engaged
 /// edge length varies with the immersion (numerical: `steps` points per revolution).
+/// The mean is affine in c^p (p = the law's feed_exponent): mean = c^p mean_per_feed + edge part.
 struct RevolutionForce {
   Force3 mean;            //!< mean force vector [N]
-  Force3 mean_per_feed;   //!< d mean / d c: the part proportional to the feed per tooth [N/mm]
+  Force3 mean_per_feed;   //!< the part proportional to c^p, per unit c^p [N/mm^p] (p = 1: d mean / d c)
   double peak = 0;        //!< largest |F| over the revolution [N]
   double mean_tangential = 0;  //!< mean sum of Ft (torque / radius) [N]
 };
-RevolutionForce revolution_force(const CuttingCoefficients& k, int flutes, double feed_per_tooth,
+RevolutionForce revolution_force(const ForceLaw& law, int flutes, double feed_per_tooth,
                                  const AxialProfile& depth, int steps = 720);
 
 /// Largest feed per tooth whose mean force |c m1 + m0| stays at or under `target` (m1 the part

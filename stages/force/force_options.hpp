@@ -3,8 +3,11 @@
 #pragma once
 
 #include <array>
+#include <optional>
+#include <string>
 
 #include "force_model.hpp"
+#include "kienzle.hpp"
 
 namespace gcpipe {
 class Config;
@@ -22,9 +25,20 @@ struct ToolSpec {
   double effective_diameter() const { return effective_diameter_factor * diameter; }
 };
 
+/// The work material: the force law and what the report says about where it comes from.
+struct Material {
+  ForceLaw law = material_coefficients("al7075");
+  std::string source = material_coefficients("al7075").source;  //!< the mechanistic set's source
+  std::optional<KienzleGroup> group;   //!< the VDI 3323 row, when the law is Kienzle's
+  std::string grade;                   //!< "C45 annealed" as the config names it; "" when not named
+  std::optional<ForceRatios> ratios;   //!< the stated Fr/Ft, Fa/Ft (Kienzle only)
+  /// Radial and axial forces known: the resultant, its peak and the deflection can be reported.
+  bool resultant_known() const { return law.radial_axial_known; }
+};
+
 struct ForceOptions {
   ToolSpec tool;
-  CuttingCoefficients coefficients = material_coefficients("al7075");
+  Material material;
   double spindle_speed = 0;      //!< [rev/min]; 0 = the program's S word
   std::array<double, 5> stock{};  //!< xmin ymin xmax ymax top [mm]; all 0 = around the path
   double cell = 0.05;            //!< node spacing of the height field [mm]

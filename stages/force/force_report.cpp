@@ -12,20 +12,27 @@ namespace gcpipe::force {
 
 namespace {
 
-std::string stats_note(const PathForce& p) {
+std::string stats_note(const PathForce& p, bool resultant) {
   char buf[240];
-  std::snprintf(buf, sizeof buf,
-                "%zu revolutions, cutting time %.1f s; max mean force %.0f N, max peak %.0f N, max deflection %.1f um",
-                p.samples.size(), p.cutting_time, p.max_mean_force, p.max_peak_force, 1e3 * p.max_deflection);
+  if (resultant)
+    std::snprintf(buf, sizeof buf,
+                  "%zu revolutions, cutting time %.1f s; max mean force %.0f N, max peak %.0f N, max deflection %.1f um",
+                  p.samples.size(), p.cutting_time, p.max_mean_force, p.max_peak_force, 1e3 * p.max_deflection);
+  else
+    std::snprintf(buf, sizeof buf,
+                  "%zu revolutions, cutting time %.1f s; max mean tangential force %.0f N, torque %.1f N m, power %.0f W "
+                  "(radial force not stated: no deflection)",
+                  p.samples.size(), p.cutting_time, p.max_mean_tangential, p.max_torque, p.max_power);
   return buf;
 }
 
 }  // namespace
 
-void write_force_path_png(const std::filesystem::path& png, const PathForce& p, const std::string& title) {
+void write_force_path_png(const std::filesystem::path& png, const PathForce& p, const std::string& title,
+                          bool resultant) {
   plot::Figure f;
   f.title(title);
-  f.note(stats_note(p));
+  f.note(stats_note(p, resultant));
   f.xlabel("X [mm]");
   f.ylabel("Y [mm]");
   f.equal_aspect(true);
@@ -33,30 +40,37 @@ void write_force_path_png(const std::filesystem::path& png, const PathForce& p, 
   for (const ForceSample& s : p.samples) {
     x.push_back(s.x);
     y.push_back(s.y);
-    v.push_back(s.mean_force);
+    v.push_back(resultant ? s.mean_force : s.mean_tangential);
   }
-  f.colourbar("mean force [N]", 0, std::max(1.0, p.max_mean_force), plot::ColourMap::kTurbo);
+  const double top = resultant ? p.max_mean_force : p.max_mean_tangential;
+  f.colourbar(resultant ? "mean force [N]" : "mean tangential force [N]", 0, std::max(1.0, top), plot::ColourMap::kTurbo);
   f.coloured_line(std::move(x), std::move(y), std::move(v), 2);
   f.save_png(png);
 }
 
-void write_force_time_png(const std::filesystem::path& png, const PathForce& p, const std::string& title) {
+void write_force_time_png(const std::filesystem::path& png, const PathForce& p, const std::string& title,
+                          bool resultant) {
   plot::FigureStyle style;
   style.height = 520;
-  std::vector<double> t, mean, peak, ae, ap;
+  std::vector<double> t, first, second, ae, ap;
   for (const ForceSample& s : p.samples) {
     t.push_back(s.time);
-    mean.push_back(s.mean_force);
-    peak.push_back(s.peak_force);
+    first.push_back(s.peak_force);
+    second.push_back(resultant ? s.mean_force : s.mean_tangential);
     ae.push_back(s.radial_depth);
     ap.push_back(s.axial_depth);
   }
   plot::Figure force(style);
   force.title(title);
-  force.note(stats_note(p));
-  force.ylabel("force [N]");
-  force.line(t, peak, plot::palette(1), 1, "peak |F| in the revolution");
-  force.line(t, mean, plot::palette(0), 2, "mean |F| over the revolution");
+  force.note(stats_note(p, resultant));
+  if (resultant) {
+    force.ylabel("force [N]");
+    force.line(t, first, plot::palette(1), 1, "peak |F| in the revolution");
+    force.line(t, second, plot::palette(0), 2, "mean |F| over the revolution");
+  } else {  // torque and power are this force times D/2 and times the cutting speed: the note
+    force.ylabel("force [N]");
+    force.line(t, second, plot::palette(0), 2, "mean tangential force over the revolution, flutes summed");
+  }
   plot::Figure engagement(style);
   engagement.xlabel("cutting time [s] (feed moves at the programmed feed, no acceleration)");
   engagement.ylabel("depth [mm]");

@@ -9,10 +9,14 @@
 
 namespace gcpipe::force {
 
-/// Tool-tip path in XY, each revolution's segment coloured by its mean force [N].
-void write_force_path_png(const std::filesystem::path& png, const PathForce& p, const std::string& title);
-/// Two panels against time: mean and peak force [N]; radial depth ae and axial depth ap [mm].
-void write_force_time_png(const std::filesystem::path& png, const PathForce& p, const std::string& title);
+/// Tool-tip path in XY, each revolution's segment coloured by its mean force [N] (`resultant`
+/// false: the radial and axial forces are not known, coloured by the mean tangential force).
+void write_force_path_png(const std::filesystem::path& png, const PathForce& p, const std::string& title,
+                          bool resultant = true);
+/// Two panels against time: mean and peak force [N] (`resultant` false: the mean tangential
+/// force [N]); radial depth ae and axial depth ap [mm].
+void write_force_time_png(const std::filesystem::path& png, const PathForce& p, const std::string& title,
+                          bool resultant = true);
 
 /// A model's prediction against its reference series, sampled every `period` seconds.
 void write_prediction_png(const std::filesystem::path& png, const std::vector<double>& reference,

@@ -20,6 +20,11 @@ namespace {
 
 using pipeline::Emitter;
 
+constexpr const char* kDeflectionNeedsRatios =
+    "not computed: Kienzle's kc1/mc give the tangential force only; the deflection needs the radial force: "
+    "state material.radial_to_tangential, axial_to_tangential and ratio_source, or use a mechanistic set "
+    "(stages/force/README.md sec. 1b)";
+
 struct HeldDiagnostic {
   Diagnostic diag;
   DiagnosticKind kind;
@@ -54,7 +59,7 @@ class ForceStage final : public pipeline::Stage {
   bool finish(bool complete, Emitter& out) override {
     if (!enabled_ || !complete) return release(program_, out);
     if (!resolve_tool()) return release(program_, out);
-    const auto moves = force::moves_from_blocks(program_);
+    const auto moves = force::with_spindle_speed(force::moves_from_blocks(program_), options_.spindle_speed);
     force::ForceOptions o = options_;
     if (planning_ && o.sample_spacing == 0) o.sample_spacing = 0.1;  // README sec. 6
     auto stock = force::make_stock(moves, o);
@@ -64,7 +69,7 @@ class ForceStage final : public pipeline::Stage {
       return true;
     }
     const auto planned = force::apply_feeds(program_, moves, force::plan_feeds(moves, before_, o));
-    const auto moves_after = force::moves_from_blocks(planned);
+    const auto moves_after = force::with_spindle_speed(force::moves_from_blocks(planned), options_.spindle_speed);
     o.target_force = 0;
     auto stock_after = force::make_stock(moves_after, o);
     after_ = force::sweep_path(moves_after, o, std::move(stock_after));
@@ -83,8 +88,9 @@ class ForceStage final : public pipeline::Stage {
     if (r.dir.empty() || before_.samples.empty()) return;
     const force::PathForce& shown = planning_ ? after_ : before_;
     const std::string what = r.input_base + (planning_ ? ": force with the planned feeds" : ": cutting force");
-    force::write_force_path_png(r.dir / "plots" / "force_path.png", shown, what);
-    force::write_force_time_png(r.dir / "plots" / "force_time.png", shown, what);
+    const bool resultant = options_.material.resultant_known();
+    force::write_force_path_png(r.dir / "plots" / "force_path.png", shown, what, resultant);
+    force::write_force_time_png(r.dir / "plots" / "force_time.png", shown, what, resultant);
     r.files->push_back("plots/force_path.png");
     r.files->push_back("plots/force_time.png");
   }
@@ -109,8 +115,10 @@ class ForceStage final : public pipeline::Stage {
     return true;  // nothing cuts
   }
 
-  /// The force of the program as emitted, for the compensate stage's error budget.
-  static void hand_on(const force::PathForce& p, Emitter& out) {
+  /// The force of the program as emitted, for the compensate stage's error budget (which needs the
+  /// deflection, so nothing is handed on when the radial force is not known).
+  void hand_on(const force::PathForce& p, Emitter& out) const {
+    if (!options_.material.resultant_known()) return;
     auto profile = std::make_shared<force::ForceProfile>();
     profile->force = p;
     out.product(profile);
@@ -131,20 +139,47 @@ class ForceStage final : public pipeline::Stage {
   }
 
   nlohmann::ordered_json summary(const force::PathForce& p) const {
-    double mean = 0, ae = 0, ap = 0;
-    for (const auto& s : p.samples) { mean += s.mean_force; ae = std::max(ae, s.radial_depth); ap = std::max(ap, s.axial_depth); }
-    if (!p.samples.empty()) mean /= static_cast<double>(p.samples.size());
-    return {{"samples", p.samples.size()}, {"cutting_time_s", p.cutting_time}, {"max_mean_force_N", p.max_mean_force},
-            {"average_mean_force_N", mean}, {"max_peak_force_N", p.max_peak_force}, {"max_ae_mm", ae},
-            {"max_ap_mm", ap}, {"max_deflection_um", 1e3 * p.max_deflection}};
+    double mean = 0, tangential = 0, power = 0, ae = 0, ap = 0;
+    for (const auto& s : p.samples) {
+      mean += s.mean_force, tangential += s.mean_tangential, power += s.power;
+      ae = std::max(ae, s.radial_depth), ap = std::max(ap, s.axial_depth);
+    }
+    const double n = std::max<double>(1, static_cast<double>(p.samples.size()));
+    nlohmann::ordered_json j = {{"samples", p.samples.size()}, {"cutting_time_s", p.cutting_time}};
+    if (options_.material.resultant_known())
+      j.update({{"max_mean_force_N", p.max_mean_force}, {"average_mean_force_N", mean / n},
+                {"max_peak_force_N", p.max_peak_force}});
+    j.update({{"max_mean_tangential_force_N", p.max_mean_tangential}, {"average_mean_tangential_force_N", tangential / n},
+              {"max_torque_Nm", p.max_torque}, {"max_power_W", p.max_power}, {"average_power_W", power / n},
+              {"max_ae_mm", ae}, {"max_ap_mm", ap}});
+    if (options_.material.resultant_known()) j["max_deflection_um"] = 1e3 * p.max_deflection;
+    else j["deflection"] = kDeflectionNeedsRatios;
+    return j;
+  }
+
+  /// What the report says of a Kienzle material: its row, the table's copy, the stated ratios.
+  nlohmann::ordered_json kienzle_json() const {
+    const force::Material& m = options_.material;
+    const force::KienzleGroup& g = *m.group;
+    const auto& table = force::embedded_kienzle_table();
+    nlohmann::ordered_json j = {{"vdi3323_group", g.group}, {"iso", g.iso}, {"description", g.material},
+                                {"condition", g.condition}, {"kc1_N_mm2", g.kc1}, {"mc", g.mc}};
+    if (!m.grade.empty()) j["grade"] = m.grade;
+    j["table"] = {{"file", table.from}, {"sha256", table.sha256}, {"source", force::kienzle_source()}};
+    if (m.ratios)
+      j["ratios"] = {{"radial_to_tangential", m.ratios->radial}, {"axial_to_tangential", m.ratios->axial},
+                     {"source", m.ratios->source}};
+    else
+      j["ratios"] = "not stated: tangential force, torque and power only";
+    return j;
   }
 
   nlohmann::ordered_json report_json() const {
-    nlohmann::ordered_json j = {{"material", options_.coefficients.source},
-                                {"tool", {{"diameter_mm", options_.tool.diameter}, {"flutes", options_.tool.flutes},
-                                          {"stickout_mm", options_.tool.stickout},
-                                          {"effective_diameter_mm", options_.tool.effective_diameter()}}},
-                                {"programmed", summary(before_)}};
+    nlohmann::ordered_json j = {{"material", options_.material.source}};
+    if (options_.material.group) j["kienzle"] = kienzle_json();
+    j["tool"] = {{"diameter_mm", options_.tool.diameter}, {"flutes", options_.tool.flutes},
+                 {"stickout_mm", options_.tool.stickout}, {"effective_diameter_mm", options_.tool.effective_diameter()}};
+    j["programmed"] = summary(before_);
     if (planning_)
       j["planned"] = summary(after_), j["target_force_N"] = options_.target_force;
     return j;
@@ -152,8 +187,14 @@ class ForceStage final : public pipeline::Stage {
 
   std::string report_line() const {
     char buf[320];
-    std::snprintf(buf, sizeof buf, "  force: max mean %.0f N, peak %.0f N, deflection %.1f um, cutting %.1f s\n",
-                  before_.max_mean_force, before_.max_peak_force, 1e3 * before_.max_deflection, before_.cutting_time);
+    if (options_.material.resultant_known())
+      std::snprintf(buf, sizeof buf, "  force: max mean %.0f N, peak %.0f N, deflection %.1f um, cutting %.1f s\n",
+                    before_.max_mean_force, before_.max_peak_force, 1e3 * before_.max_deflection, before_.cutting_time);
+    else
+      std::snprintf(buf, sizeof buf,
+                    "  force: max mean tangential %.0f N, torque %.1f N m, power %.0f W, cutting %.1f s "
+                    "(no deflection: radial and axial forces not stated)\n",
+                    before_.max_mean_tangential, before_.max_torque, before_.max_power, before_.cutting_time);
     std::string s = buf;
     if (planning_) {
       std::snprintf(buf, sizeof buf, "  force-aware feed (target %.0f N): max mean %.0f N, peak %.0f N, cutting %.1f s\n",

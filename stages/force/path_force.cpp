@@ -44,7 +44,7 @@ int samples_per_revolution(int flutes) { return flutes * ((720 + flutes - 1) / f
 
 /// Feed per tooth at or under c_hi whose instantaneous peak stays under `limit` (bisection; the
 /// peak grows with the feed, each tooth's force being affine in c with a positive chip term).
-double limit_peak(const CuttingCoefficients& k, int flutes, const AxialProfile& profile, int steps, double c_hi,
+double limit_peak(const ForceLaw& k, int flutes, const AxialProfile& profile, int steps, double c_hi,
                   double limit) {
   if (revolution_force(k, flutes, c_hi, profile, steps).peak <= limit) return c_hi;
   double lo = 0, hi = c_hi;
@@ -53,6 +53,23 @@ double limit_peak(const CuttingCoefficients& k, int flutes, const AxialProfile& 
     (revolution_force(k, flutes, mid, profile, steps).peak <= limit ? lo : hi) = mid;
   }
   return lo;
+}
+
+/// Feed [mm/min] whose mean force is o.target_force and whose peak stays under the limit. The mean
+/// is affine in u = c^p (RevolutionForce), so the quadratic of feed_for_mean_force gives u, and
+/// c = u^(1/p).
+double planned_feed(const ForceLaw& law, const RevolutionForce& f, const AxialProfile& profile, int steps,
+                    const Move& m, const ForceOptions& o) {
+  const ToolSpec& t = o.tool;
+  const double c = m.feed / (t.flutes * m.spindle);
+  const double u = law.chip_factor(c);
+  const double c_max = o.max_feed_factor * m.feed / (t.flutes * m.spindle);
+  const Force3 edge{f.mean.x - u * f.mean_per_feed.x, f.mean.y - u * f.mean_per_feed.y, f.mean.z - u * f.mean_per_feed.z};
+  const double u_target = feed_for_mean_force(f.mean_per_feed, edge, o.target_force, law.chip_factor(c_max));
+  double cp = law.feed_exponent == 1 ? u_target : std::pow(u_target, 1 / law.feed_exponent);
+  const double peak = o.peak_force > 0 ? o.peak_force : 2 * o.target_force;
+  cp = limit_peak(law, t.flutes, profile, steps, cp, peak);
+  return std::max(cp * t.flutes * m.spindle, o.min_feed);
 }
 
 /// Everything one revolution at (x, y, z) moving along (ux, uy) gives.
@@ -66,7 +83,8 @@ ForceSample sample_at(const SweptStock& stock, const ForceOptions& o, const Move
     return e.depth[std::min(i, e.depth.size() - 1)];
   };
   const double c = m.feed / (t.flutes * m.spindle);
-  const RevolutionForce f = revolution_force(o.coefficients, t.flutes, c, profile, steps);
+  const ForceLaw& law = o.material.law;
+  const RevolutionForce f = revolution_force(law, t.flutes, c, profile, steps);
   ForceSample s;
   s.x = x; s.y = y; s.z = z;
   s.feed = m.feed;
@@ -77,15 +95,10 @@ ForceSample sample_at(const SweptStock& stock, const ForceOptions& o, const Move
   s.peak_force = f.peak;
   s.deflection = cantilever_deflection(xy_norm(f.mean.x, f.mean.y), t.stickout, t.modulus, t.effective_diameter());
   s.peak_deflection = cantilever_deflection(f.peak, t.stickout, t.modulus, t.effective_diameter());
-  s.power = f.mean_tangential * 0.5 * t.diameter * 1e-3 * 2 * kPi * m.spindle / 60;
-  if (o.target_force > 0) {
-    const double c_max = o.max_feed_factor * m.feed / (t.flutes * m.spindle);
-    const Force3 edge{f.mean.x - c * f.mean_per_feed.x, f.mean.y - c * f.mean_per_feed.y, f.mean.z - c * f.mean_per_feed.z};
-    double cp = feed_for_mean_force(f.mean_per_feed, edge, o.target_force, c_max);
-    const double peak = o.peak_force > 0 ? o.peak_force : 2 * o.target_force;
-    cp = limit_peak(o.coefficients, t.flutes, profile, steps, cp, peak);
-    s.planned_feed = std::max(cp * t.flutes * m.spindle, o.min_feed);
-  }
+  s.mean_tangential = f.mean_tangential;
+  s.torque = f.mean_tangential * 0.5 * t.diameter * 1e-3;
+  s.power = s.torque * 2 * kPi * m.spindle / 60;
+  if (o.target_force > 0) s.planned_feed = planned_feed(law, f, profile, steps, m, o);
   return s;
 }
 
@@ -168,6 +181,9 @@ PathForce sweep_path(const std::vector<Move>& moves, const ForceOptions& o, Heig
     out.max_mean_force = std::max(out.max_mean_force, fs.mean_force);
     out.max_peak_force = std::max(out.max_peak_force, fs.peak_force);
     out.max_deflection = std::max(out.max_deflection, fs.peak_deflection);
+    out.max_mean_tangential = std::max(out.max_mean_tangential, fs.mean_tangential);
+    out.max_torque = std::max(out.max_torque, fs.torque);
+    out.max_power = std::max(out.max_power, fs.power);
   }
   return out;
 }
@@ -208,6 +224,12 @@ std::vector<ResolvedBlock> apply_feeds(const std::vector<ResolvedBlock>& blocks,
 std::vector<Move> with_feeds(std::vector<Move> moves, const std::vector<double>& feeds) {
   for (std::size_t i = 0; i < moves.size(); ++i)
     if (moves[i].cutting) moves[i].feed = feeds[i];
+  return moves;
+}
+
+std::vector<Move> with_spindle_speed(std::vector<Move> moves, double rpm) {
+  if (rpm > 0)
+    for (Move& m : moves) m.spindle = rpm;
   return moves;
 }
 

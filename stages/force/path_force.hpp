@@ -38,6 +38,8 @@ struct ForceSample {
   double peak_force = 0;        //!< largest instantaneous |F| in the revolution [N]
   double deflection = 0;        //!< tip deflection under the mean XY force [mm]
   double peak_deflection = 0;   //!< under the largest instantaneous force [mm]
+  double mean_tangential = 0;   //!< mean over the revolution of the flutes' summed Ft [N]
+  double torque = 0;            //!< mean spindle torque = mean_tangential * D / 2 [N m]
   double power = 0;             //!< mean cutting power = torque * omega [W]
   double planned_feed = 0;      //!< feed holding the target force here (0: planner off) [mm/min]
   std::size_t move = 0;         //!< index into the moves
@@ -49,6 +51,9 @@ struct PathForce {
   double max_mean_force = 0;   //!< [N]
   double max_peak_force = 0;   //!< [N]
   double max_deflection = 0;   //!< under the peak force [mm]
+  double max_mean_tangential = 0;  //!< [N]
+  double max_torque = 0;       //!< [N m]
+  double max_power = 0;        //!< [W]
 };
 
 /// The stock of `o.stock`, or when it is unset the box around the feed moves (tool radius + 2 mm
@@ -67,6 +72,9 @@ std::vector<double> plan_feeds(const std::vector<Move>& moves, const PathForce& 
 /// The blocks with each feed block's F set to the smallest planned feed of its moves.
 std::vector<ResolvedBlock> apply_feeds(const std::vector<ResolvedBlock>& blocks, const std::vector<Move>& moves,
                                        const std::vector<double>& feeds);
+
+/// The moves with the spindle speed replaced by `rpm` (the config's spindle_speed); rpm 0: as is.
+std::vector<Move> with_spindle_speed(std::vector<Move> moves, double rpm);
 
 /// The moves with their feeds replaced (to sweep the planned program again).
 std::vector<Move> with_feeds(std::vector<Move> moves, const std::vector<double>& feeds);

@@ -36,6 +36,8 @@ class Config {
   Config& operator=(const Config&);
 
   bool has(std::string_view key) const;
+  /// True when `key` is present and holds a mapping (a key that takes a name or a mapping).
+  bool is_mapping(std::string_view key) const;
   /// The mapping under `key`; an empty mapping when absent; throws if `key` is not a mapping.
   Config section(std::string_view key) const;
   /// Keys of this mapping in file order (as strings).
