@@ -5,6 +5,7 @@
 #include <bit>
 
 #include <cmath>
+#include <complex>
 #include <cstdio>
 #include <numbers>
 #include <vector>
@@ -293,6 +294,65 @@ TEST(ServoEffects, FeedbackDelayMatchesDelayedLoopResponse) {
   std::printf("feedback delay: simulated gain %.5f, delayed-loop %.5f, no delay %.5f\n", peak / amp, g, g0);
   EXPECT_NEAR(peak / amp, g, 2e-3);
   EXPECT_GT(std::abs(g - g0), 10 * 2e-3);  // the effect is visible at this tolerance
+}
+
+// A negative Tp: the feed-forward reads the command velocity |Tp| in the past (a drive that
+// averages its feed-forward without look-ahead). The simulated steady-state response to a sine,
+// amplitude and phase, must equal the continuous model's K_FFP e^{s Tp} s / (1 + Ta s) branch
+// (drive_response, a second formulation) times the linear join's sinc^2; whole and fractional
+// periods of lag, exact step and RK4.
+TEST(ServoFeedForward, NegativeTpLagsTheFeedForwardLikeTheTransferFunction) {
+  for (const double Tp : {-0.003, -0.0047, 0.0047}) {
+    for (const bool rk4 : {false, true}) {
+      DriveParams p = seed002().axes[kY];
+      p.torque_limit = 0;
+      p.Tp = Tp;
+      p.Ta = 0.002;
+      AxisDrive d(p, kT, 8, 0.9);
+      d.force_rk4(rk4);
+      const double w = 40.0, amp = 1.0;
+      std::vector<double> cmd;
+      for (int k = 0; k < 4000; ++k) cmd.push_back(amp * std::sin(w * k * kT));
+      const auto out = run(d, cmd);
+      // Steady-state phasor of the output over whole cycles from 2 s on (sample k is the position
+      // at t = (k + 1) T).
+      std::complex<double> acc = 0;
+      std::size_t n = 0;
+      const auto cycle = static_cast<std::size_t>(std::lround(2 * kPi / w / kT * 5));  // ~5 cycles
+      for (std::size_t k = 2000; k < 2000 + cycle && k < out.size(); ++k, ++n) {
+        const double t = static_cast<double>(k + 1) * kT;
+        acc += out[k] * std::exp(std::complex<double>(0, -w * t));
+      }
+      const std::complex<double> sim = 2.0 * acc / static_cast<double>(n) * std::complex<double>(0, 1) / amp;
+      const std::complex<double> model = drive_response(p, w) * first_order_hold_gain(w, kT);
+      DriveParams none = p;
+      none.Tp = 0;
+      const std::complex<double> at_zero = drive_response(none, w) * first_order_hold_gain(w, kT);
+      std::printf("Tp %+.4f s %s: simulated %.5f%+.5fi, transfer function %.5f%+.5fi (Tp = 0: %.5f%+.5fi)\n", Tp,
+                  rk4 ? "RK4  " : "exact", sim.real(), sim.imag(), model.real(), model.imag(), at_zero.real(), at_zero.imag());
+      EXPECT_LT(std::abs(sim - model), 2e-3) << Tp;
+      EXPECT_GT(std::abs(model - at_zero), 10 * 2e-3) << Tp;  // the lag is visible at this tolerance
+    }
+  }
+}
+
+// A lagging feed-forward lives in the drive's own history: a copy carries it, reset clears it.
+TEST(ServoFeedForward, NegativeTpHistoryIsCopiedAndReset) {
+  DriveParams p = seed002().axes[kY];
+  p.Tp = -0.0047;
+  AxisDrive a(p, kT, 8, 0.9);
+  const auto cmd = test_command(5.0, 2 * kPi, 1200);
+  a.reset(cmd[0]);
+  for (std::size_t k = 0; k + 2 <= 600; ++k) a.step(std::span<const double>(cmd.data() + k, 2));
+  AxisDrive b = a;
+  for (std::size_t k = 600; k + 2 <= cmd.size(); ++k) {
+    const AxisState x = a.step(std::span<const double>(cmd.data() + k, 2));
+    const AxisState y = b.step(std::span<const double>(cmd.data() + k, 2));
+    ASSERT_EQ(x.position, y.position) << k;
+  }
+  AxisDrive fresh(p, kT, 8, 0.9);
+  EXPECT_EQ(run(a, cmd), run(fresh, cmd));
+  EXPECT_EQ(a.window(), 2);
 }
 
 // Every drives file, and the servo/interpolate sections of every pipeline config that has them.

@@ -96,11 +96,14 @@ std::vector<BaseSlot> base_slots(const servo::DriveParams& p, bool with_torque, 
                              {"K_FFP", "%", &P::K_FFP, false, 0.0, std::max(100.0, p.K_FFP), true},
                              {"Ta", "s", &P::Ta, true, 1e-4, 0.5, false},
                              // The feed-forward's timing: gcpipe's model reads the command Tp
-                             // ahead and averages over Ta; a drive that averages over a window
-                             // without look-ahead lags by half the window. Both are fitted
-                             // (with Tp held, such a lag came out as a 4-8 ms measurement
-                             // delay on clean machines of tests/unseen_machine).
-                             {"Tp", "s", &P::Tp, false, 0.0, std::min(0.05, 60 * period), true}};
+                             // ahead (Tp < 0: behind) and averages over Ta. A drive that
+                             // averages over a window W without look-ahead lags by W/2 with a
+                             // sinc-shaped gain: a first-order Ta alone matches the lag or the
+                             // gain, not both (at 16 ms, 2 % of the feed-forward: tens of um),
+                             // so the lag is fitted as Tp down to -20 ms (W up to ~40 ms) and
+                             // Ta shapes the gain. With Tp >= 0 such a drive came out as a
+                             // 2-6 ms measurement delay on clean machines of tests/unseen_machine.
+                             {"Tp", "s", &P::Tp, false, -std::min(0.02, 60 * period), std::min(0.05, 60 * period), true}};
   if (with_torque) s.push_back({"J", "kg*m^2", &P::J, true, p.J / 20, p.J * 20, false});
   return s;
 }

@@ -271,7 +271,7 @@ DriveParams load_axis(const Config& a, int axis) {
   p.Kvi = a.number("Kvi", p.Kvi, "N*m/rad", 0, 1e9);
   p.K_FFP = a.number("K_FFP", p.K_FFP, "%", 0, 200);
   p.Ta = a.number("Ta", p.Ta, "s", 0, 1);
-  p.Tp = a.number("Tp", p.Tp, "s", 0, 1);
+  p.Tp = a.number("Tp", p.Tp, "s", -0.06, 1);
   p.Ts = a.number("Ts", p.Ts, "s", 0, 2);
   p.lead = a.number("lead", p.lead, "m", 0, 1);
   if (p.rotary && p.lead > 0) throw a.error("lead", "a rotary axis (" + axis_name(axis) + ") has no ball-screw lead; remove the key");
@@ -370,8 +370,14 @@ struct AxisDrive::Impl {
   double lpm = 1;          // load units per motor rad
   double Jt = 1, k = 1;    // total inertia, K_FFP as a fraction
   double limit = 0;        // torque limit, +inf when none
-  int m = 0;               // whole periods of Tp
+  int m = 0;               // whole periods of Tp (negative: the feed-forward lags the command)
   double phi = 0;          // fraction of a period left over of Tp
+  // Segment velocities of the last periods [motor rad/s], past[(past_head + k - 1) % size] the one
+  // k periods ago: a negative Tp reads them (a drive that averages its feed-forward over a window
+  // without look-ahead lags the command by half the window; README "Feed-forward timing").
+  static constexpr int kPast = 64;
+  std::array<double, kPast> past{};
+  int past_head = 0;
   int win = 2;
   bool ideal = false;
   bool force_rk4 = false;
@@ -385,11 +391,22 @@ struct AxisDrive::Impl {
   struct Rest {
     bool enabled = true;  //!< off: every step worked out (repeat_rests(), for the test)
     bool valid = false;
-    std::array<std::uint64_t, 4> commands{};  //!< bits of c[0], c[1], c[m + 1], c[m + 2] (0 if unused)
+    std::array<std::uint64_t, 4> commands{};  //!< bits of c[0], c[1] and of the feed-forward's u1, u2
     AxisState result;
   } rest;
   EffectList effects;
   EffectList outputs;  // output-only corrections, after the chain
+
+  /// Velocity of segment j of the command [motor rad/s]: j = 0 this period's, j > 0 ahead in the
+  /// window, j < 0 the one -j periods ago.
+  double segment(std::span<const double> c, int j, double inv) const {
+    if (j >= 0) return (c[static_cast<std::size_t>(j) + 1] - c[static_cast<std::size_t>(j)]) * inv / T;
+    return past[static_cast<std::size_t>((past_head - j - 1) % kPast)];
+  }
+  void remember(double v) {
+    past_head = (past_head + kPast - 1) % kPast;
+    past[static_cast<std::size_t>(past_head)] = v;
+  }
 
   // The position at the end of the period [load units] with the output-only corrections.
   double corrected(double position, std::span<const double> c) {
@@ -529,8 +546,9 @@ AxisDrive::AxisDrive(const DriveParams& p, double period, int substeps, double m
   s.phi = q - s.m;
   if (s.phi < 1e-9) s.phi = 0;
   if (s.phi > 1 - 1e-9) { s.m += 1; s.phi = 0; }
-  s.win = s.m + 2 + (s.phi > 0 ? 1 : 0);
+  s.win = std::max(2, s.m + 2 + (s.phi > 0 ? 1 : 0));
   if (s.win > 64) throw ConfigError("servo: Tp = " + std::to_string(p.Tp) + " s needs more than 62 periods of look-ahead");
+  if (s.m < -Impl::kPast) throw ConfigError("servo: Tp = " + std::to_string(p.Tp) + " s lags the command by more than " + std::to_string(Impl::kPast) + " periods");
   s.win = std::max(s.win, 2 + lookahead);
   for (const auto& e : s.effects) s.feedback_altered = s.feedback_altered || e->alters_feedback();
 
@@ -571,6 +589,7 @@ void AxisDrive::reset(double position) {
   Impl& s = *impl_;
   s.theta = position / s.lpm;
   s.w = s.I = s.f = s.tau = 0;
+  s.past.fill(0.0);
   s.out = s.theta;
   s.rest.valid = false;
   for (auto& e : s.effects) e->reset(s.theta);
@@ -587,17 +606,17 @@ AxisState AxisDrive::step(std::span<const double> c) {
   const double inv = 1.0 / s.lpm;
   const double c0 = c[0] * inv;
   const double v = (c[1] - c[0]) * inv / s.T;
-  const double u1 = (c[static_cast<std::size_t>(s.m) + 1] - c[static_cast<std::size_t>(s.m)]) * inv / s.T;
-  const double u2 = s.phi > 0 ? (c[static_cast<std::size_t>(s.m) + 2] - c[static_cast<std::size_t>(s.m) + 1]) * inv / s.T : u1;
+  const double u1 = s.segment(c, s.m, inv);
+  const double u2 = s.phi > 0 ? s.segment(c, s.m + 1, inv) : u1;
+  s.remember(v);
 
   bool sat = false;
   if (s.effects.empty() && !s.force_rk4) {
     // An axis at rest (the bench's A and C, a settled Z): the step is a function of the state and
     // these four commands only, so when neither changed its result is the last one, bit for bit.
     const std::array<std::uint64_t, 4> commands{
-        std::bit_cast<std::uint64_t>(c[0]), std::bit_cast<std::uint64_t>(c[1]),
-        std::bit_cast<std::uint64_t>(c[static_cast<std::size_t>(s.m) + 1]),
-        s.phi > 0 ? std::bit_cast<std::uint64_t>(c[static_cast<std::size_t>(s.m) + 2]) : 0};
+        std::bit_cast<std::uint64_t>(c[0]), std::bit_cast<std::uint64_t>(c[1]), std::bit_cast<std::uint64_t>(u1),
+        std::bit_cast<std::uint64_t>(u2)};
     if (s.rest.valid && s.rest.commands == commands) return s.rest.result;
     const double th0 = s.theta - c0;
     Vec7 z;

@@ -4,7 +4,8 @@
 // One axis (all quantities on the motor side, [rad]):
 //
 //   r(t)  position command: the interpolator's samples joined linearly (first-order hold)
-//   u(t)  = dr/dt (t + Tp): the command velocity read Tp ahead (Pre-Control, Fig. 10(b))
+//   u(t)  = dr/dt (t + Tp): the command velocity read Tp ahead (Pre-Control, Fig. 10(b)); a
+//           negative Tp reads it behind (a drive that averages its feed-forward without look-ahead)
 //   f     Ta df/dt = K_FFP/100 * u - f   (averaging of the feed-forward, first order)
 //   v_cmd = Kpp (r - theta) + f           (P position loop plus feed-forward)
 //   tau   = Kvp (v_cmd - w) + Kvi I,  dI/dt = v_cmd - w   (PI velocity loop, torque command)
@@ -64,7 +65,7 @@ struct DriveParams {
   double Kvi = 0.274;           //!< velocity integral gain [N*m/rad] (tau_I = Kvi * integral)
   double K_FFP = 100.0;         //!< Pre-Control feed-forward coefficient [%]
   double Ta = 0.015;            //!< feed-forward averaging time constant [s]
-  double Tp = 0.005;            //!< feed-forward preceding (look-ahead) time [s]
+  double Tp = 0.005;            //!< feed-forward preceding (look-ahead) time [s]; < 0: lag
   double Ts = 0.064;            //!< smoothing time constant after interpolation [s] (used by
                                 //!< the interpolator; kept here because Table 1 lists it)
   double lead = 0.0;            //!< ball-screw lead [m]; 0: direct drive, r = 1 m/rad (Table 1 Y)
@@ -192,7 +193,7 @@ class AxisDrive {
   AxisDrive& operator=(const AxisDrive& other);
 
   /// Number of command samples step() needs: c[0] at the start of the period, c[1] at its end,
-  /// the rest ahead for the Tp look-ahead.
+  /// the rest ahead for the Tp look-ahead (a negative Tp reads the drive's own history instead).
   int window() const;
   /// At rest at `position` [mm or deg].
   void reset(double position);
