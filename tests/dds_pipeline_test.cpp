@@ -520,6 +520,33 @@ TEST_F(DdsPipeline, ForeverNodesServeSuccessiveProgramsAndSinksSkipReplays) {
   any_killed_ |= parse.killed || trochoid.killed || write.killed;
 }
 
+// A sink started for one program id (as gcpipe stream starts its sinks) writes that program only:
+// another one arriving first on its topic (another pipeline's, on a shared domain) is refused and
+// named, never written.
+TEST_F(DdsPipeline, ASinkForOneProgramIdRefusesAnotherProgramAndNamesIt) {
+  const fs::path other = fs::path(GCPIPE_SOURCE_DIR) / "samples" / "trochoid_slot_seed000.nc";
+  const fs::path ours = generate_program(dir_, 2000);
+  const BatchResult batch_ours = run_batch(ours);
+  Process parse("parse", dds_args({"node", "parse", "--config", kConfig, "--forever"}), dir_);
+  Process trochoid("trochoid", dds_args({"node", "trochoid", "--config", kConfig, "--forever"}), dir_);
+  Process write("write", dds_args({"node", "write", "--config", kConfig, "--forever"}), dir_);
+  const fs::path out = dir_ / "ours.nc";
+  Process sink("sink", dds_args({"sink", "-o", out.string(), "--program-id", "424242"}), dir_);
+  wait_until_ready(sink);
+  Process feed_other("feed other", dds_args({"feed", other.string(), "--config", kConfig, "--program-id", "111"}), dir_);
+  EXPECT_EQ(feed_other.wait(), 0) << slurp(feed_other.log);
+  Process feed_ours("feed ours", dds_args({"feed", ours.string(), "--config", kConfig, "--program-id", "424242"}), dir_);
+  EXPECT_EQ(feed_ours.wait(), 0) << slurp(feed_ours.log);
+  EXPECT_EQ(sink.wait(), batch_ours.status) << slurp(sink.log);
+  EXPECT_TRUE(slurp(out) == batch_ours.output);
+  EXPECT_NE(slurp(sink.log).find("refusing program 111 ('" + other.string() + "'): started for program 424242 only"),
+            std::string::npos)
+      << slurp(sink.log);
+  for (Process* p : {&parse, &trochoid, &write}) kill(p->pid, SIGTERM);
+  for (Process* p : {&parse, &trochoid, &write}) EXPECT_EQ(p->wait(30), 0) << slurp(p->log);
+  any_killed_ |= feed_other.killed || feed_ours.killed || sink.killed || parse.killed || trochoid.killed || write.killed;
+}
+
 TEST_F(DdsPipeline, LateMonitorStillSeesTheEndMarker) {
   const fs::path input = generate_cycle_program(dir_, 4, 2, 0);
   const BatchResult batch = run_batch(input);

@@ -195,6 +195,87 @@ TEST(Stream, TwoPipelinesOnOneHostStayApart) {
   }
 }
 
+// Two pipelines on ONE domain (a user who forgot to give each its own): each stream run has its
+// own DDS partition, so neither matches the other's readers and writers, and every process takes
+// only its feed's program id besides. Each writes batch's bytes of its own program, never the
+// other's.
+TEST(Stream, TwoStreamsOnOneDomainNeverWriteEachOthersProgram) {
+  const fs::path dir = tmpdir("stream_shared_domain");
+  const std::vector<std::string> samples = {"five_axis_demo.nc", "tool_vector_demo.nc"};
+  for (const auto& sample : samples) {
+    const Outcome batch = gcpipe({"batch", (kSource / "samples" / sample).string(), "-o", (dir / ("batch_" + sample)).string(), "--quiet"});
+    ASSERT_EQ(batch.status, 0) << batch.err;
+  }
+  std::vector<pid_t> pids;
+  for (const auto& sample : samples)
+    pids.push_back(spawn_gcpipe({"stream", (kSource / "samples" / sample).string(), "-o", (dir / ("stream_" + sample)).string(),
+                                 "--domain", "221"},
+                                dir / (sample + ".out"), dir / (sample + ".err")));
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const std::string& sample = samples[i];
+    const std::string& other = samples[1 - i];
+    SCOPED_TRACE(sample);
+    EXPECT_EQ(wait_exit(pids[i], 240), 0) << slurp(dir / (sample + ".err"));
+    for (const char* f : {"output.nc", "compensated.nc"}) {
+      const fs::path written = dir / ("stream_" + sample) / f;
+      EXPECT_FALSE(slurp(written) == slurp(dir / ("batch_" + other) / f)) << f << " holds " << other;
+      EXPECT_TRUE(slurp(written) == slurp(dir / ("batch_" + sample) / f)) << f;
+    }
+    EXPECT_TRUE(slurp(dir / ("stream_" + sample) / "report.txt").find(other) == std::string::npos);
+  }
+}
+
+// One precedence for the domain of every DDS command: --domain, else $GCPIPE_DDS_DOMAIN, else the
+// pipeline file's (stream and launch used to run on the file's domain 0 whatever the variable).
+TEST(Stream, RunsOnTheDomainOfGcpipeDdsDomain) {
+  const fs::path dir = tmpdir("stream_env_domain");
+  const fs::path in = kSource / "samples" / "five_axis_demo.nc";
+  ASSERT_EQ(setenv("GCPIPE_DDS_DOMAIN", "223", 1), 0);  // domains of their own: ctest runs tests side by side
+  const Outcome s = gcpipe({"stream", in.string(), "-o", (dir / "stream").string()});
+  const Outcome flag = gcpipe({"stream", in.string(), "-o", (dir / "flag").string(), "--domain", "219"});
+  unsetenv("GCPIPE_DDS_DOMAIN");
+  EXPECT_EQ(s.status, 0) << s.err;
+  EXPECT_NE(s.err.find("(DDS domain 223)"), std::string::npos) << s.err;
+  EXPECT_EQ(flag.status, 0) << flag.err;
+  EXPECT_NE(flag.err.find("(DDS domain 219)"), std::string::npos) << flag.err;
+}
+
+// A supervisor killed with SIGKILL cannot stop its children: they follow it (PR_SET_PDEATHSIG)
+// and leave within seconds instead of serving on the domain, shared memory and all, for ever.
+TEST(Stream, ItsProcessesLeaveWhenTheStreamIsKilled) {
+  const fs::path dir = tmpdir("stream_killed");
+  const fs::path log = dir / "stream.log";
+  const pid_t stream = spawn_gcpipe({"stream", (kSource / "samples" / "trochoid_slot_seed000.nc").string(), "-o",
+                                     (dir / "out").string(), "--domain", "218", "--feed-rate", "200"},
+                                    dir / "stream.out", log);
+  ASSERT_TRUE(wait_for(log, "processes ready", 60)) << slurp(log);
+  std::vector<pid_t> children;
+  for (const char* name : {"feed", "parse", "write", "compensate", "sink output.nc", "report-sink"}) {
+    children.push_back(node_pid(log, name));
+    ASSERT_GT(children.back(), 0) << name << "\n" << slurp(log);
+  }
+  kill(stream, SIGKILL);
+  wait_exit(stream, 10);
+  const auto t0 = std::chrono::steady_clock::now();
+  // Running, not a zombie: an orphan that exited waits for whoever adopted it to reap it.
+  auto alive = [&] {
+    int n = 0;
+    for (pid_t p : children) {
+      const std::string status = slurp(fs::path("/proc") / std::to_string(p) / "status");
+      n += !status.empty() && status.find("State:\tZ") == std::string::npos;
+    }
+    return n;
+  };
+  while (alive() > 0 && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(15))
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("children of the killed stream gone after %.2f s\n", took);
+  EXPECT_EQ(alive(), 0) << "children still running 15 s after their supervisor was killed";
+  // Not asserted: the children leave, but all at once, and Fast DDS then leaves some port files
+  // of the domain in /dev/shm (a cleaner for them is still to come, issue 34 item 3).
+  std::printf("shared-memory files of domain 218 left: %zu\n", shm_of_domain(218).size());
+}
+
 TEST(Stream, APipelineWithoutTheForceNodeReadsTheToolpathDirectly) {
   const fs::path dir = tmpdir("stream_noforce");
   const fs::path in = kSource / "samples" / "five_axis_demo.nc";

@@ -31,9 +31,18 @@ dds::DdsOptions dds_options(const DdsArgs& a) {
   o.idle_timeout = a.idle_timeout;
   o.monitor_history = a.monitor_history;
   o.replay = a.replay;
+  o.partition = a.partition;
   if (!a.profiles.empty()) o.profiles = a.profiles;
   o.network = a.network;
   o.identity = a.identity;
+  return o;
+}
+
+// A monitor watches every pipeline on its domain unless told a partition: each `gcpipe stream`
+// run has its own partition, `gcpipe launch` the default one.
+dds::DdsOptions monitor_options(const MonitorArgs& a) {
+  dds::DdsOptions o = dds_options(a);
+  if (o.partition.empty()) o.partition = "*";
   return o;
 }
 
@@ -68,6 +77,7 @@ dds::StageNodeOptions stage_node_options(const NodeArgs& a, std::size_t k) {
   o.pipeline_stages = a.pipeline_stages;
   o.report_dir = a.report_dir;
   o.report_readers = a.report_readers;
+  o.program_id = a.program_id;
   return o;
 }
 
@@ -143,7 +153,8 @@ int run_node(const NodeArgs& a) {
 int run_sink(const SinkArgs& a) {
   dds::install_stop_handlers();
   dds::Participant participant(dds_options(a));
-  return dds::run_sink(participant, dds::SinkOptions{a.output, a.in.empty() ? dds::kGcodeTopicName : a.in}, std::cerr);
+  return dds::run_sink(participant, dds::SinkOptions{a.output, a.in.empty() ? dds::kGcodeTopicName : a.in, a.program_id},
+                       std::cerr);
 }
 
 int run_report_sink(const ReportSinkArgs& a) {
@@ -156,6 +167,7 @@ int run_report_sink(const ReportSinkArgs& a) {
   o.stages = a.stages;
   o.config_file = pc.root.file();
   o.machine = pc.machine.name;
+  o.program_id = a.program_id;
   return dds::run_report_sink(participant, o, std::cerr);
 }
 
@@ -169,8 +181,8 @@ int run_pipeline_monitor(const MonitorArgs& a) {
     return 2;
   }
   const dds::LaunchPlan plan = dds::load_launch_plan(file);
-  dds::DdsOptions options = dds_options(a);
-  if (!a.domain) options.domain = plan.domain;
+  dds::DdsOptions options = monitor_options(a);
+  if (!a.domain) options.domain = dds::default_domain(plan.domain);  // --domain, $GCPIPE_DDS_DOMAIN, the file's
   if (!plan.profiles.empty() && a.profiles.empty()) options.profiles = plan.profiles;
   // The pipeline's network, but the monitor's own identity (the plan's is the nodes').
   if (!plan.network.empty() && a.network.empty()) options.network = plan.network;
@@ -199,7 +211,7 @@ int run_monitor(const MonitorArgs& a) {
     return 2;
   }
   dds::install_stop_handlers();
-  dds::Participant participant(dds_options(a));
+  dds::Participant participant(monitor_options(a));
   return dds::run_monitor(participant, type, a.topic, a.period, std::cout, a.plot);
 }
 

@@ -7,6 +7,7 @@
 
 #include "commands.hpp"
 #include "dds_runtime.hpp"
+#include "dds_tools.hpp"
 #include "gcpipe/pipeline_config.hpp"
 #include "stage.hpp"
 #include "launcher.hpp"
@@ -24,7 +25,9 @@ fs::path self_exe() { return fs::read_symlink("/proc/self/exe"); }
 dds::LaunchPlan plan_of(const LaunchArgs& a) {
   const fs::path file = a.pipeline.empty() ? default_streaming_file() : fs::path(a.pipeline);
   dds::LaunchPlan plan = dds::load_launch_plan(file);
-  if (a.domain) plan.domain = *a.domain;
+  // One precedence for every DDS command: --domain, else $GCPIPE_DDS_DOMAIN, else the file's (a
+  // user who set the variable to keep a test apart ran on the file's domain 0).
+  plan.domain = a.domain ? *a.domain : dds::default_domain(plan.domain);
   return plan;
 }
 
@@ -82,6 +85,13 @@ int run_stream(const StreamArgs& a) {
   // Files of an earlier run must not look like this run's: they are replaced or removed.
   pipeline::prepare_output_dir(out, pipeline::run_outputs());
 
+  // One id for this run's program, given to every process of its pipeline: a node or sink takes
+  // that program only, so a second pipeline on the same domain can never end up in these files.
+  const std::string id = std::to_string(dds::random_program_id());
+  // And its own DDS partition: a second pipeline on the same domain does not even match this
+  // one's readers and writers (so it cannot take this one's readers for its own, or the other
+  // way round); the program id is the second guard.
+  const std::vector<std::string> partition = {"--partition", "gcpipe-stream-" + id};
   std::map<std::string, int> sinks;
   std::vector<dds::LaunchProcess> extra;
   if (runs(plan, "write")) {
@@ -95,20 +105,29 @@ int run_stream(const StreamArgs& a) {
   }
   dds::LaunchProcess feed;
   feed.name = "feed";
-  feed.args = {"feed", a.input, "--config", plan.config.string()};
+  feed.args = {"feed", a.input, "--config", plan.config.string(), "--program-id", id};
   if (a.feed_rate > 0) feed.args.insert(feed.args.end(), {"--rate", std::to_string(a.feed_rate)});
   const auto dds_args = dds::plan_dds_args(plan);
   feed.args.insert(feed.args.end(), dds_args.begin(), dds_args.end());
+  feed.args.insert(feed.args.end(), partition.begin(), partition.end());
   feed.one_shot = true;
 
   dds::install_stop_handlers();
   dds::Supervisor sup(self_exe(), plan, std::cerr, a.verbose);
-  for (auto& p : extra) sup.add(std::move(p));
-  sup.add(report_sink_process(plan, out));
+  for (auto& p : extra) {
+    p.args.insert(p.args.end(), {"--program-id", id});
+    p.args.insert(p.args.end(), partition.begin(), partition.end());
+    sup.add(std::move(p));
+  }
+  dds::LaunchProcess report = report_sink_process(plan, out);
+  report.args.insert(report.args.end(), {"--program-id", id});
+  report.args.insert(report.args.end(), partition.begin(), partition.end());
+  sup.add(std::move(report));
   for (auto& p : dds::node_processes(plan, /*forever=*/false, sinks)) {
     // Each node's figures go into OUTDIR, its report part to the report sink.
     p.args.insert(p.args.end(), {"--pipeline-stages", dds::joined(plan.nodes, ','), "--report-dir", out.string(),
-                                 "--report-readers", "1"});
+                                 "--report-readers", "1", "--program-id", id});
+    p.args.insert(p.args.end(), partition.begin(), partition.end());
     sup.add(std::move(p));
   }
   sup.add(std::move(feed));

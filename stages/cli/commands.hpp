@@ -102,6 +102,7 @@ struct DdsArgs {
   double timeout = 30;
   double idle_timeout = 0;
   double monitor_history = 5;  //!< [s] --monitor-history: what a late monitor still gets
+  std::string partition;       //!< --partition: DDS partition of every reader and writer
   bool replay = false;
 };
 struct FeedArgs : DdsArgs {
@@ -122,15 +123,18 @@ struct NodeArgs : DdsArgs {
   std::vector<std::string> pipeline_stages;  //!< --pipeline-stages
   std::string report_dir;                    //!< --report-dir
   int report_readers = 0;                    //!< --report-readers
+  std::uint64_t program_id = 0;              //!< --program-id: the only program taken (0: any)
 };
 int run_node(const NodeArgs& args);
 struct SinkArgs : DdsArgs {
   std::string output, in;
+  std::uint64_t program_id = 0;  //!< --program-id: the only program taken (0: the first)
 };
 int run_sink(const SinkArgs& args);
 struct ReportSinkArgs : DdsArgs {
   std::string output, config;
   std::vector<std::string> stages;
+  std::uint64_t program_id = 0;  //!< --program-id: the only program taken (0: the first)
 };
 int run_report_sink(const ReportSinkArgs& args);
 struct MonitorArgs : DdsArgs {

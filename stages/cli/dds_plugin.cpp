@@ -3,10 +3,12 @@
 #include <string_view>
 
 #include "commands.hpp"
+#include "launcher.hpp"
 
 extern "C" __attribute__((visibility("default"))) int gcpipe_dds_command(const char* name, const void* args) {
   using namespace gcpipe::cli;
   const std::string_view n = name;
+  if (n != "launch" && n != "stream") gcpipe::dds::follow_supervisor();
   if (n == "feed") return run_feed(*static_cast<const FeedArgs*>(args));
   if (n == "node") return run_node(*static_cast<const NodeArgs*>(args));
   if (n == "sink") return run_sink(*static_cast<const SinkArgs*>(args));

@@ -188,6 +188,8 @@ void add_dds_options(CLI::App& s, DdsArgs& a) {
                "a late monitor still gets what was published this long ago, within the last 256 batches "
                "of each topic; 0 = those 256 however old [s]")
       ->check(CLI::NonNegativeNumber);
+  s.add_option("--partition", a.partition,
+               "DDS partition of every reader and writer (gcpipe stream gives each run its own; '*' sees them all)");
   s.add_flag("--replay", a.replay, "also take programs published before this process started");
 }
 
@@ -229,6 +231,7 @@ void add_node(CLI::App& app, NodeArgs& a) {
   s->add_option("--report-dir", a.report_dir, "draw each program's figures into this folder (gcpipe stream's OUTDIR)");
   s->add_option("--report-readers", a.report_readers,
                 "report sinks to wait for before publishing each program's report part")->check(CLI::Range(0, 100));
+  s->add_option("--program-id", a.program_id, "take only this program id (the one gcpipe feed --program-id publishes); another program on the domain is refused and named (gcpipe stream sets it)");
   add_dds_options(*s, a);
 }
 
@@ -240,6 +243,7 @@ void add_report_sink(CLI::App& app, ReportSinkArgs& a) {
   s->add_option("--stages", a.stages, "the nodes whose parts make the report, comma-separated, in chain order")
       ->required()->delimiter(',');
   s->add_option("--config", a.config, "pipeline config (named in report.json)");
+  s->add_option("--program-id", a.program_id, "take only this program id (the one gcpipe feed --program-id publishes); another program on the domain is refused and named (gcpipe stream sets it)");
   add_dds_options(*s, a);
 }
 
@@ -247,6 +251,7 @@ void add_sink(CLI::App& app, SinkArgs& a) {
   auto* s = app.add_subcommand("sink", "write the program arriving on a G-code topic to a file");
   s->add_option("-o,--output", a.output, "the file (written as .part, renamed when complete)")->required()->check(kNonEmpty);
   s->add_option("--in", a.in, "topic (default gcpipe_gcode)");
+  s->add_option("--program-id", a.program_id, "take only this program id (the one gcpipe feed --program-id publishes); another program on the domain is refused and named (gcpipe stream sets it)");
   add_dds_options(*s, a);
 }
 
@@ -258,7 +263,7 @@ void add_monitor(CLI::App& app, MonitorArgs& a) {
                               "ticks: contour error, torque saturation)");
   auto* pipeline = s->add_option("--pipeline", a.pipeline,
                                  "every stage of a pipeline: a pipeline file, or the name of one in "
-                                 "pipeline_configs/pipelines (e.g. streaming); its domain unless --domain");
+                                 "pipeline_configs/pipelines (e.g. streaming); its domain unless --domain or $GCPIPE_DDS_DOMAIN");
   topic->excludes(pipeline);
   s->add_option("--type", a.type, "program, blocks, gcode, ik or samples (default: from the topic name)")->excludes(pipeline);
   s->add_option("--period", a.period, "seconds between summaries")->check(CLI::Range(0.05, 3600.0));
@@ -270,7 +275,7 @@ void add_monitor(CLI::App& app, MonitorArgs& a) {
 }
 
 void add_launch_options(CLI::App& s, LaunchArgs& a) {
-  s.add_option("--domain", a.domain, "DDS domain id (default: the pipeline file's)")->check(CLI::Range(0, 232));
+  s.add_option("--domain", a.domain, "DDS domain id (default $GCPIPE_DDS_DOMAIN, else the pipeline file's)")->check(CLI::Range(0, 232));
   s.add_flag("-v,--verbose", a.verbose, "print every line of every process, prefixed with its name");
 }
 

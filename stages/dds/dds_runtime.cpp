@@ -283,8 +283,17 @@ Participant::Participant(const DdsOptions& options) : impl_(std::make_unique<Imp
     throw std::runtime_error("cannot create the DDS participant from profile '" + std::string(profile) + "' of '" +
                              file + "' on domain " + std::to_string(options.domain) +
                              (options.identity.empty() ? "" : " with identity '" + options.identity.string() + "'"));
-  impl_->publisher = impl_->participant->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
-  impl_->subscriber = impl_->participant->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);
+  fdds::PublisherQos pub_qos = fdds::PUBLISHER_QOS_DEFAULT;
+  fdds::SubscriberQos sub_qos = fdds::SUBSCRIBER_QOS_DEFAULT;
+  if (!options.partition.empty()) {
+    pub_qos.partition().push_back(options.partition.c_str());
+    sub_qos.partition().push_back(options.partition.c_str());
+    // "*" matches every named partition but not the default one (Fast DDS, as the DDS standard
+    // has it): a reader for every pipeline names the default too.
+    if (options.partition == "*") sub_qos.partition().push_back("");
+  }
+  impl_->publisher = impl_->participant->create_publisher(pub_qos);
+  impl_->subscriber = impl_->participant->create_subscriber(sub_qos);
   if (impl_->publisher == nullptr || impl_->subscriber == nullptr)
     throw std::runtime_error("cannot create the DDS publisher/subscriber");
 }

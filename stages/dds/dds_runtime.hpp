@@ -76,6 +76,10 @@ struct DdsOptions {
   /// DDS Security identity: a folder made by stages/dds/make_security.sh (identity_ca.pem,
   /// cert.pem, key.pem, permissions_ca.pem, governance.p7s, permissions.p7s). Empty: no security.
   std::filesystem::path identity;
+  /// DDS partition of every reader and writer of this participant: `gcpipe stream` gives each
+  /// run its own, so two pipelines sharing a domain never match (a monitor's "*" sees them
+  /// all). Empty: the default partition, as `gcpipe launch` and hand-started nodes use.
+  std::string partition;
   int subscribers = 1;             //!< readers a writer waits for before its first sample [1, 100]
   double match_timeout = 30;       //!< [s] longest wait for those readers
   double write_timeout = 60;       //!< [s] longest a write may stay blocked on a full history

@@ -28,17 +28,23 @@ namespace gcpipe::dds {
 
 using Clock = std::chrono::steady_clock;
 
-namespace {
-
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
-
 std::uint64_t random_program_id() {
   std::random_device rd;
   std::uint64_t id = 0;
   while (id == 0) id = (static_cast<std::uint64_t>(rd()) << 32) ^ rd();
   return id;
+}
+
+std::string foreign_program_text(const std::string& who, std::uint64_t id, const std::string& file, std::uint64_t ours) {
+  return who + ": refusing program " + std::to_string(id) + " ('" + file + "'): started for program " +
+         std::to_string(ours) + " only. Another pipeline publishes on this DDS domain: give each its own " +
+         "(--domain, or GCPIPE_DDS_DOMAIN for the commands that read it)";
+}
+
+namespace {
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
 // Takes the next sample; false after idle_timeout without one (0 = never) or on a stop request.
@@ -173,6 +179,7 @@ struct SinkReceipt {
   msg::GcodeChunk last;  //!< the end marker, when `complete`
   std::uint64_t id = 0, next = 0, bytes = 0;
   std::uint64_t writer = 0;  //!< who sent the first chunk
+  std::set<std::uint64_t> foreign;  //!< other pipelines' programs refused (SinkOptions::program_id)
   std::string error;
   Clock::time_point t0;
   bool complete = false;
@@ -194,12 +201,20 @@ SinkReceipt receive_program(Participant& participant, Reader<msg::GcodeChunk>& r
     bool lost = false;
     if (!take_or_idle(reader, chunk, idle_timeout, idle, &source_time, r.id != 0 ? &lost : nullptr, &writer)) {
       if (idle)
-        log << "gcpipe sink: nothing arrived on " << o.topic << " for " << idle_timeout << " s; giving up\n";
+        log << "gcpipe sink: nothing arrived on " << o.topic << " for " << idle_timeout << " s; giving up"
+            << (r.foreign.empty() ? "" : " (only another pipeline's programs did: see above)") << "\n";
       if (lost)
         log << "gcpipe sink: the writer of " << o.topic << " went away after chunk " << r.next
             << " of the program (its stage stopped or died): the rest is lost\n";
       r.status = idle || lost ? 1 : 130;
       return r;
+    }
+    if (o.program_id != 0 && chunk.program_id() != o.program_id) {
+      // Another pipeline's program on a shared domain: never written, said once, and named
+      // again if this sink then waits in vain for its own.
+      if (r.foreign.insert(chunk.program_id()).second)
+        log << foreign_program_text("gcpipe sink", chunk.program_id(), chunk.file(), o.program_id) << "\n";
+      continue;
     }
     if (r.id == 0 && skipped.count(chunk.program_id()) != 0) continue;
     if (r.id == 0 && participant.published_before_start(source_time)) {
@@ -306,13 +321,19 @@ int collect_parts(Participant& participant, const ReportSinkOptions& o, Parts& p
   log << "gcpipe report-sink: ready" << std::endl;
   const double idle_timeout = participant.options().idle_timeout;
   msg::ReportFragment part;
-  std::uint64_t program = 0;
+  std::uint64_t program = o.program_id;
+  std::set<std::uint64_t> foreign;  // other pipelines' programs, named once each
   double source_time = 0;
   bool idle = false;
   while (parts.size() < o.stages.size()) {
     if (!take_or_idle(reader, part, idle_timeout, idle, &source_time)) {
       if (idle) log << "gcpipe report-sink: no report part for " << idle_timeout << " s; giving up\n";
       return idle ? 1 : 130;
+    }
+    if (o.program_id != 0 && part.program_id() != o.program_id) {
+      if (foreign.insert(part.program_id()).second)
+        log << foreign_program_text("gcpipe report-sink", part.program_id(), part.file(), o.program_id) << "\n";
+      continue;
     }
     if (participant.published_before_start(source_time)) continue;
     if (program == 0) program = part.program_id();

@@ -39,7 +39,16 @@ int run_feed(Participant& participant, const FeedOptions& options, std::ostream&
 struct SinkOptions {
   std::filesystem::path output;  //!< written through a temporary file, renamed when complete
   std::string topic = kGcodeTopicName;  //!< GcodeChunk topic read (--in)
+  /// The only program written; another one on the topic (another pipeline sharing the domain)
+  /// is refused and named, never written. 0: the first program published after the sink started.
+  std::uint64_t program_id = 0;
 };
+
+/// A random non-zero program id (what `gcpipe feed` publishes under unless told one).
+std::uint64_t random_program_id();
+
+/// What a sink or node says, once per program, about a program it was not started for.
+std::string foreign_program_text(const std::string& who, std::uint64_t id, const std::string& file, std::uint64_t ours);
 
 /// Writes the first program that arrives on its topic to `output` and returns after its end
 /// marker, having checked that the chunks were contiguous, the bytes are the writer's, no stage
@@ -54,6 +63,7 @@ struct ReportSinkOptions {
   std::string config_file;           //!< as report.json names it
   std::string machine;
   std::string command = "gcpipe stream";  //!< report.txt's first word
+  std::uint64_t program_id = 0;      //!< the only program reported (0: the first after start)
 };
 
 /// Collects the report parts (gcpipe_report) of the first program published after it started,

@@ -4,6 +4,7 @@
 #include <poll.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -22,6 +23,15 @@
 extern char** environ;
 
 namespace gcpipe::dds {
+
+void follow_supervisor() {
+  const char* v = std::getenv(kSupervisorPidVariable);
+  if (v == nullptr || *v == '\0') return;
+  const long supervisor = std::strtol(v, nullptr, 10);
+  ::prctl(PR_SET_PDEATHSIG, SIGTERM);
+  // It may have died before the line above: then the signal never comes.
+  if (static_cast<long>(::getppid()) != supervisor) ::raise(SIGTERM);
+}
 
 namespace {
 
@@ -217,6 +227,9 @@ bool Supervisor::spawn(Child& c) {
   posix_spawn_file_actions_adddup2(&fa, fds[1], 1);
   posix_spawn_file_actions_adddup2(&fa, fds[1], 2);
   posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
+  // The child learns who supervises it (follow_supervisor): a supervisor killed with SIGKILL,
+  // which cannot stop its children, must not leave them serving on the domain.
+  setenv(kSupervisorPidVariable, std::to_string(getpid()).c_str(), 1);
   pid_t pid = -1;
   const int rc = posix_spawn(&pid, exe.c_str(), &fa, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&fa);

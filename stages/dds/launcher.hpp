@@ -18,6 +18,13 @@
 
 namespace gcpipe::dds {
 
+/// Set by the supervisor for the processes it starts: its pid.
+inline constexpr const char* kSupervisorPidVariable = "GCPIPE_SUPERVISOR_PID";
+
+/// In a process started by a supervisor: SIGTERM when the supervisor dies, however it dies
+/// (prctl PR_SET_PDEATHSIG), and at once if it is already gone. Nothing otherwise.
+void follow_supervisor();
+
 /// A pipeline file (pipeline_configs/pipelines/streaming.yaml; format in stages/dds/README.md).
 struct LaunchPlan {
   std::string name;                 //!< for status lines

@@ -8,6 +8,7 @@
 
 #include "dds_convert.hpp"
 #include "dds_runtime.hpp"
+#include "dds_tools.hpp"
 #include "parse.hpp"
 #include "stage.hpp"
 
@@ -195,6 +196,7 @@ struct StageNode::Impl {
   BatchIntake<Program> intake;
   std::map<std::uint64_t, Program> chunk_programs;  // ProgramChunk input
   std::set<std::uint64_t> skipped;
+  std::set<std::uint64_t> foreign;  // programs refused: not the one this node was started for
   std::size_t max_line;
   bool config_strict;  // parse.strict: batch mode's strict mode, as --strict
   int status = 0;
@@ -244,6 +246,15 @@ struct StageNode::Impl {
 
   void fail(Program& prog, std::uint64_t id, const std::string& why) { intake.fail(prog, id, why); }
 
+  // A program this node was not started for (StageNodeOptions::program_id): another pipeline's on
+  // a shared domain. Not processed, so it can never reach this pipeline's files; named once.
+  bool refused(std::uint64_t id, const std::string& file) {
+    if (options.program_id == 0 || id == options.program_id) return false;
+    if (foreign.insert(id).second) std::cerr << foreign_program_text("gcpipe node " + options.stage, id, file, options.program_id) << "\n";
+    ended = false;
+    return true;
+  }
+
   // ---- ProgramChunk input (the parse stage) ----
 
   bool take_chunk(double timeout) {
@@ -252,6 +263,7 @@ struct StageNode::Impl {
     std::uint64_t writer = 0;
     if (!reader->take(&chunk, timeout, &source_time, &writer)) return false;
     const std::uint64_t id = chunk.program_id();
+    if (refused(id, chunk.file())) return true;
     if (skipped.count(id) != 0) {
       if (chunk.end_of_program()) skipped.erase(id);
       ended = false;
@@ -322,6 +334,7 @@ struct StageNode::Impl {
     std::uint64_t writer = 0;
     if (!reader->take(&batch, timeout, &source_time, &writer)) return false;
     const std::uint64_t id = batch.program_id();
+    if (refused(id, batch.file())) return true;
     Program* found = intake.admit(batch, participant.published_before_start(source_time), writer, [&] {
       return make_program(batch.file(), options.strict || config_strict || batch.strict());
     });

@@ -46,6 +46,10 @@ struct StageNodeOptions {
   /// Readers of gcpipe_report (a report sink) to wait for before the report part is published,
   /// and to be acknowledged by; 0: publish for whoever listens, never wait.
   int report_readers = 0;
+  /// The only program this node takes (`gcpipe stream` gives its feed's id to every process of
+  /// its pipeline); another program on the input topic, another pipeline's on a shared domain,
+  /// is refused and named once. 0: every program.
+  std::uint64_t program_id = 0;
 };
 
 class StageNode {
