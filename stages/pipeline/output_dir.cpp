@@ -1,11 +1,12 @@
 #include "output_dir.hpp"
 
-#include <atomic>
 #include <cerrno>
 #include <csignal>
 #include <cstring>
 #include <stdexcept>
 #include <system_error>
+
+#include "gcpipe/stop.hpp"
 
 namespace gcpipe::pipeline {
 
@@ -94,10 +95,8 @@ void prepare_output_dir(const fs::path& dir, const std::vector<std::string>& nam
 
 namespace {
 
-std::atomic<int> g_signal{0};
-
 extern "C" void on_stop_signal(int sig) {
-  if (g_signal.exchange(sig) != 0) std::_Exit(128 + sig);  // the second Ctrl-C does not wait
+  if (gcpipe::request_stop(sig) != 0) std::_Exit(128 + sig);  // the second Ctrl-C does not wait
 }
 
 }  // namespace
@@ -110,7 +109,7 @@ void install_stop_handlers() {
   sigaction(SIGTERM, &sa, nullptr);
 }
 
-bool stop_requested() { return g_signal.load(std::memory_order_relaxed) != 0; }
-int stop_signal() { return g_signal.load(); }
+bool stop_requested() { return gcpipe::stop_requested(); }
+int stop_signal() { return gcpipe::stop_signal(); }
 
 }  // namespace gcpipe::pipeline
