@@ -27,6 +27,10 @@ AtomicFile::AtomicFile(const std::string& path) : path_(path) {
     direct_ = true;
     return;
   }
+  // A folder cannot be replaced by a file: say so now, not after the whole run at the rename,
+  // which left FOLDER.part beside it (`parse -o /tmp` wrote /tmp.part).
+  if (!ec && fs::is_directory(status))
+    throw std::runtime_error(path + ": is a folder: give a file name (e.g. " + (fs::path(path) / "out.txt").string() + ")");
   part_ = path + ".part";
   f_ = std::fopen(part_.c_str(), "wb");
   if (f_ == nullptr) throw std::runtime_error(path + ": cannot write: " + std::strerror(errno));
@@ -61,8 +65,11 @@ void AtomicFile::commit() {
     throw std::runtime_error(path_ + ": write failed: " + std::strerror(errno));
   }
   if (direct_) return;
-  if (std::rename(part_.c_str(), path_.c_str()) != 0)
-    throw std::runtime_error(path_ + ": cannot rename " + part_ + ": " + std::strerror(errno));
+  if (std::rename(part_.c_str(), path_.c_str()) != 0) {
+    const int err = errno;
+    std::remove(part_.c_str());  // a file that never gets its name is not left behind
+    throw std::runtime_error(path_ + ": cannot rename " + part_ + ": " + std::strerror(err));
+  }
 }
 
 void write_file_atomically(const fs::path& path, std::string text) {
