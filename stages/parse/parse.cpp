@@ -80,6 +80,10 @@ Parser::Impl::Outcome Parser::Impl::run_line(std::string_view line, std::uint64_
     col = static_cast<std::uint32_t>(opt.max_line_length + 1);
     why = "line is " + std::to_string(overlong ? overlong : line.size()) + " bytes long; the limit is " +
           std::to_string(opt.max_line_length) + " (parse.max_line_length in the pipeline config)";
+    // A file whose lines end in CR alone (classic Mac) reads as one long line: say that, not only
+    // the length, which sends the user to the wrong key.
+    if (line.find('\r') != std::string_view::npos)
+      why += "; the lines end in CR only (classic Mac line ends): convert them to LF, e.g. tr '\\r' '\\n' < IN > OUT";
     return Outcome::kRejected;
   }
   std::size_t p = 0;
