@@ -48,12 +48,37 @@ void write_reports(ProgramRun& run, const BatchArgs& a, const Outcome& o, double
   if (!a.quiet) std::fputs(text.c_str(), stdout);
 }
 
+// A run that could not start (a bad config, a missing input, an output it cannot open) still
+// leaves summary.json with its `failure`: the folder was emptied of the earlier run's results, and
+// a script reading it must learn why there is nothing, not find nothing.
+void write_failure_summary(const BatchArgs& a, const std::string& why) {
+  nlohmann::ordered_json s;
+  s["input"] = a.input;
+  s["config"] = a.config.empty() ? default_pipeline_config().string() : a.config;
+  s["complete"] = false;
+  s["failure"] = why;
+  pipeline::write_file_atomically(fs::path(a.outdir) / "summary.json", s.dump() + "\n");
+}
+
+int run_batch_in_prepared_folder(const BatchArgs& a);
+
 }  // namespace
 
 int run_batch(const BatchArgs& a) {
   pipeline::install_stop_handlers();
+  pipeline::prepare_output_dir(a.outdir, pipeline::run_outputs());
+  try {
+    return run_batch_in_prepared_folder(a);
+  } catch (const std::exception& e) {
+    if (!pipeline::stop_requested()) write_failure_summary(a, e.what());
+    throw;  // main prints it and exits 1 (128 + signal after a stop)
+  }
+}
+
+namespace {
+
+int run_batch_in_prepared_folder(const BatchArgs& a) {
   const fs::path outdir = a.outdir;
-  pipeline::prepare_output_dir(outdir, pipeline::run_outputs());
   const auto t0 = std::chrono::steady_clock::now();
   pipeline::AtomicFile diagnostics((outdir / "diagnostics.txt").string());
   PrintedLog log(20, &diagnostics, a.quiet);
@@ -84,5 +109,7 @@ int run_batch(const BatchArgs& a) {
   else if (!o.failure.empty()) std::cerr << "gcpipe batch: " << o.failure << "\n";
   return exit_status(o.complete, o.failure, o.rejected);
 }
+
+}  // namespace
 
 }  // namespace gcpipe::cli

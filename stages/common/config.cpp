@@ -37,9 +37,19 @@ std::string shown(const YAML::Node& n) {
 
 // yaml-cpp keeps every pair of a mapping but looks keys up in the first one, so a repeated key
 // would silently lose its second value: reject it, naming both places.
-void reject_duplicate_keys(const std::string& file, const YAML::Node& n, const std::string& path) {
+// yaml-cpp shares an aliased node instead of copying it, so a file of a few lines can name 10^9
+// values (each alias of an alias of ...); walking them took a minute. Every value a walk meets is
+// counted, an alias each time it is used, and a file past this many is refused at once.
+constexpr std::size_t kMaxConfigValues = 1000000;
+
+void reject_duplicate_keys(const std::string& file, const YAML::Node& n, const std::string& path,
+                           std::size_t& values) {
+  if (++values > kMaxConfigValues)
+    throw ConfigError(file + ": more than " + std::to_string(kMaxConfigValues) +
+                      " values, counting each use of an alias (&anchor / *alias) as a copy: a config holds "
+                      "far fewer; write the values out instead of nesting aliases");
   if (n.IsSequence())
-    for (const auto& item : n) reject_duplicate_keys(file, item, path);
+    for (const auto& item : n) reject_duplicate_keys(file, item, path, values);
   if (!n.IsMap()) return;
   std::vector<std::pair<std::string, YAML::Node>> seen;
   for (const auto& kv : n) {
@@ -49,8 +59,13 @@ void reject_duplicate_keys(const std::string& file, const YAML::Node& n, const s
         throw ConfigError(where(file, kv.first) + ": key '" + join(path, key) + "' appears twice (first at line " +
                           std::to_string(first.Mark().line + 1) + "): keep one of them");
     seen.emplace_back(key, kv.first);
-    reject_duplicate_keys(file, kv.second, join(path, key));
+    reject_duplicate_keys(file, kv.second, join(path, key), values);
   }
+}
+
+void reject_duplicate_keys(const std::string& file, const YAML::Node& root) {
+  std::size_t values = 0;
+  reject_duplicate_keys(file, root, "", values);
 }
 
 }  // namespace
@@ -68,7 +83,7 @@ Config Config::load_file(const std::filesystem::path& path) {
     throw ConfigError(path.string() + ": is a directory, not a config file (check the path given with --config)");
   try {
     impl->node = YAML::LoadFile(path.string());
-    reject_duplicate_keys(impl->file, impl->node, "");
+    reject_duplicate_keys(impl->file, impl->node);
   } catch (const YAML::BadFile&) {
     throw ConfigError(path.string() + ": cannot open config file (check the path given with --config)");
   } catch (const YAML::Exception& e) {
@@ -85,7 +100,7 @@ Config Config::from_string(std::string_view yaml, std::string name) {
   impl->file = std::move(name);
   try {
     impl->node = YAML::Load(std::string(yaml));
-    reject_duplicate_keys(impl->file, impl->node, "");
+    reject_duplicate_keys(impl->file, impl->node);
   } catch (const YAML::Exception& e) {
     throw ConfigError(impl->file + ":" + std::to_string(e.mark.line + 1) + ":" +
                       std::to_string(e.mark.column + 1) + ": not valid YAML: " + e.msg);

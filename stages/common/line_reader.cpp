@@ -6,6 +6,8 @@
 #include <cerrno>
 #include <cstring>
 
+#include "gcpipe/stop.hpp"
+
 namespace gcpipe {
 
 namespace {
@@ -24,6 +26,12 @@ bool LineReader::fill() {
     begin_ = 0;
   }
   if (eof_ || end_ == buf_.size()) return false;
+  // Polled once a MiB: a line without end (/dev/zero) is read here and never returns to the
+  // caller's per-line check, so a stop must end the input here too.
+  if (stop_requested()) {
+    eof_ = true;
+    return false;
+  }
   for (;;) {
     ssize_t n = ::read(fd_, buf_.data() + end_, buf_.size() - end_);
     if (n < 0 && errno == EINTR) continue;

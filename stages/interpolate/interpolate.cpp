@@ -539,6 +539,26 @@ std::optional<InterpolateResult> Interpolator::plan_duration(const ResolvedBlock
   return std::nullopt;
 }
 
+// A joint move past the machine's travel is usually a work offset gone wrong (G10 L2 X99999) and
+// so long that the machine-time bound refuses it first: name the travel, the cause, not the time.
+bool Interpolator::travel_message(const ResolvedBlock& b, double duration, InterpolateResult& res) const {
+  for (int a = 0; a < kNumAxes; ++a) {
+    const double q = b.target[a];
+    if (q >= opt_.travel_min[a] && q <= opt_.travel_max[a]) continue;
+    const char* unit = a >= kA ? "deg" : "mm";
+    char msg[400];
+    std::snprintf(msg, sizeof msg,
+                  ": axis %c goes to %.3f %s, outside its travel [%g, %g] %s (the move would take %.6g s): the machine "
+                  "cannot run this block; check the work offset (G10 L2/L20, G92, G52), the tool length and the "
+                  "program's coordinates",
+                  kAxisLetters[a], q, unit, opt_.travel_min[a], opt_.travel_max[a], unit, duration);
+    res.status = InterpolateStatus::kInvalid;
+    res.message = where(b) + msg;
+    return true;
+  }
+  return false;
+}
+
 // The block counts as run: statistics, mode, and the bound on machine time (a block ending past
 // it is refused before its first tick).
 std::optional<InterpolateResult> Interpolator::account(const ResolvedBlock& b, const BlockPlan& plan, InterpolateResult& res) {
@@ -549,6 +569,7 @@ std::optional<InterpolateResult> Interpolator::account(const ResolvedBlock& b, c
   if (plan.moves) tcp_space_ = plan.tcp;
   if (res.velocity_limited) ++stats_.velocity_limited_blocks;
   const double t_end = t_block_ + plan.duration;
+  if (t_end > opt_.max_time && !plan.tcp && travel_message(b, plan.duration, res)) return res;
   if (t_end > opt_.max_time) {
     char msg[200];
     std::snprintf(msg, sizeof msg, ": this block takes %.6g s and would end at %.6g s of machine time, past the bound of %.6g s",

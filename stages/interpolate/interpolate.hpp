@@ -163,6 +163,7 @@ class Interpolator {
   std::optional<InterpolateResult> plan_duration(const ResolvedBlock& b, BlockPlan& plan, InterpolateResult& res) const;
   std::optional<InterpolateResult> tcp_duration(const ResolvedBlock& b, BlockPlan& plan, InterpolateResult& res,
                                                 double length_xyz) const;
+  bool travel_message(const ResolvedBlock& b, double duration, InterpolateResult& res) const;
   std::optional<InterpolateResult> account(const ResolvedBlock& b, const BlockPlan& plan, InterpolateResult& res);
   void sample(const ResolvedBlock& b, const BlockPlan& plan, SampleSink& sink);
   void emit(const Axes& raw, SampleSink& sink);

@@ -10,6 +10,7 @@
 // bottom from R, and the hole position step (or the polar @ ^ step) is repeated L times.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "parse_internal.hpp"
 
@@ -223,7 +224,8 @@ bool Parser::Impl::cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, 
   if (polar_words() && ns.plane != Plane::kXY)
     return fail(sc.polar_r.col ? sc.polar_r.col : sc.polar_a.col,
                 name + " with @ ^: polar coordinates place holes in the G17 plane only");
-  if (!cycle_levels_of(ns, g, name, col) || !cycle_words(ns, g, name, col)) return false;
+  if (!cycle_levels_of(ns, g, name, col) || !cycle_words(ns, g, name, col) || !cycle_size_ok(ns, g, name, col))
+    return false;
   const Motion saved = ns.motion;
   ns.motion = Motion::kLinear;
   const bool feed_ok = check_feed(c, ns);
@@ -231,6 +233,35 @@ bool Parser::Impl::cycle(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, 
   if (!feed_ok) return false;
   drill_holes(b, ns, g, mask);
   return true;
+}
+
+// The moves one hole of a cycle expands into, at most: the pecks of G73/G83 (2 or 3 moves each,
+// as many as the depth holds Q) and a dozen fixed strokes.
+namespace {
+double moves_per_hole(const CycleGeometry& g) {
+  constexpr double kFixedStrokes = 12;
+  if (g.code != 730 && g.code != 830) return kFixedStrokes;
+  const double pecks = std::ceil((g.r - g.bottom) / g.q);
+  return kFixedStrokes + pecks * (g.code == 830 ? 3 : 2);
+}
+}  // namespace
+
+// A block is expanded whole before its first move goes on, so its size is checked before the
+// expansion: Q0.000001 over 100 mm (1e8 pecks) would otherwise take gigabytes and minutes.
+bool Parser::Impl::cycle_size_ok(const ModalState& ns, const CycleGeometry& g, const std::string& name,
+                                 std::uint32_t col) {
+  const double moves = static_cast<double>(g.repeats) * moves_per_hole(g);
+  if (moves <= static_cast<double>(opt.max_cycle_moves)) return true;
+  const bool pecks = g.code == 730 || g.code == 830;
+  const std::uint32_t at = pecks && ns.cycle_q.col ? ns.cycle_q.col : col;
+  char n[64];
+  std::snprintf(n, sizeof n, "%.3g", moves);
+  return fail(at, name + " would expand into about " + n + " moves" +
+                      (pecks ? " (" + show(g.r - g.bottom) + " mm deep in pecks of Q" + show(g.q) + " mm" +
+                                   (g.repeats > 1 ? ", " + std::to_string(g.repeats) + " holes" : "") + ")"
+                             : "") +
+                      ", more than parse.max_cycle_moves (" + std::to_string(opt.max_cycle_moves) + "): " +
+                      (pecks ? "raise Q, " : "") + "use fewer repeats or raise parse.max_cycle_moves");
 }
 
 // R and the depth word (sticky across cycle blocks) to the levels along the drilling axis.

@@ -19,6 +19,7 @@
 // the program, and rejects the owner with the failing line's place in the diagnostic.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "parse_internal.hpp"
 
@@ -504,6 +505,9 @@ bool Parser::Impl::step(Frame& f, const SourceLine& l) {
       !percent_line(l.text))
     return note_after_end(l, first);
   if (first) open_owner(l.number);
+  // Lines run on behalf of one source line never return to the reader's per-line check of a
+  // stop request: poll it here (every 4096 lines, well under a millisecond of work).
+  if ((owner.steps & 0xfff) == 0) throw_if_stop_requested();
   if (++owner.steps > opt.max_loop_passes * 1000) {
     flow_error(l, 1, "more than " + std::to_string(opt.max_loop_passes * 1000) +
                          " lines run for one source line (nested loops or recursion): the expansion was stopped; "
@@ -733,6 +737,33 @@ bool Parser::Impl::next_pass(Frame& f, Control& ctl, const SourceLine& l, const 
   return false;
 }
 
+// The passes still to run of every repeat open around the line at hand (o-word repeats and
+// M98 L counts, in every frame): a repeat opened here runs its count that many times over.
+double Parser::Impl::enclosing_repeats() const {
+  double product = 1;
+  for (const Frame& fr : frames) {
+    product *= static_cast<double>(std::max<long>(fr.repeats, 1));
+    for (const Control& c : fr.controls)
+      if (c.kind == Control::kRepeat) product *= static_cast<double>(std::max<std::int64_t>(c.remaining, 1));
+  }
+  return product;
+}
+
+// A repeat whose passes, times those of the repeats around it, pass the bound on lines run for
+// one source line is refused before its first pass: otherwise 1000 x 1000 x 1000 nested repeats
+// write a gigabyte of blocks before the bound stops them.
+bool Parser::Impl::repeat_fits(const SourceLine& l, const Statement& s, double count) {
+  const double around = enclosing_repeats();
+  const double bound = static_cast<double>(opt.max_loop_passes) * 1000;
+  if (std::floor(count) * around <= bound) return true;
+  char n[160];
+  std::snprintf(n, sizeof n, "%.0f passes (%.0f inside repeats that run %.0f times), more than 1000 x parse.max_loop_passes (%.0f)",
+                std::floor(count) * around, std::floor(count), around, bound);
+  flow_error(l, s.col, "repeat " + olabel(s.label) + " would run " + n +
+                           ": it was not run; lower the counts or raise parse.max_loop_passes");
+  return false;
+}
+
 // do / repeat / while, and the `while` that closes a do.
 bool Parser::Impl::loop_open(Frame& f, const SourceLine& l, const Statement& s) {
   const std::string& k = s.keyword;
@@ -743,6 +774,7 @@ bool Parser::Impl::loop_open(Frame& f, const SourceLine& l, const Statement& s) 
     f.controls.push_back({Control::kDo, s.label, here});
   } else if (k == "repeat") {
     if (!condition(l, s, v)) v = 0;
+    if (!repeat_fits(l, s, v)) v = 0;
     f.controls.push_back({Control::kRepeat, s.label, here, false, 0, static_cast<std::int64_t>(std::floor(v))});
     if (f.controls.back().remaining <= 0) {
       f.controls.pop_back();

@@ -21,8 +21,8 @@ using namespace parse_detail;
 
 ParseOptions load_parse_options(const Config& c) {
   c.reject_unknown({"dialect", "decimal_point_rule", "block_delete", "strict", "max_line_length", "units",
-                    "arc_centres", "max_buffered_lines", "max_loop_passes", "min_feed",
-                    "boring_shift"});
+                    "arc_centres", "max_buffered_lines", "max_loop_passes", "max_cycle_moves",
+                    "min_feed", "boring_shift"});
   ParseOptions o;
   o.dialect = c.choice("dialect", "fanuc", {"fanuc", "linuxcnc"}) == "fanuc" ? Dialect::kFanuc
                                                                                : Dialect::kLinuxCnc;
@@ -34,6 +34,7 @@ ParseOptions load_parse_options(const Config& c) {
   o.absolute_arc_centres = c.choice("arc_centres", "incremental", {"incremental", "absolute"}) == "absolute";
   o.max_buffered_lines = static_cast<std::size_t>(c.integer("max_buffered_lines", 200000, 100, 10000000));
   o.max_loop_passes = static_cast<std::uint64_t>(c.integer("max_loop_passes", 100000, 1, 100000000));
+  o.max_cycle_moves = static_cast<std::uint64_t>(c.integer("max_cycle_moves", 1000000, 1000, 100000000));
   o.min_feed = c.number("min_feed", 1.0, "mm/min", 0.0, 1e6);
   const std::string shift = c.choice("boring_shift", "+first", {"+first", "-first", "+second", "-second"});
   o.boring_shift = shift == "+first" ? 0 : shift == "-first" ? 1 : shift == "+second" ? 2 : 3;
@@ -79,6 +80,10 @@ Parser::Impl::Outcome Parser::Impl::run_line(std::string_view line, std::uint64_
     col = static_cast<std::uint32_t>(opt.max_line_length + 1);
     why = "line is " + std::to_string(overlong ? overlong : line.size()) + " bytes long; the limit is " +
           std::to_string(opt.max_line_length) + " (parse.max_line_length in the pipeline config)";
+    // A file whose lines end in CR alone (classic Mac) reads as one long line: say that, not only
+    // the length, which sends the user to the wrong key.
+    if (line.find('\r') != std::string_view::npos)
+      why += "; the lines end in CR only (classic Mac line ends): convert them to LF, e.g. tr '\\r' '\\n' < IN > OUT";
     return Outcome::kRejected;
   }
   std::size_t p = 0;

@@ -42,6 +42,9 @@ struct ParseOptions {
   /// One loop may run at most this many passes, and one source line may make the parser run at
   /// most 1000 times as many lines on its behalf (nested loops, recursion): no input can hang.
   std::uint64_t max_loop_passes = 100000;
+  /// One block may expand into at most this many moves (canned-cycle pecks times repeats): past it
+  /// the block is an error before it is expanded, not gigabytes of pecks.
+  std::uint64_t max_cycle_moves = 1000000;
   int max_call_depth = 64;  //!< subroutine calls nested deeper than this are an error
   /// A feed per minute (G94) below this [mm/min] is an error at its F word: a slip of the post
   /// (F0.001 for F1000) would run for hours. Inverse-time feeds (G93) are bounded by the

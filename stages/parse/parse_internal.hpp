@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "expression.hpp"
+#include "gcpipe/stop.hpp"
 #include "parse.hpp"
 
 namespace gcpipe {
@@ -425,6 +426,8 @@ struct Parser::Impl {
   bool cycle_levels_of(ModalState& ns, parse_detail::CycleGeometry& g, const std::string& name, std::uint32_t col);
   bool cycle_words(ModalState& ns, parse_detail::CycleGeometry& g, const std::string& name, std::uint32_t col);
   void drill_holes(ResolvedBlock& b, ModalState& ns, parse_detail::CycleGeometry& g, std::uint8_t mask);
+  bool cycle_size_ok(const ModalState& ns, const parse_detail::CycleGeometry& g, const std::string& name,
+                     std::uint32_t col);
   void next_hole(const ModalState& ns, const parse_detail::CycleGeometry& g, std::uint8_t mask, const Axes& pos,
                  Axes& hole) const;
 
@@ -442,6 +445,8 @@ struct Parser::Impl {
   bool do_return(std::size_t level);
   bool condition(const parse_detail::SourceLine& l, const parse_detail::Statement& s, double& v);
   bool loop_end(parse_detail::Frame& f, const parse_detail::SourceLine& l, const parse_detail::Statement& s);
+  double enclosing_repeats() const;
+  bool repeat_fits(const parse_detail::SourceLine& l, const parse_detail::Statement& s, double count);
   bool loop_open(parse_detail::Frame& f, const parse_detail::SourceLine& l, const parse_detail::Statement& s);
   bool next_pass(parse_detail::Frame& f, parse_detail::Control& ctl, const parse_detail::SourceLine& l,
                  const parse_detail::Statement& s);

@@ -746,6 +746,10 @@ bool Parser::Impl::check_feed(const BlockCodes& c, const ModalState& ns) {
   if (ns.feed_mode == FeedMode::kInverseTime && !sc.has('F'))
     return fail(col, std::string(motion_name(ns.motion)) + " in inverse-time mode (G93) needs F in the same block");
   if (ns.per_revolution) return check_feed_per_revolution(col, ns);
+  // F0 programmed is not a missing F: name the word and what a feed must be.
+  if (ns.feed <= 0 && sc.has('F'))
+    return fail(sc.w('F').col, "F" + show(sc.w('F').value) + " is no feed: " + motion_name(ns.motion) +
+                                   " needs F > 0 (mm/min; parse.min_feed is the least accepted)");
   if (ns.feed <= 0)
     return fail(col, std::string(motion_name(ns.motion)) + " without a feed: program F (mm/min) in this block or before it");
   return true;

@@ -64,6 +64,21 @@ void add_comment(std::string& comment, std::string_view text) {
 }
 
 
+// What a stray byte usually means, so that a file in the wrong encoding is named as such instead
+// of failing line after line on "unexpected byte 0x00": NUL bytes and a UTF-16 byte-order mark
+// come from UTF-16 files, a CR inside a line from lines that end in CR only.
+std::string byte_hint(char c, std::size_t p, std::string_view s) {
+  const auto b = static_cast<unsigned char>(c);
+  const bool bom16 = s.size() >= 2 && ((s[0] == '\xFF' && s[1] == '\xFE') || (s[0] == '\xFE' && s[1] == '\xFF'));
+  if (b == 0x00 || (p == 0 && bom16))
+    return ": the file looks like UTF-16 (NUL bytes, byte-order mark FF FE); save it as ASCII or UTF-8, "
+           "e.g. iconv -f UTF-16 -t UTF-8 IN > OUT";
+  if (b == 0x0D)
+    return ": a carriage return inside the line: the file's lines end in CR only (classic Mac); convert them "
+           "to LF, e.g. tr '\\r' '\\n' < IN > OUT";
+  return {};
+}
+
 }  // namespace
 
 // The slow path: a bracketed expression, a parameter or a function call as a word's value.
@@ -315,7 +330,7 @@ bool Parser::Impl::reject_character(std::string_view s, std::size_t p, char c, s
   if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) {
     char h[4];
     std::snprintf(h, sizeof h, "%02X", static_cast<unsigned char>(c));
-    return fail(col, "unexpected byte 0x" + std::string(h) + " outside a comment");
+    return fail(col, "unexpected byte 0x" + std::string(h) + " outside a comment" + byte_hint(c, p, s));
   }
   return fail(col, std::string("unexpected '") + c + "': expected a word (letter and number) or a comment");
 }

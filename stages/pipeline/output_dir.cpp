@@ -1,11 +1,12 @@
 #include "output_dir.hpp"
 
-#include <atomic>
 #include <cerrno>
 #include <csignal>
 #include <cstring>
 #include <stdexcept>
 #include <system_error>
+
+#include "gcpipe/stop.hpp"
 
 namespace gcpipe::pipeline {
 
@@ -26,6 +27,10 @@ AtomicFile::AtomicFile(const std::string& path) : path_(path) {
     direct_ = true;
     return;
   }
+  // A folder cannot be replaced by a file: say so now, not after the whole run at the rename,
+  // which left FOLDER.part beside it (`parse -o /tmp` wrote /tmp.part).
+  if (!ec && fs::is_directory(status))
+    throw std::runtime_error(path + ": is a folder: give a file name (e.g. " + (fs::path(path) / "out.txt").string() + ")");
   part_ = path + ".part";
   f_ = std::fopen(part_.c_str(), "wb");
   if (f_ == nullptr) throw std::runtime_error(path + ": cannot write: " + std::strerror(errno));
@@ -60,8 +65,11 @@ void AtomicFile::commit() {
     throw std::runtime_error(path_ + ": write failed: " + std::strerror(errno));
   }
   if (direct_) return;
-  if (std::rename(part_.c_str(), path_.c_str()) != 0)
-    throw std::runtime_error(path_ + ": cannot rename " + part_ + ": " + std::strerror(errno));
+  if (std::rename(part_.c_str(), path_.c_str()) != 0) {
+    const int err = errno;
+    std::remove(part_.c_str());  // a file that never gets its name is not left behind
+    throw std::runtime_error(path_ + ": cannot rename " + part_ + ": " + std::strerror(err));
+  }
 }
 
 void write_file_atomically(const fs::path& path, std::string text) {
@@ -94,10 +102,8 @@ void prepare_output_dir(const fs::path& dir, const std::vector<std::string>& nam
 
 namespace {
 
-std::atomic<int> g_signal{0};
-
 extern "C" void on_stop_signal(int sig) {
-  if (g_signal.exchange(sig) != 0) std::_Exit(128 + sig);  // the second Ctrl-C does not wait
+  if (gcpipe::request_stop(sig) != 0) std::_Exit(128 + sig);  // the second Ctrl-C does not wait
 }
 
 }  // namespace
@@ -110,7 +116,7 @@ void install_stop_handlers() {
   sigaction(SIGTERM, &sa, nullptr);
 }
 
-bool stop_requested() { return g_signal.load(std::memory_order_relaxed) != 0; }
-int stop_signal() { return g_signal.load(); }
+bool stop_requested() { return gcpipe::stop_requested(); }
+int stop_signal() { return gcpipe::stop_signal(); }
 
 }  // namespace gcpipe::pipeline

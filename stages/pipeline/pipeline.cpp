@@ -238,6 +238,10 @@ bool run_lines(Pipeline& pipeline, int fd, const std::string& name, std::uint64_
     }
     if (shown && (lines & 0xfff) == 0) shown->update(reader.bytes_read(), lines);
   }
+  if (stop_requested()) {  // the reader ends the input at a stop, in the middle of a line too
+    error = "interrupted by signal " + std::to_string(stop_signal());
+    return false;
+  }
   if (!reader.error().empty()) {
     error = name + ": read error: " + reader.error();
     return false;

@@ -105,6 +105,21 @@ class CircleFit {
   double cx_ = 0, cy_ = 0, R_ = 0, worst_ = 0, span_ = 0, prev_ = 0;
 };
 
+// The drives are built for the interpolation period; a period too short for a drive's delays
+// (interpolate.period 0.00001 s against Tp = 0.0155 s) fails in the servo with its own words, which
+// name neither key. Build them once here, where both keys are known, and say which to change.
+void check_drives_at_period(const Model& m, const std::string& drives_file) {
+  try {
+    servo::ServoSimulator probe(m.drives, m.interp.period);
+  } catch (const ConfigError& e) {
+    char msg[200];
+    std::snprintf(msg, sizeof msg, "interpolate.period = %g s does not fit the drives in %s: ", m.interp.period,
+                  drives_file.c_str());
+    throw ConfigError(msg + std::string(e.what()) +
+                      "; raise interpolate.period (default 0.001 s) or lower the drive's Tp in the drives file");
+  }
+}
+
 }  // namespace
 
 Model load_model(const PipelineConfig& pc) {
@@ -125,6 +140,7 @@ Model load_model(const PipelineConfig& pc) {
     m.interp.travel_max[i] = m.kin.travel[i].max;
     m.interp.smoothing_time[i] = m.drives.axes[i].Ts;
   }
+  check_drives_at_period(m, servo_section.file_path("drives", "the drives file").string());
   return m;
 }
 

@@ -112,7 +112,7 @@ const char* to_string(TrochoidPart p) {
 TrochoidOptions load_trochoid_options(const Config& c) {
   c.reject_unknown({"chord_tolerance", "arcs", "entry", "entry_angle", "entry_feed_factor",
                     "air_feed_factor", "air_feed", "air_margin", "approach_clearance",
-                    "max_engagement_fraction", "max_axial_depth_factor"});
+                    "max_engagement_fraction", "max_axial_depth_factor", "max_report_blocks"});
   TrochoidOptions o;
   o.chord_tolerance = c.number("chord_tolerance", o.chord_tolerance, "mm", 1e-6, 1.0);
   o.arcs = c.boolean("arcs", o.arcs);
@@ -130,6 +130,7 @@ TrochoidOptions load_trochoid_options(const Config& c) {
       c.number("max_engagement_fraction", o.max_engagement_fraction, "", 0.01, 0.5);
   o.max_axial_depth_factor =
       c.number("max_axial_depth_factor", o.max_axial_depth_factor, "", 0.01, 10.0);
+  o.max_report_blocks = static_cast<std::size_t>(c.integer("max_report_blocks", 50000, 0, 10000000));
   return o;
 }
 

@@ -47,6 +47,10 @@ struct TrochoidOptions {
   double approach_clearance = 1.0; //!< rapid down to this height above the previous pass [mm]
   double max_engagement_fraction = 0.25;  //!< reject steps whose radial engagement ae > this*D
   double max_axial_depth_factor = 2.0;    //!< reject passes deeper than this * D
+  /// The engagement report and figure analyse the expanded cycles of a program together, in time
+  /// that grows with the square of cycles cut over one another (2 seed 000 slots: 17 s, 25: hours);
+  /// past this many blocks they are left out, with the key named, and no more blocks are kept.
+  std::size_t max_report_blocks = 50000;
 };
 
 /// Reads the `trochoid` section; throws ConfigError naming key, value and limit.

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <numbers>
 
+#include "gcpipe/stop.hpp"
 #include "plot.hpp"
 
 namespace gcpipe {
@@ -150,6 +151,7 @@ PathAnalysis analyse_path(const std::vector<ResolvedBlock>& blocks,
   a.y.reserve(pl.verts.size());
   a.angle.reserve(pl.verts.size());
   for (std::size_t i = 0; i < pl.verts.size(); ++i) {
+    if ((i & 0xff) == 0) throw_if_stop_requested();  // a vertex can take milliseconds where cycles overlap
     const double ang = eng.angle_at(i);
     const std::size_t blk = pl.owner[i];
     a.block_angle[blk] = std::max(a.block_angle[blk], ang);

@@ -2,6 +2,7 @@
 // block copied; a cycle that cannot be machined is rejected at its line and replaced by skip moves.
 #include <cmath>
 #include <cstdio>
+#include <string>
 
 #include <nlohmann/json.hpp>
 
@@ -39,12 +40,18 @@ class TrochoidStage final : public pipeline::Stage {
 
   void report(pipeline::ReportContext& r) const override {
     double max_engagement = 0, max_ae = 0;
-    if (cycles_ > 0) draw_engagement(r, max_engagement, max_ae);
+    if (cycles_ > 0 && !too_many_for_report_) draw_engagement(r, max_engagement, max_ae);
     (*r.json)["trochoid"] = {{"cycles_expanded", cycles_},
                              {"cycles_rejected", cycles_rejected_},
                              {"max_engagement_deg", max_engagement},
                              {"max_ae_mm", max_ae}};
+    if (too_many_for_report_) (*r.json)["trochoid"]["engagement_not_analysed"] = not_analysed_reason();
     if (cycles_ + cycles_rejected_ == 0) return;
+    if (too_many_for_report_) {
+      *r.text += "  trochoid: " + std::to_string(cycles_) + " G275 cycles expanded, " +
+                 std::to_string(cycles_rejected_) + " rejected; " + not_analysed_reason() + "\n";
+      return;
+    }
     char buf[256];
     std::snprintf(buf, sizeof buf,
                   "  trochoid: %llu G275 cycles expanded, %llu rejected; max radial engagement %.1f deg (ae %.3f mm)\n",
@@ -58,10 +65,28 @@ class TrochoidStage final : public pipeline::Stage {
   // Only the expanded cycles are kept (for the engagement figure), never the whole program.
   void keep_for_figure(const ResolvedBlock& cycle) {
     ++cycles_;
+    expanded_blocks_ += expanded_.size();
+    if (too_many_for_report_ || expanded_blocks_ > expander_.options().max_report_blocks) {
+      too_many_for_report_ = true;  // memory and report time stay bounded: nothing more is kept
+      release_figure();
+      return;
+    }
     if (tool_diameter_ == 0) tool_diameter_ = cycle.slot.tool_diameter;
     outlines_.push_back(slot_outline(cycle.slot));
     figure_blocks_.insert(figure_blocks_.end(), expanded_.begin(), expanded_.end());
     figure_parts_.insert(figure_parts_.end(), parts_.begin(), parts_.end());
+  }
+
+  void release_figure() {
+    std::vector<ResolvedBlock>().swap(figure_blocks_);
+    std::vector<TrochoidPart>().swap(figure_parts_);
+    std::vector<std::vector<Point2>>().swap(outlines_);
+  }
+
+  std::string not_analysed_reason() const {
+    return "engagement not analysed and not drawn: the G275 cycles expand into " + std::to_string(expanded_blocks_) +
+           " blocks, more than trochoid.max_report_blocks (" + std::to_string(expander_.options().max_report_blocks) +
+           "); raise it to analyse them (the time grows with the square of cycles cut over one another)";
   }
 
   void draw_engagement(pipeline::ReportContext& r, double& max_engagement, double& max_ae) const {
@@ -87,6 +112,8 @@ class TrochoidStage final : public pipeline::Stage {
   Diagnostic diag_;
   std::uint64_t cycles_ = 0, cycles_rejected_ = 0;
   double tool_diameter_ = 0;
+  std::uint64_t expanded_blocks_ = 0;
+  bool too_many_for_report_ = false;
   std::vector<ResolvedBlock> figure_blocks_;
   std::vector<TrochoidPart> figure_parts_;
   std::vector<std::vector<Point2>> outlines_;
