@@ -61,11 +61,25 @@ dds::LaunchProcess report_sink_process(const dds::LaunchPlan& plan, const fs::pa
   return p;
 }
 
+// Shared memory that processes killed earlier left on this host (a SIGKILLed supervisor's
+// children leave theirs): removed before this pipeline's processes map their own.
+void clean_dead_shared_memory(const char* command) {
+  if (const std::size_t n = dds::clean_dead_shared_memory(); n > 0)
+    std::cerr << "gcpipe " << command << ": removed " << n << " shared-memory files of dead DDS processes\n";
+}
+
 }  // namespace
+
+int run_dds_clean(const DdsCleanArgs&) {
+  const std::size_t n = dds::clean_dead_shared_memory();
+  std::cout << "gcpipe dds clean: removed " << n << " shared-memory files no live process maps\n";
+  return 0;
+}
 
 int run_launch(const LaunchArgs& a) {
   const dds::LaunchPlan plan = plan_of(a);
   dds::install_stop_handlers();
+  clean_dead_shared_memory("launch");
   dds::Supervisor sup(self_exe(), plan, std::cerr, a.verbose);
   for (auto& p : dds::node_processes(plan, /*forever=*/true)) sup.add(std::move(p));
   if (!sup.start()) {
@@ -113,6 +127,7 @@ int run_stream(const StreamArgs& a) {
   feed.one_shot = true;
 
   dds::install_stop_handlers();
+  clean_dead_shared_memory("stream");
   dds::Supervisor sup(self_exe(), plan, std::cerr, a.verbose);
   for (auto& p : extra) {
     p.args.insert(p.args.end(), {"--program-id", id});

@@ -149,6 +149,9 @@ struct LaunchArgs {
   bool verbose = false;
 };
 int run_launch(const LaunchArgs& args);
+struct DdsCleanArgs {};
+/// `gcpipe dds clean`: the shared memory of dead DDS processes on this host.
+int run_dds_clean(const DdsCleanArgs& args);
 struct StreamArgs : LaunchArgs {
   std::string input, output;
   double feed_rate = 0;  //!< --feed-rate: the feed's --rate [bytes/s]; 0 = unpaced

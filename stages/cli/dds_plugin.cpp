@@ -16,5 +16,6 @@ extern "C" __attribute__((visibility("default"))) int gcpipe_dds_command(const c
   if (n == "monitor") return run_monitor(*static_cast<const MonitorArgs*>(args));
   if (n == "launch") return run_launch(*static_cast<const LaunchArgs*>(args));
   if (n == "stream") return run_stream(*static_cast<const StreamArgs*>(args));
+  if (n == "dds-clean") return run_dds_clean(*static_cast<const DdsCleanArgs*>(args));
   return 2;
 }

@@ -313,8 +313,10 @@ struct DdsCommands {
   MonitorArgs monitor;
   LaunchArgs launch;
   StreamArgs stream;
+  DdsCleanArgs clean;
   /// The options of the DDS command `name`, or null for any other command.
   const void* args_of(const std::string& name) const {
+    if (name == "dds-clean") return &clean;
     if (name == "feed") return &feed;
     if (name == "node") return &node;
     if (name == "sink") return &sink;
@@ -334,6 +336,11 @@ void add_dds_commands(CLI::App& app, DdsCommands& d) {
   add_monitor(app, d.monitor);
   add_launch(app, d.launch);
   add_stream(app, d.stream);
+  auto* dds = app.add_subcommand("dds", "DDS housekeeping on this host");
+  dds->require_subcommand(1, 1);
+  dds->add_subcommand("clean",
+                      "remove the Fast DDS shared memory (/dev/shm/fastrtps_*) that no live process maps: what "
+                      "killed processes left (gcpipe launch and stream do this when they start)");
 }
 #endif
 
@@ -382,7 +389,8 @@ int main(int argc, char** argv) {
     const int code = app.exit(e);
     return code == 0 ? 0 : 2;
   }
-  const std::string name = app.get_subcommands().front()->get_name();
+  std::string name = app.get_subcommands().front()->get_name();
+  if (name == "dds") name += "-" + app.get_subcommands().front()->get_subcommands().front()->get_name();
   try {
     if (name == "batch") return run_batch(batch);
     if (name == "parse") return run_parse(parse);

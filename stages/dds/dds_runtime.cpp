@@ -328,6 +328,22 @@ void remove_unmapped_shm_files(const std::set<std::string>& files) {
   }
 }
 
+std::size_t clean_dead_shared_memory() {
+  std::set<std::string> files;
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator("/dev/shm", ec)) {
+    const std::string name = entry.path().filename().string();
+    // The data files: lock files and semaphores go with them in remove_unmapped_shm_files.
+    if (name.rfind("fastrtps_", 0) != 0 || name.ends_with("_el") || name.ends_with("_sl")) continue;
+    files.insert(entry.path().string());
+  }
+  std::size_t before = 0, after = 0;
+  for (const auto& f : files) before += std::filesystem::exists(f, ec);
+  remove_unmapped_shm_files(files);
+  for (const auto& f : files) after += std::filesystem::exists(f, ec);
+  return before - after;
+}
+
 namespace {
 
 // The port queues this process owns: /dev/shm/fastrtps_portN whose lock file (`_el`) it holds.

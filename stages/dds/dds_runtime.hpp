@@ -240,6 +240,11 @@ void shm_files_mapped_by(int pid, std::set<std::string>& out);
 /// files and a port queue's semaphore. A file some process still maps is left alone.
 void remove_unmapped_shm_files(const std::set<std::string>& files);
 
+/// Removes every Fast DDS shared-memory file (segment, port queue) of this host that no live
+/// process maps: what processes that died without closing their participant left behind (a
+/// supervisor killed with SIGKILL, a node killed with -9). Returns how many files went.
+std::size_t clean_dead_shared_memory();
+
 /// Writes `line` and a newline to stderr in one write, so that lines of threads do not mix.
 void say_line(const std::string& line);
 
