@@ -44,6 +44,27 @@ TEST(Cli, HelpListsCommandsAndEachCommandHasUsage) {
   EXPECT_EQ(empty.status, 2) << "-o \"\" is a usage error";
 }
 
+// A mistyped command or option is named with what was probably meant (CLI11 alone said "A
+// subcommand is required" for `gcpipe bacth` and "not expected: x.yaml --confg" for --confg).
+TEST(Cli, MistypedCommandsAndOptionsAreNamedWithWhatWasMeant) {
+  const std::string out = tmpdir("did_you_mean").string();
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"bacth", kSample}, "unknown command 'bacth': did you mean 'batch'?"},
+      {{"batch", kSample, "--confg", "x.yaml", "-o", out}, "unknown option '--confg' for gcpipe batch: did you mean '--config'?"},
+      {{"calibrate", "h1.csv", "--output", out}, "unknown option '--output' for gcpipe calibrate: did you mean '--output-dir'?"},
+      {{"simulate", kSample, "--quiett"}, "unknown option '--quiett' for gcpipe simulate"},
+      {{"frobnicate"}, "unknown command 'frobnicate' (gcpipe --help lists them)"},
+  };
+  for (const auto& [args, expected] : cases) {
+    const Outcome r = gcpipe(args);
+    EXPECT_EQ(r.status, 2) << args[0];
+    EXPECT_NE(r.err.find(expected), std::string::npos) << r.err;
+  }
+  // Known words with a wrong value keep CLI11's message, which names the value.
+  const Outcome v = gcpipe({"batch", "/nonexistent/x.nc", "-o", out});
+  EXPECT_EQ(v.err.find("unknown"), std::string::npos) << v.err;
+}
+
 TEST(Cli, BatchWritesProgramSummaryAndDiagnostics) {
   const fs::path out = tmpdir("batch");
   Outcome r = gcpipe({"batch", kSample, "-o", out.string()});

@@ -92,7 +92,9 @@ int run_launch(const LaunchArgs& a) {
 }
 
 int run_stream(const StreamArgs& a) {
-  const dds::LaunchPlan plan = plan_of(a);
+  dds::LaunchPlan plan = plan_of(a);
+  // As for batch: the config the user names is the one every node reads.
+  if (!a.config.empty()) plan.config = fs::absolute(a.config);
   if (!runs(plan, "write") && !runs(plan, "compensate"))
     throw std::invalid_argument("the pipeline file runs neither the write nor the compensate node: nothing to write");
   const fs::path out = a.output;

@@ -154,6 +154,7 @@ struct DdsCleanArgs {};
 int run_dds_clean(const DdsCleanArgs& args);
 struct StreamArgs : LaunchArgs {
   std::string input, output;
+  std::string config;    //!< --config: replaces the pipeline file's config
   double feed_rate = 0;  //!< --feed-rate: the feed's --rate [bytes/s]; 0 = unpaced
 };
 int run_stream(const StreamArgs& args);

@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 
 #include "commands.hpp"
+#include "did_you_mean.hpp"
 #include "output_dir.hpp"
 #include "stage.hpp"
 
@@ -239,7 +240,7 @@ void add_report_sink(CLI::App& app, ReportSinkArgs& a) {
   auto* s = app.add_subcommand("report-sink",
                                "write report.json, report.txt, summary.json and diagnostics.txt from the report "
                                "parts the nodes publish (gcpipe stream starts one)");
-  s->add_option("-o,--output", a.output, "the output folder")->required()->check(kNonEmpty);
+  s->add_option("-o,--output-dir", a.output, "the output folder")->required()->check(kNonEmpty);
   s->add_option("--stages", a.stages, "the nodes whose parts make the report, comma-separated, in chain order")
       ->required()->delimiter(',');
   s->add_option("--config", a.config, "pipeline config (named in report.json)");
@@ -291,8 +292,9 @@ void add_launch(CLI::App& app, LaunchArgs& a) {
 void add_stream(CLI::App& app, StreamArgs& a) {
   auto* s = app.add_subcommand("stream", "run one program through the DDS pipeline: the files gcpipe batch writes for it");
   s->add_option("input", a.input, "the program")->required()->check(CLI::ExistingFile);
-  s->add_option("-o,--output", a.output, "output folder: output.nc and, with the compensate node, compensated.nc")
+  s->add_option("-o,--output-dir", a.output, "output folder: output.nc and, with the compensate node, compensated.nc")
       ->required()->check(kNonEmpty);
+  s->add_option("--config", a.config, "pipeline config every node reads (default: the pipeline file's)")->check(CLI::ExistingFile);
   s->add_option("--pipeline", a.pipeline, "the pipeline file (default pipeline_configs/pipelines/streaming.yaml)")->check(CLI::ExistingFile);
   s->add_option("--feed-rate", a.feed_rate, "the feed sends at most this many bytes of the program a second; 0 = unpaced [bytes/s]")
       ->check(CLI::NonNegativeNumber);
@@ -386,6 +388,15 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
+    // A mistyped command or option is named, with what was probably meant; CLI11's own message
+    // ("A subcommand is required", "not expected: x.yaml --confg") does not say which word.
+    if (e.get_exit_code() != 0) {
+      const std::string unknown = gcpipe::cli::explain_unknown_words(app, std::vector<std::string>(argv + 1, argv + argc));
+      if (!unknown.empty()) {
+        std::cerr << "gcpipe: " << unknown << "\n";
+        return 2;
+      }
+    }
     const int code = app.exit(e);
     return code == 0 ? 0 : 2;
   }
