@@ -1,6 +1,7 @@
 // The write stage: parse(write(parse(p))) == parse(p) block for block.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <random>
 
@@ -56,6 +57,16 @@ void expect_round_trip_of(const Parsed& first, ParseOptions reparse, WriteOption
     ASSERT_TRUE(same_meaning(a[k], b[k], tol, &why))
         << what << ": source line " << a[k].line << " '" << a[k].text << "' written as line "
         << b[k].line << " '" << b[k].text << "': " << why;
+    if (!wo.source_frames) continue;
+    // In the source's frames the program's own origin and its G28/G30/G53 read back too.
+    for (int ax = 0; ax < kNumAxes; ++ax)
+      ASSERT_NEAR(a[k].frame.origin[ax], b[k].frame.origin[ax], tol * std::max(1.0, std::fabs(a[k].frame.origin[ax])))
+          << what << ": origin of source line " << a[k].line << " '" << a[k].text << "' written as '" << b[k].text << "'";
+    const bool placed = a[k].frame.code == FrameCode::kHome || a[k].frame.code == FrameCode::kHome2 ||
+                        a[k].frame.code == FrameCode::kMachine;
+    if (placed && !(a[k].frame.code == FrameCode::kMachine && a[k].motion == Motion::kLinear && wo.dialect == Dialect::kFanuc))
+      ASSERT_EQ(a[k].frame.code, b[k].frame.code) << what << ": source line " << a[k].line << " '" << a[k].text
+                                                  << "' written as '" << b[k].text << "'";
   }
 }
 

@@ -174,7 +174,7 @@ bool same_meaning(const ResolvedBlock& a, const ResolvedBlock& b, double tol = 1
 const char* to_string(Motion m);
 
 /// What the passes over a whole program read of each block: its line, motion, stops, TCP mode and
-/// the tool length in force. 32 bytes where a block is 472: a pass that reads a field or two of every
+/// the tool length in force. 32 bytes where a block is 616: a pass that reads a field or two of every
 /// block (segments, the planner's rests, the tool tip of each raw sample) maps a fifteenth of
 /// the pages, and those passes run at gigabytes a second, faster than any trimming of the
 /// resident set can follow (issue 12: the program's blocks were what still grew with it).
