@@ -64,6 +64,18 @@ ResolvedBlock random_block(std::mt19937_64& rng) {
   b.stop = static_cast<ProgramStop>(pick({0, 1, 2, 3, 4}));
   b.program_number = i(rng);
   b.percent = rng() & 1;
+  b.frame.origin = axes();
+  b.frame.code = static_cast<FrameCode>(rng() % 15);
+  b.frame.words = static_cast<std::uint8_t>(rng() % 32);
+  b.frame.incremental = rng() & 1;
+  b.frame.intermediate = rng() & 1;
+  b.frame.selects_work_offset = rng() & 1;
+  b.frame.sets_tool_length = rng() & 1;
+  b.frame.has_r = rng() & 1;
+  b.frame.p = i(rng);
+  b.frame.values = axes();
+  b.frame.r = u(rng);
+  b.frame.resolved = axes();
   b.slot.start = vec();
   b.slot.end = vec();
   b.slot.bottom = u(rng);
@@ -96,6 +108,9 @@ void expect_identical(const ResolvedBlock& a, const ResolvedBlock& b) {
   SAME_BITS(slot.start); SAME_BITS(slot.end); SAME_BITS(slot.bottom); SAME_BITS(slot.clearance);
   SAME_BITS(slot.width); SAME_BITS(slot.step); SAME_BITS(slot.depth_step);
   SAME_BITS(slot.tool_diameter); SAME(slot.climb);
+  SAME_BITS(frame.origin); SAME(frame.code); SAME(frame.words); SAME(frame.incremental); SAME(frame.intermediate);
+  SAME(frame.selects_work_offset); SAME(frame.sets_tool_length); SAME(frame.has_r); SAME(frame.p);
+  SAME_BITS(frame.values); SAME_BITS(frame.r); SAME_BITS(frame.resolved);
 #undef SAME
 #undef SAME_BITS
 }
@@ -147,7 +162,7 @@ TEST(DdsConvert, ResolvedBlockLayoutIsTheOneMirroredInTheIdl) {
   // A tripwire: a field added to ResolvedBlock changes its size. Mirror it in idl/gcpipe.idl
   // (struct Block), in dds_convert.cpp and in random_block()/expect_identical() above, then
   // update this number.
-  EXPECT_EQ(sizeof(ResolvedBlock), 472u);
+  EXPECT_EQ(sizeof(ResolvedBlock), 616u);
 }
 
 TEST(DdsConvert, SummaryRoundTripsAndCountsAreChecked) {

@@ -1,6 +1,7 @@
 // The write stage: parse(write(parse(p))) == parse(p) block for block.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <random>
 
@@ -43,8 +44,8 @@ std::string write_all(const Parsed& p, WriteOptions wo) {
   return out;
 }
 
-void expect_round_trip(const Parsed& first, ParseOptions reparse, WriteOptions wo, double tol,
-                       const std::string& what) {
+void expect_round_trip_of(const Parsed& first, ParseOptions reparse, WriteOptions wo, double tol,
+                          const std::string& what) {
   const std::string text = write_all(first, wo);
   Parsed second = parse_text(text, reparse, test_machine(), "written.nc");
   ASSERT_EQ(second.first_error(), nullptr) << what << ": the written program does not parse: "
@@ -56,6 +57,25 @@ void expect_round_trip(const Parsed& first, ParseOptions reparse, WriteOptions w
     ASSERT_TRUE(same_meaning(a[k], b[k], tol, &why))
         << what << ": source line " << a[k].line << " '" << a[k].text << "' written as line "
         << b[k].line << " '" << b[k].text << "': " << why;
+    if (!wo.source_frames) continue;
+    // In the source's frames the program's own origin and its G28/G30/G53 read back too.
+    for (int ax = 0; ax < kNumAxes; ++ax)
+      ASSERT_NEAR(a[k].frame.origin[ax], b[k].frame.origin[ax], tol * std::max(1.0, std::fabs(a[k].frame.origin[ax])))
+          << what << ": origin of source line " << a[k].line << " '" << a[k].text << "' written as '" << b[k].text << "'";
+    const bool placed = a[k].frame.code == FrameCode::kHome || a[k].frame.code == FrameCode::kHome2 ||
+                        a[k].frame.code == FrameCode::kMachine;
+    if (placed && !(a[k].frame.code == FrameCode::kMachine && a[k].motion == Motion::kLinear && wo.dialect == Dialect::kFanuc))
+      ASSERT_EQ(a[k].frame.code, b[k].frame.code) << what << ": source line " << a[k].line << " '" << a[k].text
+                                                  << "' written as '" << b[k].text << "'";
+  }
+}
+
+// Both ways of writing: in the source's frames (output.nc) and in the machine file's
+// (compensated.nc's way): each reads back to the same blocks.
+void expect_round_trip(const Parsed& first, ParseOptions reparse, WriteOptions wo, double tol, const std::string& what) {
+  for (bool source_frames : {true, false}) {
+    wo.source_frames = source_frames;
+    expect_round_trip_of(first, reparse, wo, tol, what + (source_frames ? ", source frames" : ", machine file frame"));
   }
 }
 
@@ -359,4 +379,103 @@ TEST(WriteRoundTrip, FanucCutterCompensatedPathBecomesPlainMoves) {
   ASSERT_EQ(first.first_error(), nullptr) << format(*first.first_error());
   ASSERT_EQ(first.summary.blocks_out, first.summary.blocks_emitted + 2);  // arc->line obtuse, acute P1->P2
   expect_round_trip_in_both_dialects(first);
+}
+
+// ---- output.nc keeps the source's frames (issue 30) ----
+
+namespace {
+
+std::string write_output_nc(const std::string& program, Dialect dialect = Dialect::kFanuc) {
+  ParseOptions po;
+  po.dialect = dialect;
+  const Parsed p = parse_text(program, po);
+  EXPECT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  WriteOptions wo;
+  wo.dialect = dialect;
+  wo.source_frames = true;
+  return write_all(p, wo);
+}
+
+}  // namespace
+
+// A user's pocket ends with a retract to Z home. output.nc wrote `N46 Z0.`: the G28 resolved into
+// a work coordinate, from the machine file's reference position (machine zero). The control must
+// get the G28 itself, to go to its own reference position.
+TEST(WriteSourceFrames, G28ReturnIsWrittenAsG28NotAsAWorkCoordinate) {
+  const std::string out = write_output_nc(
+      "G21 G90 G17\nT1 M6\nG54 G0 X-5. Y-5.\nG43 Z50. H1\nG1 Z-2. F300.\nG1 X50. F1500.\nG0 Z25.\nM5\n"
+      "G91 G28 Z0\nG90\nM30\n");
+  EXPECT_NE(out.find("N9 G91 G28 Z0.\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N10 G90\n"), std::string::npos) << out;
+  EXPECT_EQ(out.find("N9 Z"), std::string::npos) << out;
+  EXPECT_EQ(out.find("N9 G0 Z"), std::string::npos) << out;
+}
+
+// G10 L2 P1 Z-300 then G54: output.nc dropped the G10 and wrote machine coordinates (Z-250) under
+// the header's G54; on a control whose G54 holds the fixture's offset that goes 300 mm lower.
+TEST(WriteSourceFrames, G10WorkOffsetIsWrittenInPlaceAndMovesStayInWorkCoordinates) {
+  const std::string out = write_output_nc("G10 L2 P1 Z-300\nG54\nG0 X10 Y10 Z50\n");
+  EXPECT_NE(out.find("N1 G10 L2 P1 Z-300.\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N2 G54\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N3 G0 X10. Y10. Z50.\n"), std::string::npos) << out;
+  EXPECT_EQ(out.find("Z-250"), std::string::npos) << out;
+}
+
+// The header states only what the output's own words rely on: no G54 and no G49 the source did
+// not program (they would replace the system and the length the control has in force).
+TEST(WriteSourceFrames, HeaderAssertsNoWorkSystemOrToolLength) {
+  const std::string out = write_output_nc("G0 X1 Y2\nG55 G0 X3\nG43 H1 Z5\nG49\nG49 G0 Z6\n");
+  EXPECT_EQ(out.rfind("G17 G21 G40 G80 G90 G94\n", 0), 0u) << out;
+  EXPECT_NE(out.find("N1 G0 X1. Y2.\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N2 G55 X3.\n"), std::string::npos) << out;  // Y stays where the control has it
+  EXPECT_NE(out.find("N3 G43 H1 Z5.\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N4 G49\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N5 G49 Z6.\n"), std::string::npos) << out;  // as programmed, if repeated
+}
+
+// G53 with its machine coordinates; G30 through its intermediate point; G92 and G52 with their
+// words; G10 L20 and tool entries in place (LinuxCNC dialect).
+TEST(WriteSourceFrames, MachineCoordinatesShiftsAndEntriesAreWrittenAsSuch) {
+  const std::string out = write_output_nc(
+      "G21 G90\nG55 G0 X1 Y1 Z1\nG53 G0 Z-10\nG1 G53 X-20 F100\nG30 X5 Y6\nG92 X0 Y0\nG0 X2\nG92.1\n"
+      "G52 X3\nG52 X0\nG10 L20 P0 Z4\nG10 L1 P1 Z50 R3\nG43 H1\nG0 Z1\nG28\nM2\n",
+      Dialect::kLinuxCnc);
+  EXPECT_NE(out.find("N3 G53 Z-10.\n"), std::string::npos) << out;  // G0 modal already
+  EXPECT_NE(out.find("N4 G53 G1 X-20. F100.\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N5 G30 X5. Y6.\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N6 G92 X0. Y0.\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N7 G0 X2.\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N8 G92.1\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N9 G52 X3.\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N11 G10 L20 P0 Z4.\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N12 G10 L1 P1 Z50. R3.\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N13 G43 H1\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N15 G28\n"), std::string::npos) << out;
+}
+
+// A G91 move from a position only the control knows (after G28, at the start) stays an
+// increment; once an absolute position is written the output is absolute again.
+TEST(WriteSourceFrames, IncrementsFromTheControlsPositionStayIncrements) {
+  const std::string out = write_output_nc("G91 G0 X5\nG90 G0 X1 Y1 Z1\nG28 G91 Z0\nG1 Z-3 X2 F100\nG90 G1 Z0\n");
+  EXPECT_NE(out.find("N1 G0 G91 X5.\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N2 G90 X1. Y1. Z1.\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N3 G91 G28 Z0.\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("N4 G1 X2. Z-3. F100.\n"), std::string::npos) << out;  // still G91: Z from home
+  EXPECT_NE(out.find("N5 G90 Z0.\n"), std::string::npos) << out;
+}
+
+// Across dialects what one cannot say is written as the machine file resolves it, with a note.
+TEST(WriteSourceFrames, WhatTheOtherDialectCannotSayIsResolvedWithANote) {
+  ParseOptions lc;
+  lc.dialect = Dialect::kLinuxCnc;
+  const Parsed p = parse_text("G0 X1 Y1 Z1\nG10 L20 P1 X0\nG1 G53 Z-5 F100\nG10 L1 P1 Z50 R3\nM2\n", lc);
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  WriteOptions fanuc;
+  fanuc.source_frames = true;
+  const std::string out = write_all(p, fanuc);
+  EXPECT_NE(out.find("(gcpipe: line 2: G10 L20 cannot be said in this dialect"), std::string::npos) << out;
+  EXPECT_NE(out.find("N2 G10 L2 P1 X1.\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("(gcpipe: line 3: G1 G53 has no Fanuc equivalent"), std::string::npos) << out;
+  EXPECT_NE(out.find("G10 L12 P1 R3.\nN4 G10 L10 P1 R50.\n"), std::string::npos) << out;
+  expect_round_trip_in_both_dialects(p);
 }

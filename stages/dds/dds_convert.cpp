@@ -53,6 +53,41 @@ bool stop_from(std::uint8_t v, ProgramStop& s) {
   return true;
 }
 
+bool frame_code_from(std::uint8_t v, FrameCode& c) {
+  if (v > static_cast<std::uint8_t>(FrameCode::kToolRadius)) return false;
+  c = static_cast<FrameCode>(v);
+  return true;
+}
+
+void frame_to_msg(const SourceFrame& f, msg::SourceFrame& o) {
+  copy_array(f.origin, o.origin());
+  o.code(static_cast<std::uint8_t>(f.code));
+  o.words(f.words);
+  o.incremental(f.incremental);
+  o.intermediate(f.intermediate);
+  o.selects_work_offset(f.selects_work_offset);
+  o.sets_tool_length(f.sets_tool_length);
+  o.has_r(f.has_r);
+  o.p(f.p);
+  copy_array(f.values, o.values());
+  o.r(f.r);
+  copy_array(f.resolved, o.resolved());
+}
+
+void frame_from_msg(const msg::SourceFrame& i, SourceFrame& f) {
+  copy_array(i.origin(), f.origin);
+  f.words = i.words();
+  f.incremental = i.incremental();
+  f.intermediate = i.intermediate();
+  f.selects_work_offset = i.selects_work_offset();
+  f.sets_tool_length = i.sets_tool_length();
+  f.has_r = i.has_r();
+  f.p = i.p();
+  copy_array(i.values(), f.values);
+  f.r = i.r();
+  copy_array(i.resolved(), f.resolved);
+}
+
 }  // namespace
 
 void to_msg(const ResolvedBlock& b, msg::Block& o) {
@@ -100,6 +135,7 @@ void to_msg(const ResolvedBlock& b, msg::Block& o) {
   s.depth_step(b.slot.depth_step);
   s.tool_diameter(b.slot.tool_diameter);
   s.climb(b.slot.climb);
+  frame_to_msg(b.frame, o.frame());
 }
 
 bool from_msg(const msg::Block& i, ResolvedBlock& b, std::string* why) {
@@ -113,6 +149,8 @@ bool from_msg(const msg::Block& i, ResolvedBlock& b, std::string* why) {
   if (!stop_from(i.stop(), b.stop)) return fail(why, "stop", i.stop());
   if (i.coolant() > (kCoolantMist | kCoolantFlood)) return fail(why, "coolant", i.coolant());
   if (i.axis_words() >= (1u << kNumAxes)) return fail(why, "axis_words", i.axis_words());
+  if (!frame_code_from(i.frame().code(), b.frame.code)) return fail(why, "frame.code", i.frame().code());
+  if (i.frame().words() >= (1u << kNumAxes)) return fail(why, "frame.words", i.frame().words());
   b.line = i.line();
   b.text = i.text();
   b.comment = i.comment();
@@ -150,6 +188,7 @@ bool from_msg(const msg::Block& i, ResolvedBlock& b, std::string* why) {
   b.slot.depth_step = s.depth_step();
   b.slot.tool_diameter = s.tool_diameter();
   b.slot.climb = s.climb();
+  frame_from_msg(i.frame(), b.frame);
   return true;
 }
 

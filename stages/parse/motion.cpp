@@ -187,13 +187,37 @@ void Parser::Impl::update_origin(ModalState& ns) const {
   for (int a = 0; a < kNumAxes; ++a) ns.origin[a] = g5x[a] + (ns.shift_suspended ? 0 : ns.shift[a]);
 }
 
+// The frame statement of the line as the source wrote it: its code and its axis words (in mm and
+// degrees, no origin added), for the writer to say it again in the control's frames. G10 says
+// which statement it is in set_offsets / set_tool_entry.
+void Parser::Impl::note_frame(const BlockCodes& c, ResolvedBlock& b, const ModalState& ns, std::uint8_t mask) const {
+  switch (c.non_modal) {
+    case 530: b.frame.code = FrameCode::kMachine; break;
+    case 280: b.frame.code = FrameCode::kHome; break;
+    case 300: b.frame.code = FrameCode::kHome2; break;
+    case 920: b.frame.code = FrameCode::kShift; break;
+    case 921: b.frame.code = FrameCode::kShiftClear; break;
+    case 922: b.frame.code = FrameCode::kShiftSuspend; break;
+    case 923: b.frame.code = FrameCode::kShiftRestore; break;
+    case 520: b.frame.code = FrameCode::kLocalShift; break;
+    default: break;
+  }
+  b.frame.words = mask;
+  for (int a = 0; a < kNumAxes; ++a)
+    if (mask & (1u << a)) {
+      const Word& w = sc.w(kAxisLetters[a]);
+      b.frame.values[a] = a >= kA ? angle_value(w) : linear_value(w, ns.units);
+    }
+}
+
 // G28 G30 G53 G52 G92 G92.1 G92.2 G92.3: non-modal codes with an action of their own.
 bool Parser::Impl::non_modal(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, std::uint8_t mask) {
+  note_frame(c, b, ns, mask);
   switch (c.non_modal) {
     case 530: return machine_move(c, b, ns, mask);
     case 280: case 300: return reference_return(c, b, ns, mask);
     case 100:
-      if (!set_offsets(c, ns, mask)) return false;
+      if (!set_offsets(c, b, ns, mask)) return false;
       b.motion = Motion::kNone;
       b.target = ns.position;
       return true;
@@ -296,13 +320,13 @@ namespace gcpipe {
 // G10 L2 P (the origin of G54..G59 = the words; P0 = the system in force, LinuxCNC) and, in
 // LinuxCNC, G10 L20 P (the origin such that the tool's position reads as the words). In force
 // from this line on. Fanuc G91 adds the words to the origin (its manual's rule for G10 L2).
-bool Parser::Impl::set_offsets(const BlockCodes& c, ModalState& ns, std::uint8_t mask) {
+bool Parser::Impl::set_offsets(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, std::uint8_t mask) {
   const Scan& s = sc;
   const std::uint32_t col = c.non_modal_col;
   if (!s.has('L')) return fail(col, "G10 needs L: L2 (work offset values) or L20 (LinuxCNC: make the position read as the values)");
   const double l = s.w('L').value;
   const bool fanuc = opt.dialect == Dialect::kFanuc;
-  if (fanuc ? (l == 10 || l == 12) : (l == 1 || l == 10)) return set_tool_entry(c, ns, mask);
+  if (fanuc ? (l == 10 || l == 12) : (l == 1 || l == 10)) return set_tool_entry(c, b, ns, mask);
   if (l == 20 && fanuc)
     return fail(s.w('L').col, "G10 L20 on Fanuc sets the extended work offsets G54.1 P1..P48, which this machine does not have");
   if (l != 2 && l != 20)
@@ -326,6 +350,10 @@ bool Parser::Impl::set_offsets(const BlockCodes& c, ModalState& ns, std::uint8_t
   }
   offsets[k] = origin;
   update_origin(ns);
+  b.frame.code = l == 20 ? FrameCode::kSetOriginHere : FrameCode::kSetOrigin;
+  b.frame.incremental = fanuc && ns.incremental && l == 2;  // LinuxCNC takes G10 words absolute in G91 too
+  b.frame.p = static_cast<std::int32_t>(p);
+  b.frame.resolved = origin;
   return true;
 }
 
@@ -341,7 +369,7 @@ namespace gcpipe {
 //    (program) + length in force - Z. A G10 L1 without Z or R is an error (rs274's too).
 //  Fanuc (G10 L10 / L12, tool offset memory C): P offset number, R value; L10 the length
 //    geometry (H), L12 the radius geometry (D); in G91 R is added to the stored value.
-bool Parser::Impl::set_tool_entry(const BlockCodes& c, ModalState& ns, std::uint8_t mask) {
+bool Parser::Impl::set_tool_entry(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, std::uint8_t mask) {
   const Scan& s = sc;
   const bool fanuc = opt.dialect == Dialect::kFanuc;
   const int l = static_cast<int>(s.w('L').value);
@@ -377,6 +405,14 @@ bool Parser::Impl::set_tool_entry(const BlockCodes& c, ModalState& ns, std::uint
     }
   }
   machine.tools[tool] = e;
+  b.frame.code = fanuc ? (l == 10 ? FrameCode::kToolLength : FrameCode::kToolRadius)
+                       : (l == 1 ? FrameCode::kToolTable : FrameCode::kToolTableHere);
+  b.frame.p = tool;
+  b.frame.incremental = fanuc && ns.incremental;
+  b.frame.has_r = s.has('R');
+  b.frame.r = r;
+  b.frame.resolved[kZ] = e.length;
+  b.frame.resolved[kX] = e.diameter / 2;
   return true;
 }
 

@@ -70,6 +70,7 @@ void Parser::Impl::reset_block(std::string_view line, std::uint64_t lineno) {
   b.stop = ProgramStop::kNone;
   b.percent = false;
   b.program_number = -1;
+  b.frame = SourceFrame{};
   exact_stop_once = false;
 }
 
@@ -183,6 +184,7 @@ void Parser::Impl::publish(ResolvedBlock& b, const ModalState& s) const {
   b.coolant = s.coolant;
   b.work_offset = s.work_offset;
   b.work_origin = s.work_origin;
+  b.frame.origin = s.origin;
   b.source_units = s.units;
   if (b.motion != Motion::kArcCW && b.motion != Motion::kArcCCW) b.centre = {0, 0, 0};
   if (b.motion != Motion::kTrochoidSlot) b.slot = TrochoidSlot{};
@@ -222,8 +224,12 @@ bool Parser::Impl::emit_moves() {
     if (i > 0) {
       expanded.comment.clear();
       expanded.tool_change = false;
+      expanded.frame.selects_work_offset = expanded.frame.sets_tool_length = false;  // said with the first
     }
     if (i + 1 < moves.size()) expanded.stop = ProgramStop::kNone;
+    // A G28/G30 moves through its intermediate point first: that move is said by the G28 itself.
+    const FrameCode fc = expanded.frame.code;
+    expanded.frame.intermediate = (fc == FrameCode::kHome || fc == FrameCode::kHome2) && i + 1 < moves.size();
     expanded.motion = m.motion;
     expanded.start = from;
     expanded.target = m.target;

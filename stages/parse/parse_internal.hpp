@@ -402,8 +402,9 @@ struct Parser::Impl {
   bool reference_return(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, std::uint8_t mask);
   bool coordinate_shift(const BlockCodes& c, ModalState& ns, std::uint8_t mask);
   void update_origin(ModalState& ns) const;
-  bool set_offsets(const BlockCodes& c, ModalState& ns, std::uint8_t mask);
-  bool set_tool_entry(const BlockCodes& c, ModalState& ns, std::uint8_t mask);
+  bool set_offsets(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, std::uint8_t mask);
+  bool set_tool_entry(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, std::uint8_t mask);
+  void note_frame(const BlockCodes& c, ResolvedBlock& b, const ModalState& ns, std::uint8_t mask) const;
 
   // -- cutter.cpp
   bool comp_involved(const ModalState& ns) const {

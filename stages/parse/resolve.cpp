@@ -149,6 +149,9 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
   BlockCodes c;
   if (!sort_g_codes(c) || !sort_m_codes(c)) return false;
   if (c.has(kGUnits)) ns.units = c.group_code[kGUnits] == 200 ? Units::kInch : Units::kMillimetre;
+  // What the line states itself (not what it inherits), for a writer that says it again.
+  b.frame.selects_work_offset = c.has(kGCoordSystem);
+  b.frame.sets_tool_length = c.has(kGToolLength);
   if (!check_block_number() || !apply_feed_speed_tool(c, ns, b) || !apply_tool_length(c, ns)) return false;
   if (!apply_modes(c, ns, b) || !apply_cutter_comp(c, ns) || !read_fanuc_call(c)) return false;
   const bool arc_mode = !c.g4 && !c.g275 && c.non_modal == 0 && ns.cycle == 0 &&
@@ -164,6 +167,7 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
   if (!axis_targets(c, ns, target, mask)) return false;
   b.axis_words = mask;
   b.start = ns.position;
+  b.frame.incremental = ns.incremental;
   if (c.g4) return dwell(c, b, ns);
   if (c.g275) {
     b.target = target;

@@ -53,8 +53,14 @@ void Writer::write_diagnostic(const Diagnostic& d, std::string& out) {
 }
 
 namespace {
-// Everything the output relies on, said once after the tape start and program number.
+// Everything the output relies on, said once after the tape start and program number: the modes
+// its own words are written in (plane, units, distance, feed mode) and what the parser has
+// already resolved (cutter compensation: G40, canned cycles: G80).
+// With the source's frames, the work system and the tool length are the source's to state: a G54
+// or G49 the source did not program would replace the control's own (the system a previous
+// program left selected, a length in force) and move the part elsewhere.
 constexpr const char* kHeader = "G17 G21 G40 G49 G54 G80 G90 G94\n";
+constexpr const char* kSourceFramesHeader = "G17 G21 G40 G80 G90 G94\n";
 }  // namespace
 
 // One output line being built: words separated by blanks, numbers in the chosen format.
@@ -103,12 +109,14 @@ bool Writer::write(const ResolvedBlock& b, std::string& out) {
   } else {
     if (!header_done_) {
       // The writer's own state starts at the header's defaults, which are also the parser's.
-      out += kHeader;
+      out += opt_.source_frames ? kSourceFramesHeader : kHeader;
       header_done_ = true;
     }
     if (opt_.source_line_numbers && b.line > 0) line.integer('N', static_cast<long>(b.line));
   }
   const std::size_t bare = line.text.size();  // what the line holds before any word with meaning
+  // Back to G90 where the source is (after a G91 G28 Z0, say), so the output ends as it does.
+  if (opt_.source_frames && incremental_ && !b.frame.incremental) distance(false, line);
   units_and_offset(b, line);
   path_control(b, line);
   tool_length_and_tcp(b, line);
@@ -116,15 +124,18 @@ bool Writer::write(const ResolvedBlock& b, std::string& out) {
   if (!have_pos_) {
     // The position before the first block is the one the parser assumed (machine config); an axis
     // the program never commands is never written, so the output cannot move it either.
-    for (int a = 0; a < kNumAxes; ++a) pos_[a] = b.start[a] - b.work_origin[a];
+    for (int a = 0; a < kNumAxes; ++a) pos_[a] = b.start[a] - origin_of(b)[a];
     have_pos_ = true;
   }
-  motion(b, line);
+  if (opt_.source_frames && b.frame.code != FrameCode::kNone) frame_statement(b, line);
+  else motion(b, line);
   program_stop(b, line);
   // A block with nothing to say (blank, or a source-frame setting such as G20 or G91) keeps its
   // line, without an N, so that the output keeps the program's shape.
   if (line.text.size() == bare && b.program_number < 0) line.text.clear();
   append_comment(line.text, b.comment);
+  out += note_;
+  note_.clear();
   out += line.text;
   out += '\n';
   return true;
@@ -149,7 +160,7 @@ bool Writer::write_program_start(const ResolvedBlock& b, std::string& out) {
   append_comment(line.text, b.comment);
   out += line.text;
   out += '\n';
-  out += kHeader;
+  out += opt_.source_frames ? kSourceFramesHeader : kHeader;
   header_done_ = true;
   ResolvedBlock rest = b;
   rest.program_number = -1;
@@ -160,14 +171,21 @@ bool Writer::write_program_start(const ResolvedBlock& b, std::string& out) {
   return ok;
 }
 
+namespace {
+const char* work_system_name(std::int32_t work_offset) {
+  static const char* const names[6] = {"G54", "G55", "G56", "G57", "G58", "G59"};
+  return names[std::clamp(work_offset - 54, 0, 5)];
+}
+}  // namespace
+
 void Writer::units_and_offset(const ResolvedBlock& b, Line& line) {
   if (line.inch != inch_) {
     line.word(line.inch ? "G20" : "G21");
     inch_ = line.inch;
   }
+  if (opt_.source_frames) return work_offset(b, line);
   if (b.work_offset != work_offset_) {
-    static const char* const names[6] = {"G54", "G55", "G56", "G57", "G58", "G59"};
-    line.word(names[std::clamp(b.work_offset - 54, 0, 5)]);
+    line.word(work_system_name(b.work_offset));
     work_offset_ = b.work_offset;
   }
 }
@@ -187,9 +205,16 @@ void Writer::path_control(const ResolvedBlock& b, Line& line) {
 }
 
 void Writer::tool_length_and_tcp(const ResolvedBlock& b, Line& line) {
+  // With the source's frames a G43 H / G49 goes out wherever the source has one: a G43 H1 again
+  // reloads a length a G10 has changed, and a first G49 cancels the control's own length.
+  const bool programmed = opt_.source_frames && b.frame.sets_tool_length;
+  // The control keeps the machine position when the length changes, so Z reads anew (its table's
+  // length, not the machine file's): a G91 Z after it is an increment from there.
+  if (programmed || b.tool_length_active != tlo_active_ || b.tool_length != tlo_length_) known_ &= ~(1u << kZ);
+  tlo_length_ = b.tool_length;
   if (opt_.dialect == Dialect::kLinuxCnc) {
     // Length and TCP are independent: G43 H / G49 for the length, M428 / M429 for the kinematics.
-    if (b.tool_length_active != tlo_active_ || b.tool_length_offset != tlo_) {
+    if (programmed || b.tool_length_active != tlo_active_ || b.tool_length_offset != tlo_) {
       if (b.tool_length_active) {
         line.word("G43");
         line.integer('H', b.tool_length_offset);
@@ -198,7 +223,7 @@ void Writer::tool_length_and_tcp(const ResolvedBlock& b, Line& line) {
       }
     }
     if (b.tcp != tcp_) line.word(b.tcp ? "M428" : "M429");
-  } else if (b.tool_length_active != tlo_active_ || b.tool_length_offset != tlo_ || b.tcp != tcp_ ||
+  } else if (programmed || b.tool_length_active != tlo_active_ || b.tool_length_offset != tlo_ || b.tcp != tcp_ ||
              b.tool_vector_mode != tool_vector_mode_) {
     // One modal group: G43.4 H (TCP, H0 = no length), G43.5 H (TCP with a tool vector), G43 H
     // (length only), G49 (neither).
@@ -253,6 +278,22 @@ void Writer::feed_mode_tool_spindle_coolant(const ResolvedBlock& b, Line& line) 
 // Axis words that changed (program coordinates: what the source wrote, in mm) and the ones the
 // block must carry.
 void Writer::axes(const ResolvedBlock& b, Line& line, std::uint8_t must) {
+  if (opt_.source_frames) {
+    const std::uint8_t write = axes_to_write(b, must);
+    if (write == 0) return;
+    // A G91 move of an axis whose position only the control knows is the increment it was.
+    const bool increments = b.frame.incremental && (write & ~known_) != 0;
+    distance(increments, line);
+    const Axes& origin = origin_of(b);
+    for (int a = 0; a < kNumAxes; ++a) {
+      if (!(write & (1u << a))) continue;
+      const double v = increments ? b.target[a] - b.start[a] : b.target[a] - origin[a];
+      line.number(kAxisLetters[a], a < kA ? line.len(v) : v);
+      pos_[a] = b.target[a] - origin[a];
+    }
+    if (!increments) known_ |= write;
+    return;
+  }
   for (int a = 0; a < kNumAxes; ++a) {
     const double prog = b.target[a] - b.work_origin[a];
     if (prog != pos_[a] || (must & (1u << a))) {
@@ -318,10 +359,12 @@ void Writer::arc(const ResolvedBlock& b, Line& line) {
 void Writer::slot(const ResolvedBlock& b, Line& line) {
   line.word("G275");
   const TrochoidSlot& t = b.slot;
-  line.number('X', line.len(t.end[0] - b.work_origin[kX]));
-  line.number('Y', line.len(t.end[1] - b.work_origin[kY]));
-  line.number('Z', line.len(t.bottom - b.work_origin[kZ]));
-  line.number('R', line.len(t.clearance - b.work_origin[kZ]));
+  const Axes& origin = origin_of(b);
+  distance(false, line);
+  line.number('X', line.len(t.end[0] - origin[kX]));
+  line.number('Y', line.len(t.end[1] - origin[kY]));
+  line.number('Z', line.len(t.bottom - origin[kZ]));
+  line.number('R', line.len(t.clearance - origin[kZ]));
   line.number('W', line.len(t.width));
   line.number('K', line.len(t.step));
   if (t.depth_step > 0) line.number('Q', line.len(t.depth_step));
@@ -329,7 +372,8 @@ void Writer::slot(const ResolvedBlock& b, Line& line) {
   if (!t.climb) line.integer('P', -1);
   feed(b, line, true);
   // The cycle ends at the slot end on the clearance plane; the writer's position follows.
-  for (int a = 0; a < kNumAxes; ++a) pos_[a] = b.target[a] - b.work_origin[a];
+  for (int a = 0; a < kNumAxes; ++a) pos_[a] = b.target[a] - origin[a];
+  known_ |= (1u << kX) | (1u << kY) | (1u << kZ);
 }
 
 void Writer::motion(const ResolvedBlock& b, Line& line) {
@@ -360,6 +404,191 @@ void Writer::program_stop(const ResolvedBlock& b, Line& line) {
     case ProgramStop::kEnd: line.word("M2"); break;
     case ProgramStop::kEndRewind: line.word("M30"); break;
   }
+}
+
+// ---- Source frames (WriteOptions::source_frames) ----
+
+// Program coordinates are measured from the origin the source has in force (its G10 and G92
+// included) or, for compensated.nc, from the machine file's G5x origin.
+const Axes& Writer::origin_of(const ResolvedBlock& b) const {
+  return opt_.source_frames ? b.frame.origin : b.work_origin;
+}
+
+// G54..G59 where the source selects one (or, should the parser change it on its own, where it
+// changes): before it, the output runs in whatever system the control has selected, as the source.
+void Writer::work_offset(const ResolvedBlock& b, Line& line) {
+  if (b.work_offset == work_offset_ && !(b.frame.selects_work_offset && !work_offset_written_)) return;
+  line.word(work_system_name(b.work_offset));
+  work_offset_ = b.work_offset;
+  work_offset_written_ = true;
+  known_ = 0;  // the control's position reads anew in that system's origin (its own values)
+}
+
+// G90 / G91 when a line needs the other: the output is absolute but for increments from a
+// position only the control knows, and the G28/G30 and Fanuc G10 words the source gave in G91.
+void Writer::distance(bool incremental, Line& line) {
+  if (incremental == incremental_) return;
+  line.word(incremental ? "G91" : "G90");
+  incremental_ = incremental;
+}
+
+// The axes a move states: those the source programmed and those that move (an expansion, cutter
+// compensation). An axis that moves in neither sense stays where the control has it: a change of
+// origin alone (G55, G92) must not become a move to where the parser's frame would put it.
+std::uint8_t Writer::axes_to_write(const ResolvedBlock& b, std::uint8_t must) const {
+  std::uint8_t write = must;
+  for (int a = 0; a < kNumAxes; ++a)
+    if (b.target[a] != b.start[a]) write = static_cast<std::uint8_t>(write | (1u << a));
+  return write;
+}
+
+// The words of a frame statement as the source wrote them, in the block's units.
+void Writer::statement_words(const ResolvedBlock& b, const Axes& values, Line& line) {
+  for (int a = 0; a < kNumAxes; ++a)
+    if (b.frame.words & (1u << a)) line.number(kAxisLetters[a], a < kA ? line.len(values[a]) : values[a]);
+}
+
+void Writer::frame_statement(const ResolvedBlock& b, Line& line) {
+  switch (b.frame.code) {
+    case FrameCode::kHome:
+    case FrameCode::kHome2: reference_return(b, line); break;
+    case FrameCode::kMachine: machine_move(b, line); break;
+    case FrameCode::kSetOrigin:
+    case FrameCode::kSetOriginHere: set_origin(b, line); break;
+    case FrameCode::kShift:
+      distance(false, line);
+      line.word("G92");
+      statement_words(b, b.frame.values, line);
+      known_ |= b.frame.words;  // the position reads as the words, on the control as here
+      break;
+    case FrameCode::kShiftClear: line.word("G92.1"); break;
+    case FrameCode::kShiftSuspend: line.word("G92.2"); break;
+    case FrameCode::kShiftRestore: line.word("G92.3"); break;
+    case FrameCode::kLocalShift:
+      distance(false, line);
+      line.word("G52");
+      statement_words(b, b.frame.values, line);
+      break;
+    case FrameCode::kToolTable:
+    case FrameCode::kToolTableHere:
+    case FrameCode::kToolLength:
+    case FrameCode::kToolRadius: tool_entry(b, line); break;
+    case FrameCode::kNone: break;
+  }
+  if (b.motion == Motion::kNone) feed(b, line, false);
+  for (int a = 0; a < kNumAxes; ++a) pos_[a] = b.target[a] - origin_of(b)[a];
+}
+
+// G28/G30 once, on the block that reaches the reference position, with the intermediate point as
+// the source gave it (G91 increments stay increments): the control goes to its own reference
+// position, which the machine file's only stands for.
+void Writer::reference_return(const ResolvedBlock& b, Line& line) {
+  if (b.motion == Motion::kNone || b.frame.intermediate) return;  // Fanuc G28 alone moves nothing
+  const char* code = b.frame.code == FrameCode::kHome ? "G28" : "G30";
+  const bool every_axis = b.frame.words == 0;  // LinuxCNC: all axes, no intermediate point
+  if (every_axis && opt_.dialect == Dialect::kFanuc) {
+    // Fanuc's G28 without words moves nothing: the same return, through where the tool stands.
+    distance(true, line);
+    line.word(code);
+    for (int a = 0; a < kNumAxes; ++a) line.number(kAxisLetters[a], 0);
+  } else {
+    if (!every_axis) distance(b.frame.incremental, line);
+    line.word(code);
+    statement_words(b, b.frame.values, line);
+  }
+  known_ &= static_cast<std::uint8_t>(~(every_axis ? 0x1Fu : b.frame.words));
+}
+
+// G53 with its machine coordinates. LinuxCNC moves in the G0 or G1 in force; Fanuc's G53 is
+// always a rapid, so a G1 G53 cannot be said there: it goes out as a move in the program's
+// coordinates of the machine file, with a note.
+void Writer::machine_move(const ResolvedBlock& b, Line& line) {
+  if (b.motion == Motion::kNone) return feed(b, line, false);
+  if (opt_.dialect == Dialect::kFanuc && b.motion == Motion::kLinear) {
+    note_ += "(gcpipe: line " + std::to_string(b.line) +
+             ": G1 G53 has no Fanuc equivalent, its G53 is a rapid: written in program coordinates of the machine file)\n";
+    return motion(b, line);
+  }
+  distance(false, line);
+  line.word("G53");
+  motion_word(b.motion, b.motion == Motion::kRapid ? "G0" : "G1", line);
+  for (int a = 0; a < kNumAxes; ++a)
+    if (b.frame.words & (1u << a)) line.number(kAxisLetters[a], a < kA ? line.len(b.target[a]) : b.target[a]);
+  feed(b, line, b.motion == Motion::kLinear && b.feed_mode == FeedMode::kInverseTime);
+  known_ &= static_cast<std::uint8_t>(~b.frame.words);
+}
+
+// G10 L2 / L20 in place. Where the output dialect cannot say what the source said (Fanuc has no
+// L20 nor P0; LinuxCNC adds no G91 words to an offset), the system's origin as the parser resolved
+// it is written instead, with a note: that one holds for the machine file only.
+void Writer::set_origin(const ResolvedBlock& b, Line& line) {
+  const bool fanuc = opt_.dialect == Dialect::kFanuc;
+  const bool here = b.frame.code == FrameCode::kSetOriginHere;
+  const std::int32_t in_force = b.work_offset - 53;
+  const bool resolved = fanuc ? (here || b.frame.p == 0) : b.frame.incremental;
+  if (resolved) {
+    note_ += "(gcpipe: line " + std::to_string(b.line) + ": " + (here ? "G10 L20" : b.frame.p == 0 ? "G10 L2 P0" : "G91 G10 L2") +
+             " cannot be said in this dialect: written as the origin the machine file gives)\n";
+    distance(false, line);
+    line.word("G10 L2");
+    line.integer('P', b.frame.p == 0 ? in_force : b.frame.p);
+    // resolved holds machine coordinates of the origin: the words of G10 L2 are exactly those
+    statement_words(b, b.frame.resolved, line);
+  } else {
+    distance(b.frame.incremental, line);
+    line.word(here ? "G10 L20" : "G10 L2");
+    line.integer('P', b.frame.p);
+    statement_words(b, b.frame.values, line);
+  }
+  // A new origin for the system in force: the control's position reads anew there (its own
+  // values); with L20 it reads as the words, as it does here.
+  const bool active = b.frame.p == 0 || b.frame.p == in_force || !work_offset_written_;
+  if (!active) return;
+  if (here && !resolved) known_ |= b.frame.words;
+  else known_ &= static_cast<std::uint8_t>(~b.frame.words);
+}
+
+// G10 tool entries in place: the G43 H after them must load the program's value, not the
+// control's table. Across dialects, the entry's value as the parser resolved it.
+void Writer::tool_entry(const ResolvedBlock& b, Line& line) {
+  const bool fanuc_out = opt_.dialect == Dialect::kFanuc;
+  const FrameCode code = b.frame.code;
+  const bool fanuc_in = code == FrameCode::kToolLength || code == FrameCode::kToolRadius;
+  const double length = b.frame.resolved[kZ], radius = b.frame.resolved[kX];
+  const bool sets_length = code == FrameCode::kToolLength || (b.frame.words & (1u << kZ));
+  const bool sets_radius = code == FrameCode::kToolRadius || (!fanuc_in && b.frame.has_r);
+  auto entry = [&](Line& l, const char* what, char letter, double v) {
+    l.word(what);
+    l.integer('P', b.frame.p);
+    l.number(letter, l.len(v));
+  };
+  if (fanuc_out == fanuc_in) {
+    distance(b.frame.incremental, line);
+    line.word(code == FrameCode::kToolTable ? "G10 L1" : code == FrameCode::kToolRadius ? "G10 L12" : "G10 L10");
+    line.integer('P', b.frame.p);
+    if (b.frame.words & (1u << kZ)) line.number('Z', line.len(b.frame.values[kZ]));
+    if (b.frame.has_r) line.number('R', line.len(b.frame.r));
+    return;
+  }
+  if (code == FrameCode::kToolTableHere || b.frame.incremental)
+    note_ += "(gcpipe: line " + std::to_string(b.line) +
+             ": this tool entry cannot be said in this dialect: written as the value the machine file gives)\n";
+  if (fanuc_out) {
+    // Fanuc sets one value a G10: the radius, if both, on a line of its own before.
+    if (sets_length && sets_radius) {
+      Line extra(opt_, line.inch);
+      entry(extra, "G10 L12", 'R', radius);
+      note_ += extra.text + "\n";
+    }
+    if (sets_length) entry(line, "G10 L10", 'R', length);
+    else entry(line, "G10 L12", 'R', radius);
+    return;
+  }
+  distance(false, line);
+  line.word("G10 L1");
+  line.integer('P', b.frame.p);
+  if (sets_length) line.number('Z', line.len(length));
+  if (sets_radius) line.number('R', line.len(radius));
 }
 
 }  // namespace gcpipe

@@ -28,6 +28,13 @@ struct WriteOptions {
   Dialect dialect = Dialect::kFanuc;
   /// Write `N<source line>` on each block.
   bool source_line_numbers = true;
+  /// Keep the source's frames (output.nc, the write stage): positions in the program's own
+  /// coordinates, G54..G59 and G43 H / G49 where the source states them, G10 / G92 / G52 / G28 /
+  /// G30 / G53 written as such, so the output runs on the control's own work offsets, tool
+  /// table and reference positions as the source does (docs/reference.md, "The write stage").
+  /// Off: every position in the machine file's G5x frame under a header that asserts G54 and
+  /// G49, as compensated.nc needs (its points are machine positions computed with that file).
+  bool source_frames = false;
 };
 
 /// Reads the `write` section of a pipeline config.
@@ -65,6 +72,18 @@ class Writer {
   void arc(const ResolvedBlock& b, Line& line);
   void slot(const ResolvedBlock& b, Line& line);
   void program_stop(const ResolvedBlock& b, Line& line);
+  // -- source frames (WriteOptions::source_frames)
+  const Axes& origin_of(const ResolvedBlock& b) const;
+  void work_offset(const ResolvedBlock& b, Line& line);
+  void distance(bool incremental, Line& line);
+  std::uint8_t axes_to_write(const ResolvedBlock& b, std::uint8_t must) const;
+  void frame_statement(const ResolvedBlock& b, Line& line);
+  void reference_return(const ResolvedBlock& b, Line& line);
+  void machine_move(const ResolvedBlock& b, Line& line);
+  void set_origin(const ResolvedBlock& b, Line& line);
+  void tool_entry(const ResolvedBlock& b, Line& line);
+  void statement_words(const ResolvedBlock& b, const Axes& values, Line& line);
+  void forget_after(const ResolvedBlock& b);
 
   WriteOptions opt_;
   // What the output has established so far; starts at the control defaults the header asserts.
@@ -82,6 +101,7 @@ class Writer {
   double path_tolerance_ = 0;              // [mm]
   bool tlo_active_ = false;
   std::int32_t tlo_ = 0;
+  double tlo_length_ = 0;  // the length in force as the parser has it (a G10 may change it)
   bool tcp_ = false;
   bool tool_vector_mode_ = false;
   bool tool_vector_written_ = false;  // an I J K vector has been written since G43.5
@@ -91,6 +111,15 @@ class Writer {
   Spindle spindle_ = Spindle::kOff;
   std::int32_t tool_ = 0;
   std::uint8_t coolant_ = 0;
+  // Source frames: whether the output has selected a work system yet (before, the control's own
+  // is in force), the distance mode the output is in, and the axes whose position in program
+  // coordinates the control is known to share with the parser (an absolute position written since
+  // the start, a G28/G30/G53, a change of work system or of the origin in force): a G91 move of
+  // any other axis is written as the increment it is.
+  bool work_offset_written_ = false;
+  bool incremental_ = false;
+  std::uint8_t known_ = 0;
+  std::string note_;  // a line said differently than the source (a dialect cannot say it), said before it
 };
 
 }  // namespace gcpipe

@@ -9,9 +9,17 @@ namespace {
 
 using pipeline::Emitter;
 
+// output.nc keeps the source's frames: it runs on the control's own work offsets, tool table and
+// reference positions, as the source would (compensated.nc, which writes machine positions, does not).
+WriteOptions output_options(const pipeline::StageContext& c) {
+  WriteOptions o = load_write_options(c.config->root.section("write"));
+  o.source_frames = true;
+  return o;
+}
+
 class WriteStage final : public pipeline::Stage {
  public:
-  explicit WriteStage(const pipeline::StageContext& c) : writer_(load_write_options(c.config->root.section("write"))) {}
+  explicit WriteStage(const pipeline::StageContext& c) : writer_(output_options(c)) {}
 
   bool block(const ResolvedBlock& b, Emitter& out) override {
     writer_.write(b, text_);

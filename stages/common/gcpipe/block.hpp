@@ -68,6 +68,52 @@ struct TrochoidSlot {
   bool climb = true;     //!< P+1 climb (default), P-1 conventional
 };
 
+/// A non-modal code of the source that sets or uses a frame the control holds: its work offsets,
+/// the G92 shift, tool entries, reference positions, machine coordinates. The parser resolves it
+/// (targets are machine coordinates of the machine file); the write stage writes it as the source
+/// said it, so that output.nc runs in the control's own frames (docs/reference.md, "The write stage").
+enum class FrameCode : std::uint8_t {
+  kNone = 0,
+  kSetOrigin = 1,       //!< G10 L2 P: the origin of a work system is the words
+  kSetOriginHere = 2,   //!< G10 L20 P (LinuxCNC): the origin such that the position reads as the words
+  kShift = 3,           //!< G92: the position reads as the words
+  kShiftClear = 4,      //!< G92.1
+  kShiftSuspend = 5,    //!< G92.2
+  kShiftRestore = 6,    //!< G92.3
+  kLocalShift = 7,      //!< G52: the origin shifted by the words
+  kHome = 8,            //!< G28: through the words to the first reference position
+  kHome2 = 9,           //!< G30: the same to the second
+  kMachine = 10,        //!< G53: the words are machine coordinates
+  kToolTable = 11,      //!< LinuxCNC G10 L1 P: Z length, R radius of tool P
+  kToolTableHere = 12,  //!< LinuxCNC G10 L10 P: the length such that the position reads as Z
+  kToolLength = 13,     //!< Fanuc G10 L10 P R: length geometry (G91: R is added)
+  kToolRadius = 14,     //!< Fanuc G10 L12 P R: radius geometry (G91: R is added)
+};
+
+/// How the source stated its frames on a block's line: what a writer needs to say it again in the
+/// control's frames instead of the machine file's. Blocks the parser expands (a G28, a cycle)
+/// carry their line's.
+struct SourceFrame {
+  /// Origin the program's values are measured from: its G5x origin as the program has set it
+  /// (G10) plus the G92/G52 shift in force [mm, deg], in the machine file's machine coordinates.
+  /// target - origin = the position in the program's own coordinates.
+  Axes origin{};
+  FrameCode code = FrameCode::kNone;  //!< the frame statement on the line, if any
+  std::uint8_t words = 0;             //!< axis bits the statement gave (in `values`)
+  bool incremental = false;           //!< G91 in force on the line
+  bool intermediate = false;          //!< G28/G30: this block is the move to the intermediate point
+  bool selects_work_offset = false;   //!< the line has G54..G59
+  bool sets_tool_length = false;      //!< the line has G43, G43.4, G43.5 or G49
+  bool has_r = false;                 //!< a G10 tool entry's R word is in `r`
+  std::int32_t p = 0;                 //!< G10 P: work system (0 = the one in force) or tool
+  Axes values{};  //!< the statement's axis words [mm, deg], as written (G91: increments)
+  double r = 0;   //!< G10 tool entry: the R word [mm]
+  /// G10 L2/L20: the system's origin after the statement (machine file frame); tool entries:
+  /// [kZ] the entry's length and [kX] its radius after it [mm]. For a dialect that cannot say
+  /// the statement as written.
+  Axes resolved{};
+};
+
 /// One source line after modal resolution. Plain data; copying is cheap apart from the strings.
 struct ResolvedBlock {
   // -- where it came from
@@ -114,6 +160,7 @@ struct ResolvedBlock {
   ProgramStop stop = ProgramStop::kNone;    //!< M0/M1/M2/M30 in this block
   std::int32_t program_number = -1;         //!< O / ':' number on this line, -1 if none
   bool percent = false;                     //!< the line is a '%' tape marker
+  SourceFrame frame{};                      //!< how the source stated its frames (write stage)
 
   // -- cycle (kTrochoidSlot only)
   TrochoidSlot slot{};
@@ -127,7 +174,7 @@ bool same_meaning(const ResolvedBlock& a, const ResolvedBlock& b, double tol = 1
 const char* to_string(Motion m);
 
 /// What the passes over a whole program read of each block: its line, motion, stops, TCP mode and
-/// the tool length in force. 32 bytes where a block is 472: a pass that reads a field or two of every
+/// the tool length in force. 32 bytes where a block is 616: a pass that reads a field or two of every
 /// block (segments, the planner's rests, the tool tip of each raw sample) maps a fifteenth of
 /// the pages, and those passes run at gigabytes a second, faster than any trimming of the
 /// resident set can follow (issue 12: the program's blocks were what still grew with it).
