@@ -40,9 +40,11 @@ dds::DdsOptions dds_options(const DdsArgs& a) {
 
 // A monitor watches every pipeline on its domain unless told a partition: each `gcpipe stream`
 // run has its own partition, `gcpipe launch` the default one.
+// (Not with DDS Security: its permissions grant the default partition only, and a reader of
+// another is refused at creation.)
 dds::DdsOptions monitor_options(const MonitorArgs& a) {
   dds::DdsOptions o = dds_options(a);
-  if (o.partition.empty()) o.partition = "*";
+  if (o.partition.empty() && o.identity.empty()) o.partition = "*";
   return o;
 }
 

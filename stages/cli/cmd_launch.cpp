@@ -107,7 +107,10 @@ int run_stream(const StreamArgs& a) {
   // And its own DDS partition: a second pipeline on the same domain does not even match this
   // one's readers and writers (so it cannot take this one's readers for its own, or the other
   // way round); the program id is the second guard.
-  const std::vector<std::string> partition = {"--partition", "gcpipe-stream-" + id};
+  // (Not with DDS Security: the permissions make_security.sh writes grant the default partition
+  // only; there the program id alone keeps a second pipeline's program out of the files.)
+  std::vector<std::string> partition;
+  if (plan.identity.empty()) partition = {"--partition", "gcpipe-stream-" + id};
   std::map<std::string, int> sinks;
   std::vector<dds::LaunchProcess> extra;
   if (runs(plan, "write")) {
