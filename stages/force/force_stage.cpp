@@ -78,6 +78,7 @@ class ForceStage final : public pipeline::Stage {
     const auto by_force = force::apply_feeds(program_, moves, force::plan_feeds(moves, before_, o));
     const auto planned = force::limit_feeds_to_drives(by_force, before_run_.blocks);
     count_drive_limited(by_force, planned);
+    force_only_cycle_ = run_on_drives(by_force).cycle_time;  // what the drives' caps cost
     after_run_ = run_on_drives(planned);
     const auto moves_after = force::with_spindle_speed(force::moves_from_blocks(planned), options_.spindle_speed);
     o.target_force = 0;
@@ -233,6 +234,7 @@ class ForceStage final : public pipeline::Stage {
     if (planning_) {
       j["planned"] = summary(after_, after_run_), j["target_force_N"] = options_.target_force;
       j["drive_limited_blocks"] = {{"velocity", velocity_limited_}, {"reach", reach_limited_}};
+      j["force_only_cycle_time_s"] = force_only_cycle_;  // the force's feeds without the drives' caps
     }
     return j;
   }
@@ -254,9 +256,10 @@ class ForceStage final : public pipeline::Stage {
       s += buf;
       std::snprintf(buf, sizeof buf,
                     "  cycle (interpolator): programmed %.2f s, planned %.2f s; feed moves %.2f s -> %.2f s "
-                    "(length/feed %.2f s -> %.2f s); drives lowered %zu feeds (velocity), %zu (reach)\n",
+                    "(length/feed %.2f s -> %.2f s); drives lowered %zu feeds (velocity), %zu (reach), "
+                    "uncapped %.2f s\n",
                     before_run_.cycle_time, after_run_.cycle_time, before_run_.feed_move_time, after_run_.feed_move_time,
-                    before_.cutting_time, after_.cutting_time, velocity_limited_, reach_limited_);
+                    before_.cutting_time, after_.cutting_time, velocity_limited_, reach_limited_, force_only_cycle_);
       s += buf;
     } else {
       std::snprintf(buf, sizeof buf, "  cycle (interpolator): %.2f s, feed moves %.2f s\n", before_run_.cycle_time,
@@ -276,6 +279,7 @@ class ForceStage final : public pipeline::Stage {
   simulate::Model drives_;
   force::DriveRun before_run_, after_run_;
   std::size_t velocity_limited_ = 0, reach_limited_ = 0;
+  double force_only_cycle_ = 0;
   std::string failure_;
 };
 
