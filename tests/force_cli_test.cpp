@@ -38,6 +38,15 @@ TEST(ForceStage, BatchPlansTheSeed000SlotAndReportsIt) {
   EXPECT_LE(after.at("max_peak_force_N").get<double>(), 1.05 * 740);
   EXPECT_LT(after.at("cutting_time_s").get<double>(), 0.9 * before.at("cutting_time_s").get<double>());
   EXPECT_GT(after.at("max_deflection_um").get<double>(), 0.0);
+  // Issue 36 item 4: the planned program's cycle as the interpolator runs it is the simulate
+  // stage's (which runs the planned blocks) less the final settling, at most 50 Ts = 3.2 s of the
+  // exponential acc/dec (Ts 0.064 s); the drives' caps only ever lower feeds.
+  const double planned_cycle = after.at("interpolated").at("cycle_time_s").get<double>();
+  const double simulated = report.at("simulation").at("cycle_time_before_s").get<double>();
+  EXPECT_GE(simulated, planned_cycle - 1e-3);
+  EXPECT_LE(simulated, planned_cycle + 50 * 0.064);
+  EXPECT_GE(planned_cycle, f.at("force_only_cycle_time_s").get<double>() - 1e-9);
+  EXPECT_LT(planned_cycle, 0.9 * before.at("interpolated").at("cycle_time_s").get<double>());
   EXPECT_TRUE(fs::exists(dir / "plots" / "force_path.png"));
   EXPECT_TRUE(fs::exists(dir / "plots" / "force_time.png"));
   // The deflection beside the servo contour error: every simulated bucket placed on a force

@@ -3,16 +3,20 @@
 // and reports nothing. With one, it keeps the program, and at its end sweeps it through the
 // stock (stages/force/README.md): report.json's `force` object and two figures. With
 // `target_force` set it plans the feeds: it then holds the program back (the feed of a block
-// depends on the engagement ahead of it) and emits it at the end with each feed block's F set.
+// depends on the engagement ahead of it) and emits it at the end with each feed block's F set,
+// capped by what the drives allow (drive_limits.hpp). Either way the program is timed by the
+// interpolate stage's Interpolator as the simulate stage runs it, before and after planning.
 #include <cstdio>
 #include <variant>
 
 #include <nlohmann/json.hpp>
 
+#include "drive_limits.hpp"
 #include "force_options.hpp"
 #include "force_product.hpp"
 #include "force_report.hpp"
 #include "path_force.hpp"
+#include "simulate.hpp"
 #include "stage.hpp"
 
 namespace gcpipe {
@@ -38,6 +42,7 @@ class ForceStage final : public pipeline::Stage {
     section_ = c.config->root.section("force");
     options_ = force::load_force_options(section_);
     planning_ = options_.target_force > 0;
+    drives_ = drives_model(*c.config);
   }
 
   bool block(const ResolvedBlock& b, Emitter& out) override {
@@ -65,10 +70,16 @@ class ForceStage final : public pipeline::Stage {
     auto stock = force::make_stock(moves, o);
     before_ = force::sweep_path(moves, o, std::move(stock));
     if (!planning_) {
+      before_run_ = run_on_drives(program_);
       hand_on(before_, out);
       return true;
     }
-    const auto planned = force::apply_feeds(program_, moves, force::plan_feeds(moves, before_, o));
+    before_run_ = run_on_drives(program_);
+    const auto by_force = force::apply_feeds(program_, moves, force::plan_feeds(moves, before_, o));
+    const auto planned = force::limit_feeds_to_drives(by_force, before_run_.blocks);
+    count_drive_limited(by_force, planned);
+    force_only_cycle_ = run_on_drives(by_force).cycle_time;  // what the drives' caps cost
+    after_run_ = run_on_drives(planned);
     const auto moves_after = force::with_spindle_speed(force::moves_from_blocks(planned), options_.spindle_speed);
     o.target_force = 0;
     auto stock_after = force::make_stock(moves_after, o);
@@ -115,6 +126,38 @@ class ForceStage final : public pipeline::Stage {
     return true;  // nothing cuts
   }
 
+  /// The interpolator as the simulate stage builds it (machine limits, the `interpolate` section,
+  /// Ts from servo.drives); a config without a drives file gets no acc/dec (Ts = 0).
+  static simulate::Model drives_model(const PipelineConfig& pc) {
+    if (pc.root.has("servo")) return simulate::load_model(pc);
+    simulate::Model m;
+    m.kin = pc.machine.kinematics;
+    m.interp = interpolate::load_interpolate_options(pc.root.section("interpolate"));
+    m.interp.max_velocity = m.kin.max_velocity;
+    m.interp.max_acceleration = m.kin.max_acceleration;
+    return m;
+  }
+
+  /// `blocks` through the interpolator from where the simulate stage starts the machine.
+  force::DriveRun run_on_drives(const std::vector<ResolvedBlock>& blocks) const {
+    std::size_t first = 0;
+    while (first < blocks.size() && blocks[first].motion == Motion::kNone) ++first;
+    if (first == blocks.size()) return {std::vector<force::BlockDrive>(blocks.size()), 0, 0, ""};
+    interpolate::InterpolateOptions io = drives_.interp;
+    io.kinematics = &drives_.kin;
+    const Axes start = simulate::machine_start(drives_.kin, blocks[first], simulate::tool_length_of(drives_, blocks[first]));
+    return force::run_on_drives(blocks, io, start);
+  }
+
+  /// How many feed blocks the drives slowed below the force's feed, and by which rule.
+  void count_drive_limited(const std::vector<ResolvedBlock>& by_force, const std::vector<ResolvedBlock>& planned) {
+    for (std::size_t i = 0; i < planned.size(); ++i) {
+      const double velocity_cap = std::min(by_force[i].feed, before_run_.blocks[i].max_feed);
+      if (velocity_cap < by_force[i].feed) ++velocity_limited_;
+      if (planned[i].feed < velocity_cap * (1 - 1e-12)) ++reach_limited_;
+    }
+  }
+
   /// The force of the program as emitted, for the compensate stage's error budget (which needs the
   /// deflection, so nothing is handed on when the radial force is not known).
   void hand_on(const force::PathForce& p, Emitter& out) const {
@@ -138,14 +181,22 @@ class ForceStage final : public pipeline::Stage {
     return go;
   }
 
-  nlohmann::ordered_json summary(const force::PathForce& p) const {
+  static nlohmann::ordered_json timing_json(const force::DriveRun& run) {
+    nlohmann::ordered_json j = {{"cycle_time_s", run.cycle_time}, {"feed_move_time_s", run.feed_move_time}};
+    if (!run.failure.empty()) j["failure"] = run.failure;
+    return j;
+  }
+
+  nlohmann::ordered_json summary(const force::PathForce& p, const force::DriveRun& run) const {
     double mean = 0, tangential = 0, power = 0, ae = 0, ap = 0;
     for (const auto& s : p.samples) {
       mean += s.mean_force, tangential += s.mean_tangential, power += s.power;
       ae = std::max(ae, s.radial_depth), ap = std::max(ap, s.axial_depth);
     }
     const double n = std::max<double>(1, static_cast<double>(p.samples.size()));
-    nlohmann::ordered_json j = {{"samples", p.samples.size()}, {"cutting_time_s", p.cutting_time}};
+    // cutting_time_s: feed-move length / feed, as before; interpolated: the interpolate stage's time.
+    nlohmann::ordered_json j = {{"samples", p.samples.size()}, {"cutting_time_s", p.cutting_time},
+                                {"interpolated", timing_json(run)}};
     if (options_.material.resultant_known())
       j.update({{"max_mean_force_N", p.max_mean_force}, {"average_mean_force_N", mean / n},
                 {"max_peak_force_N", p.max_peak_force}});
@@ -179,14 +230,17 @@ class ForceStage final : public pipeline::Stage {
     if (options_.material.group) j["kienzle"] = kienzle_json();
     j["tool"] = {{"diameter_mm", options_.tool.diameter}, {"flutes", options_.tool.flutes},
                  {"stickout_mm", options_.tool.stickout}, {"effective_diameter_mm", options_.tool.effective_diameter()}};
-    j["programmed"] = summary(before_);
-    if (planning_)
-      j["planned"] = summary(after_), j["target_force_N"] = options_.target_force;
+    j["programmed"] = summary(before_, before_run_);
+    if (planning_) {
+      j["planned"] = summary(after_, after_run_), j["target_force_N"] = options_.target_force;
+      j["drive_limited_blocks"] = {{"velocity", velocity_limited_}, {"reach", reach_limited_}};
+      j["force_only_cycle_time_s"] = force_only_cycle_;  // the force's feeds without the drives' caps
+    }
     return j;
   }
 
   std::string report_line() const {
-    char buf[320];
+    char buf[480];
     if (options_.material.resultant_known())
       std::snprintf(buf, sizeof buf, "  force: max mean %.0f N, peak %.0f N, deflection %.1f um, cutting %.1f s\n",
                     before_.max_mean_force, before_.max_peak_force, 1e3 * before_.max_deflection, before_.cutting_time);
@@ -200,6 +254,17 @@ class ForceStage final : public pipeline::Stage {
       std::snprintf(buf, sizeof buf, "  force-aware feed (target %.0f N): max mean %.0f N, peak %.0f N, cutting %.1f s\n",
                     options_.target_force, after_.max_mean_force, after_.max_peak_force, after_.cutting_time);
       s += buf;
+      std::snprintf(buf, sizeof buf,
+                    "  cycle (interpolator): programmed %.2f s, planned %.2f s; feed moves %.2f s -> %.2f s "
+                    "(length/feed %.2f s -> %.2f s); drives lowered %zu feeds (velocity), %zu (reach), "
+                    "uncapped %.2f s\n",
+                    before_run_.cycle_time, after_run_.cycle_time, before_run_.feed_move_time, after_run_.feed_move_time,
+                    before_.cutting_time, after_.cutting_time, velocity_limited_, reach_limited_, force_only_cycle_);
+      s += buf;
+    } else {
+      std::snprintf(buf, sizeof buf, "  cycle (interpolator): %.2f s, feed moves %.2f s\n", before_run_.cycle_time,
+                    before_run_.feed_move_time);
+      s += buf;
     }
     return s;
   }
@@ -211,6 +276,10 @@ class ForceStage final : public pipeline::Stage {
   std::vector<ResolvedBlock> program_;
   std::vector<std::variant<std::size_t, HeldDiagnostic>> held_;
   force::PathForce before_, after_;
+  simulate::Model drives_;
+  force::DriveRun before_run_, after_run_;
+  std::size_t velocity_limited_ = 0, reach_limited_ = 0;
+  double force_only_cycle_ = 0;
   std::string failure_;
 };
 

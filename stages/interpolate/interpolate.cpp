@@ -451,7 +451,9 @@ std::optional<InterpolateResult> Interpolator::tcp_duration(const ResolvedBlock&
     double length = length_xyz;  // along the tool tip in the workpiece frame
     if (!(length > 1e-9)) length = std::hypot(w.end[kA] - raw_end_[kA], w.end[kC] - raw_end_[kC]);
     duration = length / (b.feed / 60.0);
+    res.feed_length = length;
   }
+  res.axis_travel = w.rate;
   double need = 0;
   for (std::size_t i = 0; i < kNumAxes; ++i) {
     if (w.rate[i] == 0) continue;
@@ -459,6 +461,7 @@ std::optional<InterpolateResult> Interpolator::tcp_duration(const ResolvedBlock&
     need = std::max(need, w.rate[i] / vlim[i]);
     if (opt_.max_acceleration[i] > 0) need = std::max(need, std::sqrt(w.curvature[i] / opt_.max_acceleration[i]));
   }
+  res.limit_duration = need;
   if (need > duration * (1 + 1e-12)) {
     res.velocity_limited = feed_move && duration > 0;
     duration = need;
@@ -527,10 +530,13 @@ std::optional<InterpolateResult> Interpolator::plan_duration(const ResolvedBlock
     }
     if (!(length > min_length)) length = std::hypot(travel[kA], travel[kC]);  // deg at deg/min
     duration = length / (b.feed / 60.0);
+    res.feed_length = length;
   }
+  res.axis_travel = travel;
   for (std::size_t i = 0; i < kNumAxes; ++i) {
     if (travel[i] == 0 || !(vlim[i] > 0)) continue;
     const double need = travel[i] / vlim[i];
+    res.limit_duration = std::max(res.limit_duration, need);
     if (need > duration * (1 + 1e-12)) {
       duration = need;
       res.velocity_limited = b.motion != Motion::kRapid;

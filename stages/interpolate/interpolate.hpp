@@ -122,6 +122,13 @@ struct InterpolateResult {
   std::string message;     //!< for kUnsupported / kInvalid: names the block and what to do
   double duration = 0;     //!< time the block takes [s]
   bool velocity_limited = false;  //!< the feed was lowered to respect an axis velocity limit
+  // What the axes allow on this block whatever its feed, for a feed planner ahead of the
+  // interpolator (stages/force: the force-aware feed is capped by the drives). At a G94 feed F
+  // [length/min] the block takes max(60 feed_length / F, limit_duration): the largest feed the
+  // limits let run as programmed is 60 feed_length / limit_duration.
+  double feed_length = 0;     //!< length the G94 feed is measured along [mm; deg for rotary-only]; 0: not a G94 feed move
+  double limit_duration = 0;  //!< shortest duration the joint velocity (and in TCP mode acceleration) limits allow [s]
+  Axes axis_travel{};         //!< largest |dq_i/ds| over the block, s in [0, 1]: axis i moves at most axis_travel_i / duration [mm/s, deg/s]
 };
 
 struct InterpolateStats {
