@@ -17,6 +17,7 @@ packages=(
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev libpng-dev
+  help2man  # the man page build/docs/gcpipe.1 (docs/CMakeLists.txt)
   linuxcnc-uspace  # rs274, LinuxCNC's interpreter: the oracle of tests/rs274_diff_test.cpp
 )
 missing=()
