@@ -18,6 +18,7 @@
 
 #include "dds_runtime.hpp"
 #include "gcpipe/config.hpp"
+#include "gcpipe/stop.hpp"
 #include "stage.hpp"
 
 extern char** environ;
@@ -381,7 +382,7 @@ int Supervisor::run() {
     if (stop_requested()) {
       log_ << "gcpipe launch " << plan_.name << ": stopping every process (signal)" << std::endl;
       stop_all();
-      return 130;
+      return 128 + (gcpipe::stop_signal() != 0 ? gcpipe::stop_signal() : SIGINT);  // 130 SIGINT, 143 SIGTERM
     }
     for (const Child& c : children_)
       if (c.pid > 0 && !c.ready && now() - c.started_at > plan_.ready_timeout) {
