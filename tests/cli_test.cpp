@@ -1,6 +1,8 @@
 // The gcpipe executable as a user runs it: help, batch outputs, exit codes, bad configs, and
 // memory that does not grow with the length of the program.
 #include <gtest/gtest.h>
+
+#include <regex>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <spawn.h>
@@ -63,6 +65,19 @@ TEST(Cli, MistypedCommandsAndOptionsAreNamedWithWhatWasMeant) {
   // Known words with a wrong value keep CLI11's message, which names the value.
   const Outcome v = gcpipe({"batch", "/nonexistent/x.nc", "-o", out});
   EXPECT_EQ(v.err.find("unknown"), std::string::npos) << v.err;
+}
+
+// --progress into a pipe (a log, CI): plain lines with percent and elapsed time at every tenth,
+// no carriage returns, and every step closed (a step that stops reporting early says "done").
+TEST(Cli, ProgressIntoALogIsPlainLinesWithPercentAndTime) {
+  const Outcome r = gcpipe({"batch", (fs::path(GCPIPE_SOURCE_DIR) / "samples" / "trochoid_slot_f3000.nc").string(), "-o",
+                            tmpdir("progress").string(), "--progress"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.err.find('\r'), std::string::npos);
+  EXPECT_NE(r.err.find("compensating (learning, window by window):   0 % (0/"), std::string::npos) << r.err;
+  EXPECT_TRUE(std::regex_search(r.err, std::regex("compensating \\(learning, window by window\\): +[1-9][0-9] % \\([0-9]+/[0-9]+\\), [0-9.]+ s")))
+      << r.err;
+  EXPECT_NE(r.err.find("compensating (learning, window by window): done, "), std::string::npos) << r.err;
 }
 
 TEST(Cli, BatchWritesProgramSummaryAndDiagnostics) {
