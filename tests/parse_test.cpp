@@ -1586,3 +1586,34 @@ TEST(ParseRound2, LinuxCncCycleSeriesMeasuresFromTheLevelItBeganAt) {
   ASSERT_EQ(z.size(), want.size());
   for (std::size_t i = 0; i < z.size(); ++i) EXPECT_NEAR(z[i], want[i], 1e-12) << "move " << i;
 }
+
+// Issue 32 item 2: programs a control runs must not be rejected.
+// `G04 P.001 G0 X1.0 Y1.0` (a real program): rs274 prints DWELL(0.0010) and then
+// STRAIGHT_TRAVERSE(1, 1, ...): its order of execution dwells before it moves. The dwell goes
+// out first as a block of its own on the same line, with the comment and tool change; on Fanuc,
+// where X is the dwell time, axis words with G04 stay an error.
+TEST(ParseAccept, LinuxCncDwellAndMoveInOneBlockDwellFirst) {
+  Parsed p = parse_text("G21 G90 F100\nT1 M6 G04 P.001 G0 X1.0 Y1.0 (dwell, then move)\nX2\n", linuxcnc());
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.blocks.size(), 4u);
+  const ResolvedBlock& d = p.blocks[1];
+  const ResolvedBlock& m = p.blocks[2];
+  EXPECT_EQ(d.line, 2u);
+  EXPECT_EQ(d.motion, Motion::kDwell);
+  EXPECT_DOUBLE_EQ(d.dwell, 0.001);
+  EXPECT_DOUBLE_EQ(d.target[kX], 0);  // it dwells where the tool stands
+  EXPECT_TRUE(d.tool_change);
+  EXPECT_EQ(d.comment, "dwell, then move");
+  EXPECT_EQ(m.line, 2u);
+  EXPECT_EQ(m.motion, Motion::kRapid);
+  EXPECT_DOUBLE_EQ(m.target[kX], 1);
+  EXPECT_DOUBLE_EQ(m.target[kY], 1);
+  EXPECT_FALSE(m.tool_change);
+  EXPECT_TRUE(m.comment.empty());
+  EXPECT_EQ(p.blocks[3].motion, Motion::kRapid);  // the G0 of the dwell block stays in force
+  EXPECT_EQ(p.summary.blocks_emitted, 3u);
+  expect_error("G0 G4 P1 Y5\n", "a dwell block cannot move", 10);  // Fanuc: unchanged
+  expect_error("G21 F100 T1 M6\nG41 D1\nG1 X20 Y20\nG4 P1 X30\n", "under cutter radius compensation", 1, linuxcnc());
+  expect_error("G0 Z5\nG81 X1 Y1 Z-1 R1 F100\nG4 P1 X2\n", "canned cycle is in force", 1, linuxcnc());
+  expect_error("G2 X2 Y0 I1 J0 F100\nG4 P1 X0\n", "both use P", 1, linuxcnc());
+}

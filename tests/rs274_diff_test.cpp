@@ -327,6 +327,8 @@ std::vector<std::pair<std::string, std::string>> generated_programs() {
       // G91 @ ^ at X0 Y0 (no angle to add to): rejected by both, in a plain move and a cycle.
       {"g91_polar_at_the_origin", "G21 G90 F100\nG0 X0 Y0 Z5\nG91\nG0 @1 ^30\nG81 @1 ^30 Z-1 R-1\nG90 G80\nG0 X1\n"
                                   "G91\nG0 @1 ^30\nG90\nM2\n"},
+      // Issue 32: a dwell and a move in one block; rs274 dwells, then moves.
+      {"dwell_and_move_in_one_block", "G21 G90 F100\nG04 P.001 G0 X1.0 Y1.0\nG4 P0.5 G1 X2 Z-1\nY3\nM2\n"},
       {"definition_after_m2", "G21 G90\no<late> call [2]\nG0 Y1\nM2\no<late> sub\nG0 X#1\no<late> endsub\nG0 Z9\n"},
   };
 }
@@ -426,7 +428,7 @@ TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
     expect_same(text, file, name, name.rfind("tool_entries", 0) == 0);
     ++n;
   }
-  EXPECT_EQ(n, 22);
+  EXPECT_EQ(n, 23);
 }
 
 TEST(Rs274Diff, CutterCompensationMatchesLinuxCnc) {

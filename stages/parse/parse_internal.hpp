@@ -287,6 +287,7 @@ struct Parser::Impl {
   std::vector<parse_detail::Move> moves;  // expansion of the current line, empty for one block
   ResolvedBlock block;                    // the block being resolved (reused: no allocation)
   bool exact_stop_once = false;           // G09 in the line: its blocks stop exactly at their end
+  double dwell_first = -1;                // LinuxCNC G4 beside a move: its time [s], else < 0
   ResolvedBlock expanded;                 // one move of an expansion
   parse_detail::CutterComp comp;          // cutter compensation's held moves (cutter.cpp)
   parse_detail::CutterComp comp_next;     // the same after the current line, until it commits
@@ -350,6 +351,7 @@ struct Parser::Impl {
   bool hand_out(const ResolvedBlock& b);
   void hand_out_compensated();
   bool emit_moves();
+  bool emit_dwell_first();
   bool emit_diagnostic(std::uint64_t line, std::uint32_t col, Severity sev, std::string msg);
 
   // -- scan.cpp
@@ -385,6 +387,9 @@ struct Parser::Impl {
   bool read_tool_vector(Vec3& vector);
   bool axis_targets(const BlockCodes& c, const ModalState& ns, Axes& target, std::uint8_t& mask);
   bool dwell(const BlockCodes& c, ResolvedBlock& b, const ModalState& ns);
+  bool dwell_time(const BlockCodes& c, double& t);
+  bool dwell_with_move(std::uint8_t mask) const;
+  bool dwell_before_move(const BlockCodes& c, const ModalState& ns);
   bool move(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, const Axes& target, std::uint8_t mask,
             bool vector_words, const Vec3& vector);
   bool check_feed(const BlockCodes& c, const ModalState& ns);

@@ -168,7 +168,8 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
   b.axis_words = mask;
   b.start = ns.position;
   b.frame.incremental = ns.incremental;
-  if (c.g4) return dwell(c, b, ns);
+  if (c.g4 && !dwell_with_move(mask)) return dwell(c, b, ns);
+  if (c.g4 && !dwell_before_move(c, ns)) return false;
   if (c.g275) {
     b.target = target;
     return slot(sc, b, ns);
@@ -703,14 +704,49 @@ void Parser::Impl::polar_point(const ModalState& ns, const Axes& from, Axes& to)
   to[kY] = r * std::sin(a) + ns.origin[kY];
 }
 
+// LinuxCNC runs a G4 and a move written in one block (`G4 P.001 G0 X1 Y1`): rs274 dwells first
+// (its order of execution puts the dwell before motion), then moves. On Fanuc X is the dwell time
+// itself and G04 is a block of its own: there axis words still cannot go with it.
+bool Parser::Impl::dwell_with_move(std::uint8_t mask) const {
+  return mask != 0 && opt.dialect == Dialect::kLinuxCnc;
+}
+
+// The dwell of a LinuxCNC block that also moves, kept for run_line to hand out before the move.
+// Not under cutter compensation or a canned cycle: the dwell would have to wait inside a held
+// move or a cycle's expansion.
+bool Parser::Impl::dwell_before_move(const BlockCodes& c, const ModalState& ns) {
+  const std::uint32_t col = sc.g[0].col;
+  if (ns.cycle != 0) return fail(col, "G4 with axis words while a canned cycle is in force: put the dwell on a line of its own");
+  if (ns.motion == Motion::kArcCW || ns.motion == Motion::kArcCCW)
+    return fail(col, "G4 with a G2/G3 move: both use P (rs274 refuses it too); put the dwell on a line of its own");
+  // rs274 runs it, but ends the held move without its corner at the dwell: not reproduced.
+  if (comp_involved(ns))
+    return fail(col, "G4 with a move under cutter radius compensation: put the dwell on a line of its own");
+  double t = 0;
+  if (!dwell_time(c, t)) return false;
+  dwell_first = t;
+  return true;
+}
+
 // G4: Fanuc P in ms or X in s, LinuxCNC P in s. A motion code in the same block only sets the
-// mode (both controls allow `G0 G4 P1`); axis words cannot go with a dwell.
+// mode (both controls allow `G0 G4 P1`); axis words cannot go with a dwell (but see
+// dwell_with_move).
 bool Parser::Impl::dwell(const BlockCodes& c, ResolvedBlock& b, const ModalState& ns) {
   const Scan& s = sc;
   for (int a = 0; a < kNumAxes; ++a)
     if (b.axis_words & (1u << a))
       return fail(s.w(kAxisLetters[a]).col, std::string("axis word ") + kAxisLetters[a] + " with G4: a dwell block cannot move");
   double t = 0;
+  if (!dwell_time(c, t)) return false;
+  b.motion = Motion::kDwell;
+  b.dwell = t;
+  b.target = ns.position;
+  return true;
+}
+
+// The dwell time of a G4 block [s], in the dialect's words and range.
+bool Parser::Impl::dwell_time(const BlockCodes& c, double& t) {
+  const Scan& s = sc;
   const std::uint32_t col = s.g[0].col;
   if (opt.dialect == Dialect::kFanuc) {
     if (s.has('X') && s.has('P')) return fail(s.w('P').col, "G4 with both X (seconds) and P (milliseconds): keep one");
@@ -723,9 +759,6 @@ bool Parser::Impl::dwell(const BlockCodes& c, ResolvedBlock& b, const ModalState
   }
   if (t < 0 || t > 1e5) return fail(col, "dwell time " + show(t) + " s is out of range (0..100000 s)");
   (void)c;
-  b.motion = Motion::kDwell;
-  b.dwell = t;
-  b.target = ns.position;
   return true;
 }
 
