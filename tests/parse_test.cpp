@@ -230,8 +230,12 @@ TEST(ParseModal, DwellPerDialect) {
   EXPECT_DOUBLE_EQ(l.blocks[0].dwell, 1.5);
 }
 
-TEST(ParseModal, G80CancelsMotionMode) {
-  Parsed p = parse_text("G1 X1 F100\nG80\nX2\n");
+// LinuxCNC: G80 is in the motion group; rs274 rejects axis words after it (the Fanuc rule is
+// ParseAccept.FanucAxisWordsAfterG80MoveInTheMotionModeBeforeTheCycle).
+TEST(ParseModal, G80CancelsMotionModeInLinuxCnc) {
+  ParseOptions lc;
+  lc.dialect = Dialect::kLinuxCnc;
+  Parsed p = parse_text("G1 X1 F100\nG80\nX2\n", lc);
   const Diagnostic* d = p.first_error();
   ASSERT_NE(d, nullptr);
   EXPECT_NE(d->message.find("without a motion mode"), std::string::npos);
@@ -1616,4 +1620,31 @@ TEST(ParseAccept, LinuxCncDwellAndMoveInOneBlockDwellFirst) {
   expect_error("G21 F100 T1 M6\nG41 D1\nG1 X20 Y20\nG4 P1 X30\n", "under cutter radius compensation", 1, linuxcnc());
   expect_error("G0 Z5\nG81 X1 Y1 Z-1 R1 F100\nG4 P1 X2\n", "canned cycle is in force", 1, linuxcnc());
   expect_error("G2 X2 Y0 I1 J0 F100\nG4 P1 X0\n", "both use P", 1, linuxcnc());
+}
+
+// A real Fanuc program: `G80` then `N992 Z.2`. Fanuc 0i-MF: canned cycles and G80 are group 09,
+// G00..G03 group 01; G80 cancels the cycle and group 01 stays as it was before the cycle, so Z.2
+// is a move in that mode. It was rejected ("axis word Z without a motion mode").
+TEST(ParseAccept, FanucAxisWordsAfterG80MoveInTheMotionModeBeforeTheCycle) {
+  Parsed p = parse_text("G21 G90 G17\nG00 X0 Y0 Z5\nG81 X1 Y1 Z-1 R1 F100\nX2\nG80\nN992 Z.2\n"
+                        "G01 Z3\nG83 X3 Z-2 R1 Q0.5\nG80\nX4\nG80\nY5\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  auto line = [&](std::uint64_t n) {
+    const ResolvedBlock* found = nullptr;
+    for (const ResolvedBlock& b : p.blocks)
+      if (b.line == n) found = &b;
+    return found;
+  };
+  ASSERT_NE(line(6), nullptr);
+  EXPECT_EQ(line(6)->motion, Motion::kRapid);  // G00 was in force before G81
+  EXPECT_DOUBLE_EQ(line(6)->target[kZ], 0.2);
+  EXPECT_DOUBLE_EQ(line(6)->target[kX], 2);
+  ASSERT_NE(line(10), nullptr);
+  EXPECT_EQ(line(10)->motion, Motion::kLinear);  // G01 before G83
+  EXPECT_DOUBLE_EQ(line(10)->target[kX], 4);
+  ASSERT_NE(line(12), nullptr);
+  EXPECT_EQ(line(12)->motion, Motion::kLinear);  // G80 without a cycle leaves group 01 alone
+  EXPECT_DOUBLE_EQ(line(12)->target[kY], 5);
+  // The cycle data are still cleared by G80: a new cycle needs its R and Z again.
+  expect_error("G00 Z5\nG81 X1 Y1 Z-1 R1 F100\nG80\nG81 X2\n", "R", 1);
 }

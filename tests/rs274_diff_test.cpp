@@ -329,6 +329,9 @@ std::vector<std::pair<std::string, std::string>> generated_programs() {
                                   "G91\nG0 @1 ^30\nG90\nM2\n"},
       // Issue 32: a dwell and a move in one block; rs274 dwells, then moves.
       {"dwell_and_move_in_one_block", "G21 G90 F100\nG04 P.001 G0 X1.0 Y1.0\nG4 P0.5 G1 X2 Z-1\nY3\nM2\n"},
+      // Issue 32: axis words after G80 (Fanuc moves them in the mode before the cycle); in
+      // LinuxCNC G80 is the motion mode itself and both reject them.
+      {"axis_words_after_g80", "G21 G90 F100\nG0 X0 Y0 Z5\nG81 X1 Y1 Z-1 R1\nG80\nZ.2\nG1 X2\nG80\nY2\nM2\n"},
       {"definition_after_m2", "G21 G90\no<late> call [2]\nG0 Y1\nM2\no<late> sub\nG0 X#1\no<late> endsub\nG0 Z9\n"},
   };
 }
@@ -428,7 +431,7 @@ TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
     expect_same(text, file, name, name.rfind("tool_entries", 0) == 0);
     ++n;
   }
-  EXPECT_EQ(n, 23);
+  EXPECT_EQ(n, 24);
 }
 
 TEST(Rs274Diff, CutterCompensationMatchesLinuxCnc) {

@@ -83,6 +83,9 @@ PlaneAxes plane_axes(Plane p);
 struct ModalState {
   Motion motion = Motion::kNone;  // modal motion (G0..G3), kNone until programmed or after G80
   int cycle = 0;                  // canned cycle in force (G81 -> 810), 0 = none
+  // Fanuc: the group 01 mode (G00..G03) a canned cycle began in; the cycle (group 09) does not
+  // change it, so G80 brings it back (LinuxCNC's G80 is itself a motion mode: no move after it).
+  Motion motion_before_cycle = Motion::kNone;
   bool cycle_to_r = false;        // G99: retract to R (else G98: to the initial level)
   double cycle_initial = 0;       // initial level along the drilling axis [mm, machine]
   Word cycle_r, cycle_z, cycle_q, cycle_p;  // sticky cycle words, as programmed
@@ -374,6 +377,7 @@ struct Parser::Impl {
   // -- resolve.cpp
   bool resolve(ResolvedBlock& b, ModalState& ns);
   bool sort_g_codes(BlockCodes& c);
+  Motion motion_after_g80(const ModalState& ns) const;
   bool sort_m_codes(BlockCodes& c);
   bool check_block_number();
   bool apply_feed_speed_tool(const BlockCodes& c, ModalState& ns, ResolvedBlock& b);

@@ -179,6 +179,16 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
   return move(c, b, ns, target, mask, vector_words, vector);
 }
 
+// The motion mode after a G80 without G0..G3 beside it. Fanuc 0i-MF: canned cycles and G80 are
+// group 09, G00..G03 group 01; G80 cancels the cycle and leaves group 01 as it was (the mode
+// before the cycle, or the one in force when no cycle was), so `G80` then `Z.2` moves in it.
+// LinuxCNC: G80 is in the motion group itself; rs274 rejects axis words after it ("Cannot use
+// axis values without a g code that uses them").
+Motion Parser::Impl::motion_after_g80(const ModalState& ns) const {
+  if (opt.dialect == Dialect::kLinuxCnc) return Motion::kNone;
+  return ns.cycle != 0 ? ns.motion_before_cycle : ns.motion;
+}
+
 // Step 1: G codes, one per modal group, all known; G80 beside G0..G3 is allowed (see g_group).
 GCPIPE_STEP bool Parser::Impl::sort_g_codes(BlockCodes& c) {
   const Scan& s = sc;
@@ -450,16 +460,19 @@ GCPIPE_STEP bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, 
   if (c.has(kGCycleReturn)) ns.cycle_to_r = c.group_code[kGCycleReturn] == 990;
   const bool cancel = c.has(kGCycleCancel) && c.group_code[kGCycleCancel] == 800;
   if (cancel) {
+    if (!c.has(kGMotion)) ns.motion = motion_after_g80(ns);  // before the cycle is forgotten
     ns.cycle = 0;
     // Fanuc's G80 also clears the cycle data (R, Z, Q, P); LinuxCNC keeps them sticky.
     if (opt.dialect == Dialect::kFanuc) ns.cycle_r = ns.cycle_z = ns.cycle_q = ns.cycle_p = Word{};
-    if (!c.has(kGMotion)) ns.motion = Motion::kNone;
   }
   if (c.motion_code >= 0) {
     const int m = c.motion_code;
     if (is_cycle(m)) {
       // The initial level is where the drilling axis stands when a series of cycles begins.
-      if (ns.cycle == 0) ns.cycle_initial = ns.position[plane_axes(ns.plane).n];
+      if (ns.cycle == 0) {
+        ns.cycle_initial = ns.position[plane_axes(ns.plane).n];
+        ns.motion_before_cycle = ns.motion;
+      }
       ns.cycle = m;
       ns.motion = Motion::kNone;
     } else {
