@@ -1648,3 +1648,38 @@ TEST(ParseAccept, FanucAxisWordsAfterG80MoveInTheMotionModeBeforeTheCycle) {
   // The cycle data are still cleared by G80: a new cycle needs its R and Z again.
   expect_error("G00 Z5\nG81 X1 Y1 Z-1 R1 F100\nG80\nG81 X2\n", "R", 1);
 }
+
+// A subprogram that calls one defined after itself (real programs, both forms). It was rejected
+// ("O2000 is not defined in this file", "no subroutine o200 is defined"): only the main program
+// waited for a later definition. Fanuc finds the O number anywhere in memory and rs274 searches
+// the file forward from any level, so the call waits for the definition from inside a subprogram
+// too. rs274 moves Y3, Z7, X5 on the LinuxCNC program (Rs274Diff: nested_call_defined_later).
+TEST(ParseAccept, SubprogramCallsOneDefinedAfterItself) {
+  Parsed f = parse_text("O1000\nG21 G90\nM98 P1500\nG0 X5\nM30\nO1500\nM98 P2000\nM99\nO2000\nG0 Y3\nM99\n");
+  ASSERT_EQ(f.first_error(), nullptr) << format(*f.first_error());
+  const auto fe = ends(f);
+  ASSERT_EQ(fe.size(), 2u);
+  EXPECT_DOUBLE_EQ(fe[0][kY], 3);  // O2000, called from O1500
+  EXPECT_DOUBLE_EQ(fe[1][kX], 5);
+  expect_counts_add_up(f);
+  ParseOptions lc;
+  lc.dialect = Dialect::kLinuxCnc;
+  Parsed l = parse_text("G21 G90\no100 call\nG0 X5\nM2\no100 sub\nG0 Y3\no<later> call [7]\no100 endsub\n"
+                        "o<later> sub\nG0 Z#1\no<later> endsub\n", lc);
+  ASSERT_EQ(l.first_error(), nullptr) << format(*l.first_error());
+  const auto le = ends(l);
+  ASSERT_EQ(le.size(), 3u);
+  EXPECT_DOUBLE_EQ(le[0][kY], 3);
+  EXPECT_DOUBLE_EQ(le[1][kZ], 7);
+  EXPECT_DOUBLE_EQ(le[2][kX], 5);
+  expect_counts_add_up(l);
+  // Still an error where no definition comes, named at the call inside the subprogram.
+  Parsed missing = parse_text("O1000\nM98 P1500\nM30\nO1500\nM98 P2000\nM99\n");
+  ASSERT_NE(missing.first_error(), nullptr);
+  EXPECT_NE(missing.first_error()->message.find("O2000 is not defined in this file"), std::string::npos);
+  // A LinuxCNC definition after the tape's closing '%' stays out of reach, from any level.
+  Parsed closed = parse_text("%\no100 call\nM2\no100 sub\no200 call\no100 endsub\n%\no200 sub\nG0 Z7\no200 endsub\n", lc);
+  ASSERT_NE(closed.first_error(), nullptr);
+  EXPECT_EQ(closed.first_error()->line, 5u);
+  EXPECT_TRUE(ends(closed).empty());
+}

@@ -332,6 +332,9 @@ std::vector<std::pair<std::string, std::string>> generated_programs() {
       // Issue 32: axis words after G80 (Fanuc moves them in the mode before the cycle); in
       // LinuxCNC G80 is the motion mode itself and both reject them.
       {"axis_words_after_g80", "G21 G90 F100\nG0 X0 Y0 Z5\nG81 X1 Y1 Z-1 R1\nG80\nZ.2\nG1 X2\nG80\nY2\nM2\n"},
+      // Issue 32: a subroutine calls one defined after itself (rs274 searches forward).
+      {"nested_call_defined_later", "G21 G90\no100 call [2]\nG0 X5\nM2\no100 sub\nG0 Y#1\no<later> call [#1 + 5]\n"
+                                    "o100 endsub\no<later> sub\nG0 Z#1\no<later> endsub\n"},
       {"definition_after_m2", "G21 G90\no<late> call [2]\nG0 Y1\nM2\no<late> sub\nG0 X#1\no<late> endsub\nG0 Z9\n"},
   };
 }
@@ -431,7 +434,7 @@ TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
     expect_same(text, file, name, name.rfind("tool_entries", 0) == 0);
     ++n;
   }
-  EXPECT_EQ(n, 24);
+  EXPECT_EQ(n, 25);
 }
 
 TEST(Rs274Diff, CutterCompensationMatchesLinuxCnc) {

@@ -482,6 +482,7 @@ struct Parser::Impl {
   bool fanuc_subprogram_start(std::string_view line, std::string& label) const;
   bool fanuc_call(parse_detail::Frame& f, const parse_detail::SourceLine& l);
   bool try_pending_call(parse_detail::Frame& f);
+  bool definition_may_follow() const;
   bool push_subprogram(const std::string& label, long repeats, std::uint64_t line);
   bool read_fanuc_call(const BlockCodes& c);
   bool macro_statement(parse_detail::Frame& f, const parse_detail::SourceLine& l, const parse_detail::Statement& s);
