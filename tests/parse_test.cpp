@@ -1683,3 +1683,37 @@ TEST(ParseAccept, SubprogramCallsOneDefinedAfterItself) {
   EXPECT_EQ(closed.first_error()->line, 5u);
   EXPECT_TRUE(ends(closed).empty());
 }
+
+// A real program loads a tool the machine file's table lacks: `T4 M6 F300`. The T word was an
+// error, which rejected the whole line (its F too) and then every G1 after it ("without a
+// feed"). A control loads any tool number; only the tool's geometry needs the table. So T4 is a
+// warning (once per tool), and the error comes where the length or diameter is used, naming the
+// tool and the way out (the table, or --tool-table).
+TEST(ParseAccept, ToolNotInTheTableIsAWarningUntilItsGeometryIsUsed) {
+  Parsed p = parse_text("G21 G90\nT4 M6 F300\nG1 X10\nG1 Y5\nT4 M6\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.diags.size(), 1u);  // the second T4 says nothing new
+  const Diagnostic& w = p.diags[0];
+  EXPECT_EQ(w.severity, Severity::kWarning);
+  EXPECT_EQ(w.line, 2u);
+  EXPECT_EQ(w.column, 1u);
+  EXPECT_NE(w.message.find("tool 4 is not in the machine config's tool table"), std::string::npos) << w.message;
+  EXPECT_NE(w.message.find("--tool-table"), std::string::npos) << w.message;
+  ASSERT_EQ(p.blocks.size(), 5u);
+  EXPECT_EQ(p.blocks[1].tool, 4);
+  EXPECT_TRUE(p.blocks[1].tool_change);
+  EXPECT_DOUBLE_EQ(p.blocks[2].feed, 300);  // the F beside T4 M6 is in force
+  EXPECT_DOUBLE_EQ(p.blocks[3].target[kY], 5);
+  EXPECT_EQ(p.summary.lines_rejected, 0u);
+  EXPECT_EQ(p.summary.blocks_emitted, 5u);
+  // Where its geometry is used: an error naming the tool and what to do.
+  expect_error("T4 M6\nG43 H4\n", "H4: tool 4 is not in the machine config's tool table (machine 'tools'), so its length is unknown", 5);
+  expect_error("T4 M6\nG43\n", "--tool-table", 1);
+  expect_error("T4 M6 F100\nG41 D4\n", "G41: tool 4 is not in the machine config's tool table (machine 'tools'), so its diameter", 5);
+  expect_error("T4 M6\nG41\n", "--tool-table", 1);
+  expect_error("T4 M6\nG1 F800 X0\nG275 X10 Z-1 R5 W12 K1\n", "tool 4 is not in the machine config's tool table", 1);
+  // A warned line that is rejected for another reason says only its error.
+  Parsed bad = parse_text("T5 M6 G2 X1\n");
+  ASSERT_EQ(bad.diags.size(), 1u);
+  EXPECT_EQ(bad.diags[0].severity, Severity::kError);
+}

@@ -422,6 +422,28 @@ TEST(Rs274Diff, FeedPerRevolutionMovesAtFTimesTheSpindleSpeed) {
   EXPECT_NEAR(ours.feeds[0], 200.0, 1e-9);  // 0.1 mm/rev at 2000 rev/min
 }
 
+// A tool not in the tool table (issue 32): rs274 rejects the T line ("Requested tool 4 not found
+// in the tool table") but has already taken its F (F comes before T in its order of execution),
+// and the G1s after it run at that feed. gcpipe warns instead, on purpose: the machine file's
+// table is not the control's, which may well hold tool 4; it rejects only where the tool's
+// geometry is used. Everything else agrees: end points and feeds.
+TEST(Rs274Diff, ToolNotInTheTableMovesAsRs274DoesWithAWarning) {
+  if (rs274_path().empty()) GTEST_SKIP() << "rs274 (Debian package linuxcnc-uspace) is not installed";
+  const std::string text = "G21 G90\nG0 X0 Y0 Z1\nT4 M6 F300\nG1 X10\nG1 Y5 Z0\nG0 Z5\nM2\n";
+  const fs::path file = work_dir() / "unknown_tool.ngc";
+  fs::create_directories(work_dir());
+  const auto ours = run_gcpipe(text, file.string());
+  const auto theirs = run_rs274(file, text);
+  EXPECT_TRUE(ours.rejected.empty()) << (ours.rejected.empty() ? "" : ours.rejected.front());
+  EXPECT_EQ(theirs.rejected, std::vector<std::string>{"T4 M6 F300"});
+  ASSERT_EQ(ours.ends.size(), theirs.ends.size());
+  ASSERT_EQ(ours.ends.size(), 4u);
+  for (std::size_t i = 0; i < ours.ends.size(); ++i)
+    for (int k = 0; k < 5; ++k) EXPECT_NEAR(ours.ends[i][k], theirs.ends[i][k], kTol) << "end point " << i;
+  ASSERT_EQ(ours.feeds, theirs.feeds);
+  EXPECT_EQ(ours.feeds, (std::vector<double>{300, 300}));
+}
+
 TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
   if (rs274_path().empty())
     GTEST_SKIP() << "rs274 is absent (Debian package linuxcnc-uspace): the LinuxCNC differential test did not run";

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <deque>
 #include <map>
+#include <set>
 #include <numbers>
 #include <string>
 #include <string_view>
@@ -284,6 +285,10 @@ struct Parser::Impl {
   Scan sc;
   std::string error;  // message of the current line's error
   std::uint32_t error_col = 0;
+  std::string warning;  // the current line's warning (a tool not in the table), empty: none
+  std::uint32_t warning_col = 0;
+  int warning_tool = 0;
+  std::set<int> warned_tools;  // tools warned about already: once each
   // G54..G59 origins as the program has them (G10 L2/L20 change them); blocks publish the
   // machine file's, so targets stay in the frame every later stage and the writer know.
   std::array<Axes, 6> offsets{};
@@ -382,6 +387,9 @@ struct Parser::Impl {
   bool check_block_number();
   bool apply_feed_speed_tool(const BlockCodes& c, ModalState& ns, ResolvedBlock& b);
   bool apply_tool_length(const BlockCodes& c, ModalState& ns);
+  std::string unknown_tool(int tool, const char* what) const;
+  void warn_unknown_tool(int tool, std::uint32_t col);
+  bool emit_warning(std::uint64_t line);
   bool apply_modes(const BlockCodes& c, ModalState& ns, ResolvedBlock& b);
   bool apply_cutter_comp(const BlockCodes& c, ModalState& ns);
   bool comp_radius(const BlockCodes& c, const ModalState& ns, double& radius);

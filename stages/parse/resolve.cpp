@@ -346,9 +346,7 @@ GCPIPE_STEP bool Parser::Impl::apply_feed_speed_tool(const BlockCodes& c, ModalS
     if (w.value < 0 || w.value > 9999 || w.value != std::floor(w.value))
       return fail(w.col, "tool number T" + show(w.value) + " is not a whole number 0..9999");
     const int t = static_cast<int>(w.value);
-    if (t != 0 && !machine.tools.empty() && machine.tools.count(t) == 0)
-      return fail(w.col, "T" + std::to_string(t) + ": tool " + std::to_string(t) + " is not in " +
-                             tool_table_name(machine) + ": add it there");
+    if (t != 0 && !machine.tools.empty() && machine.tools.count(t) == 0) warn_unknown_tool(t, w.col);
     ns.tool = t;
   }
   b.tool_change = c.m_col[kMToolChange] != 0;
@@ -361,6 +359,24 @@ GCPIPE_STEP bool Parser::Impl::apply_feed_speed_tool(const BlockCodes& c, ModalS
   if (c.mist) ns.coolant |= kCoolantMist;
   if (c.flood) ns.coolant |= kCoolantFlood;
   return true;
+}
+
+// Why a tool the table lacks cannot be used where its geometry (`what`: length, diameter) is.
+std::string Parser::Impl::unknown_tool(int tool, const char* what) const {
+  return "tool " + std::to_string(tool) + " is not in " + tool_table_name(machine) + ", so its " + what +
+         " is unknown: add it to the tool table, or pass --tool-table with a shop's table that has it";
+}
+
+// A T word for a tool the table lacks is only a warning: a control loads any tool number, and
+// the tool's geometry matters only where a block uses it (G43 H, G41/G42, G275), which is then
+// the error. Said once per tool, after the line is accepted (run_line).
+void Parser::Impl::warn_unknown_tool(int tool, std::uint32_t col) {
+  if (warned_tools.count(tool) != 0) return;
+  warning_col = col;
+  warning = "T" + std::to_string(tool) + ": tool " + std::to_string(tool) + " is not in " + tool_table_name(machine) +
+            ": the program runs, but G43 H" + std::to_string(tool) + ", cutter compensation or G275 with it will be "
+            "rejected; add it to the tool table, or pass --tool-table";
+  warning_tool = tool;
 }
 
 // Step 4: G43 / G43.4 / G43.5 H and G49, with each dialect's grouping of TCP.
@@ -398,8 +414,7 @@ GCPIPE_STEP bool Parser::Impl::apply_tool_length(const BlockCodes& c, ModalState
     auto it = machine.tools.find(h);
     if (it == machine.tools.end())
       return fail(s.has('H') ? s.w('H').col : c.group_col[kGToolLength],
-                  "H" + std::to_string(h) + ": tool " + std::to_string(h) + " is not in " +
-                      tool_table_name(machine) + ": add it there");
+                  "H" + std::to_string(h) + ": " + unknown_tool(h, "length"));
     len = it->second.length;
   }
   ns.tlo_h = h;
@@ -537,7 +552,7 @@ bool Parser::Impl::comp_radius(const BlockCodes& c, const ModalState& ns, double
   if (tool == 0) return fail(at, g + " without a tool: give D<tool number>, or load a tool (T<n> M6)");
   auto it = machine.tools.find(tool);
   if (it == machine.tools.end())
-    return fail(at, g + ": tool " + std::to_string(tool) + " is not in " + tool_table_name(machine) + ": add it there");
+    return fail(at, g + ": " + unknown_tool(tool, "diameter"));
   if (it->second.diameter <= 0)
     return fail(at, g + ": tool " + std::to_string(tool) + " has no diameter in " + tool_table_name(machine) +
                         ": cutter compensation needs it");
