@@ -1620,6 +1620,16 @@ TEST(ParseAccept, LinuxCncDwellAndMoveInOneBlockDwellFirst) {
   expect_error("G21 F100 T1 M6\nG41 D1\nG1 X20 Y20\nG4 P1 X30\n", "under cutter radius compensation", 1, linuxcnc());
   expect_error("G0 Z5\nG81 X1 Y1 Z-1 R1 F100\nG4 P1 X2\n", "canned cycle is in force", 1, linuxcnc());
   expect_error("G2 X2 Y0 I1 J0 F100\nG4 P1 X0\n", "both use P", 1, linuxcnc());
+  // The move that leaves compensation is plain: its dwell comes where the held move ended (the
+  // tool radius 5 above Y0), as rs274 has it (Rs274Diff: comp_dwell_with_the_exit_move).
+  Parsed exit = parse_text("G21 F100 T1 M6\nG0 X-20 Y-20\nG41 D1\nG1 X0 Y0\nG1 X20 Y0\nG40\nG4 P1 G1 X30 Y-10\n", linuxcnc());
+  ASSERT_EQ(exit.first_error(), nullptr) << format(*exit.first_error());
+  const ResolvedBlock& dw = exit.blocks[exit.blocks.size() - 2];
+  EXPECT_EQ(dw.motion, Motion::kDwell);
+  EXPECT_NEAR(dw.target[kX], 20, 1e-9);
+  EXPECT_NEAR(dw.target[kY], 5, 1e-9);
+  EXPECT_EQ(exit.blocks.back().motion, Motion::kLinear);
+  EXPECT_NEAR(exit.blocks.back().start[kY], 5, 1e-9);
 }
 
 // A real Fanuc program: `G80` then `N992 Z.2`. Fanuc 0i-MF: canned cycles and G80 are group 09,

@@ -347,6 +347,9 @@ constexpr const char* kCompHead = "G21 G90 G17 F100\nT1 M6\nG10 L1 P1 R1\nG10 L1
 std::vector<std::pair<std::string, std::string>> cutter_programs() {
   const std::string h = kCompHead;
   return {
+      // A dwell beside the move that leaves compensation, after G40 and with it (issue 32).
+      {"comp_dwell_with_the_exit_move", h + "G0 X-5 Y-5 Z0\nG41 D1\nG1 X0 Y0\nG1 X10 Y0\nG40\nG4 P1 G1 X15 Y-5\n"
+                                            "G42 D1\nG1 X20 Y0\nG1 X30 Y0\nG40 G4 P0.5 G0 X35 Y5\nM2\n"},
       // Entry with a convex corner, two concave corners, the last move's offset end, G40 exit.
       {"comp_left_square", h + "G0 X-5 Y-5 Z0\nG41 D1\nG1 X0 Y0\nG1 X10 Y0\nG1 X10 Y10\nG1 X0 Y10\nG1 X0 Y0\n"
                                "G40\nG1 X-5 Y-5\nM2\n"},

@@ -747,8 +747,9 @@ bool Parser::Impl::dwell_before_move(const BlockCodes& c, const ModalState& ns) 
   if (ns.cycle != 0) return fail(col, "G4 with axis words while a canned cycle is in force: put the dwell on a line of its own");
   if (ns.motion == Motion::kArcCW || ns.motion == Motion::kArcCCW)
     return fail(col, "G4 with a G2/G3 move: both use P (rs274 refuses it too); put the dwell on a line of its own");
-  // rs274 runs it, but ends the held move without its corner at the dwell: not reproduced.
-  if (comp_involved(ns))
+  // rs274 runs it, but ends the held move without its corner at the dwell: not reproduced. The
+  // move that leaves compensation (after G40, or with it) is a plain move: there it runs.
+  if (ns.comp_side != 0)
     return fail(col, "G4 with a move under cutter radius compensation: put the dwell on a line of its own");
   double t = 0;
   if (!dwell_time(c, t)) return false;
