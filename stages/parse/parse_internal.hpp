@@ -398,10 +398,10 @@ struct Parser::Impl {
   bool check_lengths(bool vector_words, const ModalState& ns);
   bool read_tool_vector(Vec3& vector);
   bool axis_targets(const BlockCodes& c, const ModalState& ns, Axes& target, std::uint8_t& mask);
-  bool dwell(const BlockCodes& c, ResolvedBlock& b, const ModalState& ns);
-  bool dwell_time(const BlockCodes& c, double& t);
+  bool dwell(ResolvedBlock& b, const ModalState& ns);
+  bool dwell_time(double& t);
   bool dwell_with_move(std::uint8_t mask) const;
-  bool dwell_before_move(const BlockCodes& c, const ModalState& ns);
+  bool dwell_before_move(const ModalState& ns);
   bool move(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, const Axes& target, std::uint8_t mask,
             bool vector_words, const Vec3& vector);
   bool check_feed(const BlockCodes& c, const ModalState& ns);

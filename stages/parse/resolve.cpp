@@ -168,8 +168,8 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
   b.axis_words = mask;
   b.start = ns.position;
   b.frame.incremental = ns.incremental;
-  if (c.g4 && !dwell_with_move(mask)) return dwell(c, b, ns);
-  if (c.g4 && !dwell_before_move(c, ns)) return false;
+  if (c.g4 && !dwell_with_move(mask)) return dwell(b, ns);
+  if (c.g4 && !dwell_before_move(ns)) return false;
   if (c.g275) {
     b.target = target;
     return slot(sc, b, ns);
@@ -742,7 +742,7 @@ bool Parser::Impl::dwell_with_move(std::uint8_t mask) const {
 // The dwell of a LinuxCNC block that also moves, kept for run_line to hand out before the move.
 // Not under cutter compensation or a canned cycle: the dwell would have to wait inside a held
 // move or a cycle's expansion.
-bool Parser::Impl::dwell_before_move(const BlockCodes& c, const ModalState& ns) {
+bool Parser::Impl::dwell_before_move(const ModalState& ns) {
   const std::uint32_t col = sc.g[0].col;
   if (ns.cycle != 0) return fail(col, "G4 with axis words while a canned cycle is in force: put the dwell on a line of its own");
   if (ns.motion == Motion::kArcCW || ns.motion == Motion::kArcCCW)
@@ -752,7 +752,7 @@ bool Parser::Impl::dwell_before_move(const BlockCodes& c, const ModalState& ns) 
   if (ns.comp_side != 0)
     return fail(col, "G4 with a move under cutter radius compensation: put the dwell on a line of its own");
   double t = 0;
-  if (!dwell_time(c, t)) return false;
+  if (!dwell_time(t)) return false;
   dwell_first = t;
   return true;
 }
@@ -760,13 +760,13 @@ bool Parser::Impl::dwell_before_move(const BlockCodes& c, const ModalState& ns) 
 // G4: Fanuc P in ms or X in s, LinuxCNC P in s. A motion code in the same block only sets the
 // mode (both controls allow `G0 G4 P1`); axis words cannot go with a dwell (but see
 // dwell_with_move).
-bool Parser::Impl::dwell(const BlockCodes& c, ResolvedBlock& b, const ModalState& ns) {
+bool Parser::Impl::dwell(ResolvedBlock& b, const ModalState& ns) {
   const Scan& s = sc;
   for (int a = 0; a < kNumAxes; ++a)
     if (b.axis_words & (1u << a))
       return fail(s.w(kAxisLetters[a]).col, std::string("axis word ") + kAxisLetters[a] + " with G4: a dwell block cannot move");
   double t = 0;
-  if (!dwell_time(c, t)) return false;
+  if (!dwell_time(t)) return false;
   b.motion = Motion::kDwell;
   b.dwell = t;
   b.target = ns.position;
@@ -774,7 +774,7 @@ bool Parser::Impl::dwell(const BlockCodes& c, ResolvedBlock& b, const ModalState
 }
 
 // The dwell time of a G4 block [s], in the dialect's words and range.
-bool Parser::Impl::dwell_time(const BlockCodes& c, double& t) {
+bool Parser::Impl::dwell_time(double& t) {
   const Scan& s = sc;
   const std::uint32_t col = s.g[0].col;
   if (opt.dialect == Dialect::kFanuc) {
@@ -787,7 +787,6 @@ bool Parser::Impl::dwell_time(const BlockCodes& c, double& t) {
     t = s.w('P').value;
   }
   if (t < 0 || t > 1e5) return fail(col, "dwell time " + show(t) + " s is out of range (0..100000 s)");
-  (void)c;
   return true;
 }
 
