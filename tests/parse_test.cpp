@@ -230,8 +230,12 @@ TEST(ParseModal, DwellPerDialect) {
   EXPECT_DOUBLE_EQ(l.blocks[0].dwell, 1.5);
 }
 
-TEST(ParseModal, G80CancelsMotionMode) {
-  Parsed p = parse_text("G1 X1 F100\nG80\nX2\n");
+// LinuxCNC: G80 is in the motion group; rs274 rejects axis words after it (the Fanuc rule is
+// ParseAccept.FanucAxisWordsAfterG80MoveInTheMotionModeBeforeTheCycle).
+TEST(ParseModal, G80CancelsMotionModeInLinuxCnc) {
+  ParseOptions lc;
+  lc.dialect = Dialect::kLinuxCnc;
+  Parsed p = parse_text("G1 X1 F100\nG80\nX2\n", lc);
   const Diagnostic* d = p.first_error();
   ASSERT_NE(d, nullptr);
   EXPECT_NE(d->message.find("without a motion mode"), std::string::npos);
@@ -1585,4 +1589,141 @@ TEST(ParseRound2, LinuxCncCycleSeriesMeasuresFromTheLevelItBeganAt) {
   const std::vector<double> want = {5, 1, -2, 1, 1, -1, -2, -1, -1, -2, -3, 5};
   ASSERT_EQ(z.size(), want.size());
   for (std::size_t i = 0; i < z.size(); ++i) EXPECT_NEAR(z[i], want[i], 1e-12) << "move " << i;
+}
+
+// Issue 32 item 2: programs a control runs must not be rejected.
+// `G04 P.001 G0 X1.0 Y1.0` (a real program): rs274 prints DWELL(0.0010) and then
+// STRAIGHT_TRAVERSE(1, 1, ...): its order of execution dwells before it moves. The dwell goes
+// out first as a block of its own on the same line, with the comment and tool change; on Fanuc,
+// where X is the dwell time, axis words with G04 stay an error.
+TEST(ParseAccept, LinuxCncDwellAndMoveInOneBlockDwellFirst) {
+  Parsed p = parse_text("G21 G90 F100\nT1 M6 G04 P.001 G0 X1.0 Y1.0 (dwell, then move)\nX2\n", linuxcnc());
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.blocks.size(), 4u);
+  const ResolvedBlock& d = p.blocks[1];
+  const ResolvedBlock& m = p.blocks[2];
+  EXPECT_EQ(d.line, 2u);
+  EXPECT_EQ(d.motion, Motion::kDwell);
+  EXPECT_DOUBLE_EQ(d.dwell, 0.001);
+  EXPECT_DOUBLE_EQ(d.target[kX], 0);  // it dwells where the tool stands
+  EXPECT_TRUE(d.tool_change);
+  EXPECT_EQ(d.comment, "dwell, then move");
+  EXPECT_EQ(m.line, 2u);
+  EXPECT_EQ(m.motion, Motion::kRapid);
+  EXPECT_DOUBLE_EQ(m.target[kX], 1);
+  EXPECT_DOUBLE_EQ(m.target[kY], 1);
+  EXPECT_FALSE(m.tool_change);
+  EXPECT_TRUE(m.comment.empty());
+  EXPECT_EQ(p.blocks[3].motion, Motion::kRapid);  // the G0 of the dwell block stays in force
+  EXPECT_EQ(p.summary.blocks_emitted, 3u);
+  expect_error("G0 G4 P1 Y5\n", "a dwell block cannot move", 10);  // Fanuc: unchanged
+  expect_error("G21 F100 T1 M6\nG41 D1\nG1 X20 Y20\nG4 P1 X30\n", "under cutter radius compensation", 1, linuxcnc());
+  expect_error("G0 Z5\nG81 X1 Y1 Z-1 R1 F100\nG4 P1 X2\n", "canned cycle is in force", 1, linuxcnc());
+  expect_error("G2 X2 Y0 I1 J0 F100\nG4 P1 X0\n", "both use P", 1, linuxcnc());
+  // The move that leaves compensation is plain: its dwell comes where the held move ended (the
+  // tool radius 5 above Y0), as rs274 has it (Rs274Diff: comp_dwell_with_the_exit_move).
+  Parsed exit = parse_text("G21 F100 T1 M6\nG0 X-20 Y-20\nG41 D1\nG1 X0 Y0\nG1 X20 Y0\nG40\nG4 P1 G1 X30 Y-10\n", linuxcnc());
+  ASSERT_EQ(exit.first_error(), nullptr) << format(*exit.first_error());
+  const ResolvedBlock& dw = exit.blocks[exit.blocks.size() - 2];
+  EXPECT_EQ(dw.motion, Motion::kDwell);
+  EXPECT_NEAR(dw.target[kX], 20, 1e-9);
+  EXPECT_NEAR(dw.target[kY], 5, 1e-9);
+  EXPECT_EQ(exit.blocks.back().motion, Motion::kLinear);
+  EXPECT_NEAR(exit.blocks.back().start[kY], 5, 1e-9);
+}
+
+// A real Fanuc program: `G80` then `N992 Z.2`. Fanuc 0i-MF: canned cycles and G80 are group 09,
+// G00..G03 group 01; G80 cancels the cycle and group 01 stays as it was before the cycle, so Z.2
+// is a move in that mode. It was rejected ("axis word Z without a motion mode").
+TEST(ParseAccept, FanucAxisWordsAfterG80MoveInTheMotionModeBeforeTheCycle) {
+  Parsed p = parse_text("G21 G90 G17\nG00 X0 Y0 Z5\nG81 X1 Y1 Z-1 R1 F100\nX2\nG80\nN992 Z.2\n"
+                        "G01 Z3\nG83 X3 Z-2 R1 Q0.5\nG80\nX4\nG80\nY5\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  auto line = [&](std::uint64_t n) {
+    const ResolvedBlock* found = nullptr;
+    for (const ResolvedBlock& b : p.blocks)
+      if (b.line == n) found = &b;
+    return found;
+  };
+  ASSERT_NE(line(6), nullptr);
+  EXPECT_EQ(line(6)->motion, Motion::kRapid);  // G00 was in force before G81
+  EXPECT_DOUBLE_EQ(line(6)->target[kZ], 0.2);
+  EXPECT_DOUBLE_EQ(line(6)->target[kX], 2);
+  ASSERT_NE(line(10), nullptr);
+  EXPECT_EQ(line(10)->motion, Motion::kLinear);  // G01 before G83
+  EXPECT_DOUBLE_EQ(line(10)->target[kX], 4);
+  ASSERT_NE(line(12), nullptr);
+  EXPECT_EQ(line(12)->motion, Motion::kLinear);  // G80 without a cycle leaves group 01 alone
+  EXPECT_DOUBLE_EQ(line(12)->target[kY], 5);
+  // The cycle data are still cleared by G80: a new cycle needs its R and Z again.
+  expect_error("G00 Z5\nG81 X1 Y1 Z-1 R1 F100\nG80\nG81 X2\n", "R", 1);
+}
+
+// A subprogram that calls one defined after itself (real programs, both forms). It was rejected
+// ("O2000 is not defined in this file", "no subroutine o200 is defined"): only the main program
+// waited for a later definition. Fanuc finds the O number anywhere in memory and rs274 searches
+// the file forward from any level, so the call waits for the definition from inside a subprogram
+// too. rs274 moves Y3, Z7, X5 on the LinuxCNC program (Rs274Diff: nested_call_defined_later).
+TEST(ParseAccept, SubprogramCallsOneDefinedAfterItself) {
+  Parsed f = parse_text("O1000\nG21 G90\nM98 P1500\nG0 X5\nM30\nO1500\nM98 P2000\nM99\nO2000\nG0 Y3\nM99\n");
+  ASSERT_EQ(f.first_error(), nullptr) << format(*f.first_error());
+  const auto fe = ends(f);
+  ASSERT_EQ(fe.size(), 2u);
+  EXPECT_DOUBLE_EQ(fe[0][kY], 3);  // O2000, called from O1500
+  EXPECT_DOUBLE_EQ(fe[1][kX], 5);
+  expect_counts_add_up(f);
+  ParseOptions lc;
+  lc.dialect = Dialect::kLinuxCnc;
+  Parsed l = parse_text("G21 G90\no100 call\nG0 X5\nM2\no100 sub\nG0 Y3\no<later> call [7]\no100 endsub\n"
+                        "o<later> sub\nG0 Z#1\no<later> endsub\n", lc);
+  ASSERT_EQ(l.first_error(), nullptr) << format(*l.first_error());
+  const auto le = ends(l);
+  ASSERT_EQ(le.size(), 3u);
+  EXPECT_DOUBLE_EQ(le[0][kY], 3);
+  EXPECT_DOUBLE_EQ(le[1][kZ], 7);
+  EXPECT_DOUBLE_EQ(le[2][kX], 5);
+  expect_counts_add_up(l);
+  // Still an error where no definition comes, named at the call inside the subprogram.
+  Parsed missing = parse_text("O1000\nM98 P1500\nM30\nO1500\nM98 P2000\nM99\n");
+  ASSERT_NE(missing.first_error(), nullptr);
+  EXPECT_NE(missing.first_error()->message.find("O2000 is not defined in this file"), std::string::npos);
+  // A LinuxCNC definition after the tape's closing '%' stays out of reach, from any level.
+  Parsed closed = parse_text("%\no100 call\nM2\no100 sub\no200 call\no100 endsub\n%\no200 sub\nG0 Z7\no200 endsub\n", lc);
+  ASSERT_NE(closed.first_error(), nullptr);
+  EXPECT_EQ(closed.first_error()->line, 5u);
+  EXPECT_TRUE(ends(closed).empty());
+}
+
+// A real program loads a tool the machine file's table lacks: `T4 M6 F300`. The T word was an
+// error, which rejected the whole line (its F too) and then every G1 after it ("without a
+// feed"). A control loads any tool number; only the tool's geometry needs the table. So T4 is a
+// warning (once per tool), and the error comes where the length or diameter is used, naming the
+// tool and the way out (the table, or --tool-table).
+TEST(ParseAccept, ToolNotInTheTableIsAWarningUntilItsGeometryIsUsed) {
+  Parsed p = parse_text("G21 G90\nT4 M6 F300\nG1 X10\nG1 Y5\nT4 M6\n");
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.diags.size(), 1u);  // the second T4 says nothing new
+  const Diagnostic& w = p.diags[0];
+  EXPECT_EQ(w.severity, Severity::kWarning);
+  EXPECT_EQ(w.line, 2u);
+  EXPECT_EQ(w.column, 1u);
+  EXPECT_NE(w.message.find("tool 4 is not in the machine config's tool table"), std::string::npos) << w.message;
+  EXPECT_NE(w.message.find("--tool-table"), std::string::npos) << w.message;
+  ASSERT_EQ(p.blocks.size(), 5u);
+  EXPECT_EQ(p.blocks[1].tool, 4);
+  EXPECT_TRUE(p.blocks[1].tool_change);
+  EXPECT_DOUBLE_EQ(p.blocks[2].feed, 300);  // the F beside T4 M6 is in force
+  EXPECT_DOUBLE_EQ(p.blocks[3].target[kY], 5);
+  EXPECT_EQ(p.summary.lines_rejected, 0u);
+  EXPECT_EQ(p.summary.blocks_emitted, 5u);
+  // Where its geometry is used: an error naming the tool and what to do.
+  expect_error("T4 M6\nG43 H4\n", "H4: tool 4 is not in the machine config's tool table (machine 'tools'), so its length is unknown", 5);
+  expect_error("T4 M6\nG43\n", "--tool-table", 1);
+  expect_error("T4 M6 F100\nG41 D4\n", "G41: tool 4 is not in the machine config's tool table (machine 'tools'), so its diameter", 5);
+  expect_error("T4 M6\nG41\n", "--tool-table", 1);
+  expect_error("T4 M6\nG1 F800 X0\nG275 X10 Z-1 R5 W12 K1\n", "tool 4 is not in the machine config's tool table", 1);
+  // A warned line that is rejected for another reason says only its error.
+  Parsed bad = parse_text("T5 M6 G2 X1\n");
+  ASSERT_EQ(bad.diags.size(), 1u);
+  EXPECT_EQ(bad.diags[0].severity, Severity::kError);
 }

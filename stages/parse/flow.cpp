@@ -841,11 +841,13 @@ bool Parser::Impl::loop_end(Frame& f, const SourceLine& l, const Statement& s) {
 }
 
 // o<name> call [arg] ...: #1..#30 take the arguments in the subroutine and are restored after,
-// and the call has named parameters of its own (#<_name> stays global), as in LinuxCNC. A call to a subroutine defined further down waits for its definition.
+// and the call has named parameters of its own (#<_name> stays global), as in LinuxCNC. A call to
+// a subroutine defined further down waits for its definition, from the main program and from
+// inside a subroutine alike: rs274 searches the file forward for it in both.
 bool Parser::Impl::call(Frame& f, const SourceLine& l, const Statement& s, bool& waiting) {
   auto it = subs.find(s.label);
   if (it == subs.end() || it->second.end_line == 0) {
-    if (!input_done && f.sub == nullptr && window.size() < opt.max_buffered_lines) {
+    if (definition_may_follow()) {
       waiting = true;
       return true;
     }
@@ -1013,12 +1015,19 @@ bool Parser::Impl::fanuc_call(Frame& f, const SourceLine& l) {
   return true;
 }
 
-// The call waits while its subprogram may still come (the main program, input not done, room
-// in the buffer); else it runs or fails.
+// Whether a subroutine not defined yet may still come: input not done and room in the buffer.
+// A call waits for it from any level (a subprogram may call one defined after itself, as Fanuc
+// finds the O number anywhere in memory and rs274 searches forward); the lines read meanwhile
+// are kept in the window until the call returns.
+bool Parser::Impl::definition_may_follow() const {
+  return !input_done && window.size() < opt.max_buffered_lines;
+}
+
+// The call waits while its subprogram may still come; else it runs or fails.
 bool Parser::Impl::try_pending_call(Frame& f) {
   auto it = subs.find(f.pending_call);
   const bool defined = it != subs.end() && it->second.end_line != 0;
-  if (!defined && !input_done && f.sub == nullptr && window.size() < opt.max_buffered_lines) return false;
+  if (!defined && definition_may_follow()) return false;
   const std::string label = f.pending_call;
   const long repeats = f.pending_repeats;
   const std::uint64_t line = f.pending_line;

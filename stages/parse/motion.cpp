@@ -161,8 +161,9 @@ bool Parser::Impl::slot(const Scan& s, ResolvedBlock& b, ModalState& ns) {
   } else {
     const int tool = ns.tool_in_spindle != 0 ? ns.tool_in_spindle : ns.tool;
     auto it = machine.tools.find(tool);
-    if (tool == 0 || it == machine.tools.end())
+    if (tool == 0)
       return fail(col, "G275 needs the tool diameter: give D, or load a tool (T<n> M6) whose diameter is in the machine config's tool table");
+    if (it == machine.tools.end()) return fail(col, "G275 needs the tool diameter: give D, or: " + unknown_tool(tool, "diameter"));
     t.tool_diameter = it->second.diameter;
   }
   t.climb = true;

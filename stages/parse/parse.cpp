@@ -72,6 +72,8 @@ void Parser::Impl::reset_block(std::string_view line, std::uint64_t lineno) {
   b.program_number = -1;
   b.frame = SourceFrame{};
   exact_stop_once = false;
+  dwell_first = -1;
+  warning.clear();
 }
 
 // Runs one line; its blocks go to the sink. A rejected or skipped line says why in `why`/`col`.
@@ -124,8 +126,10 @@ Parser::Impl::Outcome Parser::Impl::run_line(std::string_view line, std::uint64_
     return Outcome::kRejected;
   }
   commit(ns);
+  emit_warning(lineno);
   if (compensated) hand_out_compensated();
   if (!plain_emit) return Outcome::kBlocks;
+  if (dwell_first >= 0) emit_dwell_first();
   if (moves.empty()) emit(block);
   else emit_moves();
   return Outcome::kBlocks;
@@ -245,6 +249,30 @@ bool Parser::Impl::emit_moves() {
   }
   moves.clear();
   return true;
+}
+
+// A LinuxCNC block with G4 and a move: the dwell first, as a block of its own carrying the line,
+// with what rs274 also does before its dwell (comment, tool change, spindle, coolant); the
+// move after it carries only the motion and a program stop.
+bool Parser::Impl::emit_dwell_first() {
+  expanded = block;
+  expanded.motion = Motion::kDwell;
+  expanded.dwell = dwell_first;
+  expanded.target = block.start;
+  expanded.axis_words = 0;
+  expanded.centre = {0, 0, 0};
+  expanded.stop = ProgramStop::kNone;
+  block.comment.clear();
+  block.tool_change = false;
+  block.frame.selects_work_offset = block.frame.sets_tool_length = false;  // said with the dwell
+  return emit(expanded);
+}
+
+// The accepted line's warning, before its blocks; a rejected line says only its error.
+bool Parser::Impl::emit_warning(std::uint64_t line) {
+  if (warning.empty()) return true;
+  warned_tools.insert(warning_tool);
+  return emit_diagnostic(line, warning_col, Severity::kWarning, std::move(warning));
 }
 
 bool Parser::Impl::emit_diagnostic(std::uint64_t line, std::uint32_t col, Severity sev, std::string msg) {

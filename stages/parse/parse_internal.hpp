@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <deque>
 #include <map>
+#include <set>
 #include <numbers>
 #include <string>
 #include <string_view>
@@ -83,6 +84,9 @@ PlaneAxes plane_axes(Plane p);
 struct ModalState {
   Motion motion = Motion::kNone;  // modal motion (G0..G3), kNone until programmed or after G80
   int cycle = 0;                  // canned cycle in force (G81 -> 810), 0 = none
+  // Fanuc: the group 01 mode (G00..G03) a canned cycle began in; the cycle (group 09) does not
+  // change it, so G80 brings it back (LinuxCNC's G80 is itself a motion mode: no move after it).
+  Motion motion_before_cycle = Motion::kNone;
   bool cycle_to_r = false;        // G99: retract to R (else G98: to the initial level)
   double cycle_initial = 0;       // initial level along the drilling axis [mm, machine]
   Word cycle_r, cycle_z, cycle_q, cycle_p;  // sticky cycle words, as programmed
@@ -281,12 +285,17 @@ struct Parser::Impl {
   Scan sc;
   std::string error;  // message of the current line's error
   std::uint32_t error_col = 0;
+  std::string warning;  // the current line's warning (a tool not in the table), empty: none
+  std::uint32_t warning_col = 0;
+  int warning_tool = 0;
+  std::set<int> warned_tools;  // tools warned about already: once each
   // G54..G59 origins as the program has them (G10 L2/L20 change them); blocks publish the
   // machine file's, so targets stay in the frame every later stage and the writer know.
   std::array<Axes, 6> offsets{};
   std::vector<parse_detail::Move> moves;  // expansion of the current line, empty for one block
   ResolvedBlock block;                    // the block being resolved (reused: no allocation)
   bool exact_stop_once = false;           // G09 in the line: its blocks stop exactly at their end
+  double dwell_first = -1;                // LinuxCNC G4 beside a move: its time [s], else < 0
   ResolvedBlock expanded;                 // one move of an expansion
   parse_detail::CutterComp comp;          // cutter compensation's held moves (cutter.cpp)
   parse_detail::CutterComp comp_next;     // the same after the current line, until it commits
@@ -350,6 +359,7 @@ struct Parser::Impl {
   bool hand_out(const ResolvedBlock& b);
   void hand_out_compensated();
   bool emit_moves();
+  bool emit_dwell_first();
   bool emit_diagnostic(std::uint64_t line, std::uint32_t col, Severity sev, std::string msg);
 
   // -- scan.cpp
@@ -372,10 +382,14 @@ struct Parser::Impl {
   // -- resolve.cpp
   bool resolve(ResolvedBlock& b, ModalState& ns);
   bool sort_g_codes(BlockCodes& c);
+  Motion motion_after_g80(const ModalState& ns) const;
   bool sort_m_codes(BlockCodes& c);
   bool check_block_number();
   bool apply_feed_speed_tool(const BlockCodes& c, ModalState& ns, ResolvedBlock& b);
   bool apply_tool_length(const BlockCodes& c, ModalState& ns);
+  std::string unknown_tool(int tool, const char* what) const;
+  void warn_unknown_tool(int tool, std::uint32_t col);
+  bool emit_warning(std::uint64_t line);
   bool apply_modes(const BlockCodes& c, ModalState& ns, ResolvedBlock& b);
   bool apply_cutter_comp(const BlockCodes& c, ModalState& ns);
   bool comp_radius(const BlockCodes& c, const ModalState& ns, double& radius);
@@ -384,7 +398,10 @@ struct Parser::Impl {
   bool check_lengths(bool vector_words, const ModalState& ns);
   bool read_tool_vector(Vec3& vector);
   bool axis_targets(const BlockCodes& c, const ModalState& ns, Axes& target, std::uint8_t& mask);
-  bool dwell(const BlockCodes& c, ResolvedBlock& b, const ModalState& ns);
+  bool dwell(ResolvedBlock& b, const ModalState& ns);
+  bool dwell_time(double& t);
+  bool dwell_with_move(std::uint8_t mask) const;
+  bool dwell_before_move(const ModalState& ns);
   bool move(const BlockCodes& c, ResolvedBlock& b, ModalState& ns, const Axes& target, std::uint8_t mask,
             bool vector_words, const Vec3& vector);
   bool check_feed(const BlockCodes& c, const ModalState& ns);
@@ -473,6 +490,7 @@ struct Parser::Impl {
   bool fanuc_subprogram_start(std::string_view line, std::string& label) const;
   bool fanuc_call(parse_detail::Frame& f, const parse_detail::SourceLine& l);
   bool try_pending_call(parse_detail::Frame& f);
+  bool definition_may_follow() const;
   bool push_subprogram(const std::string& label, long repeats, std::uint64_t line);
   bool read_fanuc_call(const BlockCodes& c);
   bool macro_statement(parse_detail::Frame& f, const parse_detail::SourceLine& l, const parse_detail::Statement& s);

@@ -48,6 +48,10 @@ class ParseStage final : public pipeline::Stage {
     return {[&out](const ResolvedBlock& b) { return out.block(b); },
             [this, &out](const Diagnostic& d) {
               log_.report(d);
+              // A warning (a tool not in the table) leaves its line's blocks as they are: it goes
+              // to the log (diagnostics.txt), not down the stream, which knows rejected and
+              // deleted lines only.
+              if (d.severity == Severity::kWarning) return true;
               const bool error = d.severity == Severity::kError;
               const bool go = out.diagnostic(d, error ? DiagnosticKind::kLineRejected : DiagnosticKind::kLineDeleted);
               return go && !(error && parser_.options().strict);

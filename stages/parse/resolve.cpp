@@ -168,7 +168,8 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
   b.axis_words = mask;
   b.start = ns.position;
   b.frame.incremental = ns.incremental;
-  if (c.g4) return dwell(c, b, ns);
+  if (c.g4 && !dwell_with_move(mask)) return dwell(b, ns);
+  if (c.g4 && !dwell_before_move(ns)) return false;
   if (c.g275) {
     b.target = target;
     return slot(sc, b, ns);
@@ -176,6 +177,16 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
   if (c.non_modal != 0) return non_modal(c, b, ns, mask);
   if (ns.cycle != 0 && mask != 0) return cycle(c, b, ns, mask);
   return move(c, b, ns, target, mask, vector_words, vector);
+}
+
+// The motion mode after a G80 without G0..G3 beside it. Fanuc 0i-MF: canned cycles and G80 are
+// group 09, G00..G03 group 01; G80 cancels the cycle and leaves group 01 as it was (the mode
+// before the cycle, or the one in force when no cycle was), so `G80` then `Z.2` moves in it.
+// LinuxCNC: G80 is in the motion group itself; rs274 rejects axis words after it ("Cannot use
+// axis values without a g code that uses them").
+Motion Parser::Impl::motion_after_g80(const ModalState& ns) const {
+  if (opt.dialect == Dialect::kLinuxCnc) return Motion::kNone;
+  return ns.cycle != 0 ? ns.motion_before_cycle : ns.motion;
 }
 
 // Step 1: G codes, one per modal group, all known; G80 beside G0..G3 is allowed (see g_group).
@@ -335,9 +346,7 @@ GCPIPE_STEP bool Parser::Impl::apply_feed_speed_tool(const BlockCodes& c, ModalS
     if (w.value < 0 || w.value > 9999 || w.value != std::floor(w.value))
       return fail(w.col, "tool number T" + show(w.value) + " is not a whole number 0..9999");
     const int t = static_cast<int>(w.value);
-    if (t != 0 && !machine.tools.empty() && machine.tools.count(t) == 0)
-      return fail(w.col, "T" + std::to_string(t) + ": tool " + std::to_string(t) + " is not in " +
-                             tool_table_name(machine) + ": add it there");
+    if (t != 0 && !machine.tools.empty() && machine.tools.count(t) == 0) warn_unknown_tool(t, w.col);
     ns.tool = t;
   }
   b.tool_change = c.m_col[kMToolChange] != 0;
@@ -350,6 +359,24 @@ GCPIPE_STEP bool Parser::Impl::apply_feed_speed_tool(const BlockCodes& c, ModalS
   if (c.mist) ns.coolant |= kCoolantMist;
   if (c.flood) ns.coolant |= kCoolantFlood;
   return true;
+}
+
+// Why a tool the table lacks cannot be used where its geometry (`what`: length, diameter) is.
+std::string Parser::Impl::unknown_tool(int tool, const char* what) const {
+  return "tool " + std::to_string(tool) + " is not in " + tool_table_name(machine) + ", so its " + what +
+         " is unknown: add it to the tool table, or pass --tool-table with a shop's table that has it";
+}
+
+// A T word for a tool the table lacks is only a warning: a control loads any tool number, and
+// the tool's geometry matters only where a block uses it (G43 H, G41/G42, G275), which is then
+// the error. Said once per tool, after the line is accepted (run_line).
+void Parser::Impl::warn_unknown_tool(int tool, std::uint32_t col) {
+  if (warned_tools.count(tool) != 0) return;
+  warning_col = col;
+  warning = "T" + std::to_string(tool) + ": tool " + std::to_string(tool) + " is not in " + tool_table_name(machine) +
+            ": the program runs, but G43 H" + std::to_string(tool) + ", cutter compensation or G275 with it will be "
+            "rejected; add it to the tool table, or pass --tool-table";
+  warning_tool = tool;
 }
 
 // Step 4: G43 / G43.4 / G43.5 H and G49, with each dialect's grouping of TCP.
@@ -387,8 +414,7 @@ GCPIPE_STEP bool Parser::Impl::apply_tool_length(const BlockCodes& c, ModalState
     auto it = machine.tools.find(h);
     if (it == machine.tools.end())
       return fail(s.has('H') ? s.w('H').col : c.group_col[kGToolLength],
-                  "H" + std::to_string(h) + ": tool " + std::to_string(h) + " is not in " +
-                      tool_table_name(machine) + ": add it there");
+                  "H" + std::to_string(h) + ": " + unknown_tool(h, "length"));
     len = it->second.length;
   }
   ns.tlo_h = h;
@@ -449,16 +475,19 @@ GCPIPE_STEP bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, 
   if (c.has(kGCycleReturn)) ns.cycle_to_r = c.group_code[kGCycleReturn] == 990;
   const bool cancel = c.has(kGCycleCancel) && c.group_code[kGCycleCancel] == 800;
   if (cancel) {
+    if (!c.has(kGMotion)) ns.motion = motion_after_g80(ns);  // before the cycle is forgotten
     ns.cycle = 0;
     // Fanuc's G80 also clears the cycle data (R, Z, Q, P); LinuxCNC keeps them sticky.
     if (opt.dialect == Dialect::kFanuc) ns.cycle_r = ns.cycle_z = ns.cycle_q = ns.cycle_p = Word{};
-    if (!c.has(kGMotion)) ns.motion = Motion::kNone;
   }
   if (c.motion_code >= 0) {
     const int m = c.motion_code;
     if (is_cycle(m)) {
       // The initial level is where the drilling axis stands when a series of cycles begins.
-      if (ns.cycle == 0) ns.cycle_initial = ns.position[plane_axes(ns.plane).n];
+      if (ns.cycle == 0) {
+        ns.cycle_initial = ns.position[plane_axes(ns.plane).n];
+        ns.motion_before_cycle = ns.motion;
+      }
       ns.cycle = m;
       ns.motion = Motion::kNone;
     } else {
@@ -523,7 +552,7 @@ bool Parser::Impl::comp_radius(const BlockCodes& c, const ModalState& ns, double
   if (tool == 0) return fail(at, g + " without a tool: give D<tool number>, or load a tool (T<n> M6)");
   auto it = machine.tools.find(tool);
   if (it == machine.tools.end())
-    return fail(at, g + ": tool " + std::to_string(tool) + " is not in " + tool_table_name(machine) + ": add it there");
+    return fail(at, g + ": " + unknown_tool(tool, "diameter"));
   if (it->second.diameter <= 0)
     return fail(at, g + ": tool " + std::to_string(tool) + " has no diameter in " + tool_table_name(machine) +
                         ": cutter compensation needs it");
@@ -703,14 +732,50 @@ void Parser::Impl::polar_point(const ModalState& ns, const Axes& from, Axes& to)
   to[kY] = r * std::sin(a) + ns.origin[kY];
 }
 
+// LinuxCNC runs a G4 and a move written in one block (`G4 P.001 G0 X1 Y1`): rs274 dwells first
+// (its order of execution puts the dwell before motion), then moves. On Fanuc X is the dwell time
+// itself and G04 is a block of its own: there axis words still cannot go with it.
+bool Parser::Impl::dwell_with_move(std::uint8_t mask) const {
+  return mask != 0 && opt.dialect == Dialect::kLinuxCnc;
+}
+
+// The dwell of a LinuxCNC block that also moves, kept for run_line to hand out before the move.
+// Not under cutter compensation or a canned cycle: the dwell would have to wait inside a held
+// move or a cycle's expansion.
+bool Parser::Impl::dwell_before_move(const ModalState& ns) {
+  const std::uint32_t col = sc.g[0].col;
+  if (ns.cycle != 0) return fail(col, "G4 with axis words while a canned cycle is in force: put the dwell on a line of its own");
+  if (ns.motion == Motion::kArcCW || ns.motion == Motion::kArcCCW)
+    return fail(col, "G4 with a G2/G3 move: both use P (rs274 refuses it too); put the dwell on a line of its own");
+  // rs274 runs it, but ends the held move without its corner at the dwell: not reproduced. The
+  // move that leaves compensation (after G40, or with it) is a plain move: there it runs.
+  if (ns.comp_side != 0)
+    return fail(col, "G4 with a move under cutter radius compensation: put the dwell on a line of its own");
+  double t = 0;
+  if (!dwell_time(t)) return false;
+  dwell_first = t;
+  return true;
+}
+
 // G4: Fanuc P in ms or X in s, LinuxCNC P in s. A motion code in the same block only sets the
-// mode (both controls allow `G0 G4 P1`); axis words cannot go with a dwell.
-bool Parser::Impl::dwell(const BlockCodes& c, ResolvedBlock& b, const ModalState& ns) {
+// mode (both controls allow `G0 G4 P1`); axis words cannot go with a dwell (but see
+// dwell_with_move).
+bool Parser::Impl::dwell(ResolvedBlock& b, const ModalState& ns) {
   const Scan& s = sc;
   for (int a = 0; a < kNumAxes; ++a)
     if (b.axis_words & (1u << a))
       return fail(s.w(kAxisLetters[a]).col, std::string("axis word ") + kAxisLetters[a] + " with G4: a dwell block cannot move");
   double t = 0;
+  if (!dwell_time(t)) return false;
+  b.motion = Motion::kDwell;
+  b.dwell = t;
+  b.target = ns.position;
+  return true;
+}
+
+// The dwell time of a G4 block [s], in the dialect's words and range.
+bool Parser::Impl::dwell_time(double& t) {
+  const Scan& s = sc;
   const std::uint32_t col = s.g[0].col;
   if (opt.dialect == Dialect::kFanuc) {
     if (s.has('X') && s.has('P')) return fail(s.w('P').col, "G4 with both X (seconds) and P (milliseconds): keep one");
@@ -722,10 +787,6 @@ bool Parser::Impl::dwell(const BlockCodes& c, ResolvedBlock& b, const ModalState
     t = s.w('P').value;
   }
   if (t < 0 || t > 1e5) return fail(col, "dwell time " + show(t) + " s is out of range (0..100000 s)");
-  (void)c;
-  b.motion = Motion::kDwell;
-  b.dwell = t;
-  b.target = ns.position;
   return true;
 }
 
