@@ -23,6 +23,7 @@
 #include "path_force.hpp"
 #include "stock.hpp"
 #include "trochoid.hpp"
+#include "force_test_util.hpp"
 
 namespace gcpipe::force {
 namespace {
@@ -334,23 +335,6 @@ TEST(KienzleConfig, GroupsGradesAndRatiosAreCheckedWithMessagesNamingTheKey) {
 
 // --- the aluminium groups against the shipped Al7075 set ---------------------------------------
 
-/// The seed 000 slot (parse -> trochoid) with the default pipeline config.
-std::vector<ResolvedBlock> seed000_slot_blocks() {
-  const auto root = std::filesystem::path(GCPIPE_SOURCE_DIR);
-  const PipelineConfig pc = load_pipeline_config(root / "pipeline_configs/default.yaml");
-  std::ifstream f(root / "samples/trochoid_slot_seed000.nc");
-  Parser parser(load_parse_options(pc.root.section("parse")), pc.machine, "sample");
-  TrochoidExpander x(load_trochoid_options(pc.root.section("trochoid")));
-  std::vector<ResolvedBlock> out;
-  std::string line;
-  LineOutput got;
-  while (std::getline(f, line)) {
-    parser.feed(line, got);
-    for (const ResolvedBlock& b : got.blocks) (void)x.expand(b, out);
-  }
-  return out;
-}
-
 /// Largest mean tangential force in the cruise of the slot's first pass (README sec. 3).
 double cruise_tangential(const std::vector<Move>& moves, const ForceOptions& o) {
   double most = 0;
@@ -377,7 +361,7 @@ TEST(KienzleAluminium, GroupsTwentyOneAndTwentyTwoAgainstTheAl7075SetAtTheSeed00
   const std::map<int, double> expected_gap = {{21, 0.0726}, {22, 0.2258}};
   std::printf("seed 000 slot, steady engagement (59.84 deg climb, c 0.1, a 5), Al7075 mechanistic: kc(h_max) %.0f, "
               "kc(h_mean) %.0f N/mm^2, mean Ft %.2f N\n", mechanistic_kc(h_max), mechanistic_kc(h_mean), al_tangential);
-  const auto blocks = seed000_slot_blocks();
+  const auto blocks = test::seed000_slot_blocks();
   const auto moves = moves_from_blocks(blocks);
   ForceOptions swept;
   swept.tool = {20, 3, 30, 60, 600, 0.8};

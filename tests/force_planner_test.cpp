@@ -16,31 +16,10 @@
 #include "path_force.hpp"
 #include "stock.hpp"
 #include "trochoid.hpp"
+#include "force_test_util.hpp"
 
 namespace gcpipe::force {
 namespace {
-
-const std::filesystem::path kRoot = GCPIPE_SOURCE_DIR;
-
-/// The blocks of a program (parse -> trochoid) with the default config's machine (mx330).
-std::vector<ResolvedBlock> blocks_of(std::istream& in) {
-  const PipelineConfig pc = load_pipeline_config(kRoot / "pipeline_configs/default.yaml");
-  Parser parser(load_parse_options(pc.root.section("parse")), pc.machine, "test");
-  TrochoidExpander x(load_trochoid_options(pc.root.section("trochoid")));
-  std::vector<ResolvedBlock> out;
-  std::string line;
-  LineOutput got;
-  while (std::getline(in, line)) {
-    parser.feed(line, got);
-    for (const ResolvedBlock& b : got.blocks) (void)x.expand(b, out);
-  }
-  return out;
-}
-
-std::vector<ResolvedBlock> blocks_of(const std::string& text) {
-  std::istringstream in(text);
-  return blocks_of(in);
-}
 
 /// Drives without acc/dec (the velocity bound is then max_velocity itself).
 interpolate::InterpolateOptions plain_drives(double vx, double ax) {
@@ -60,7 +39,7 @@ const ResolvedBlock& nth_feed_block(const std::vector<ResolvedBlock>& blocks, in
 TEST(ForcePlanner, ForceFeedAboveTheXVelocityLimitGetsTheLimit) {
   // A full slot along +X at Z-5 through a block topped at 0, F1200 S4000; the target force is
   // out of reach, so the force alone asks max_feed_factor x F = 3600 mm/min.
-  const auto blocks = blocks_of("G0 X-15 Y0 Z-5\nG1 X60 F1200 S4000 M3\nG0 Z50\n");
+  const auto blocks = test::trochoid_blocks("G0 X-15 Y0 Z-5\nG1 X60 F1200 S4000 M3\nG0 Z50\n");
   ForceOptions o;
   o.tool = {20, 3, 30, 60, 600, 0.8};
   o.target_force = 1e6;
@@ -76,7 +55,7 @@ TEST(ForcePlanner, ForceFeedAboveTheXVelocityLimitGetsTheLimit) {
   const auto planned = limit_feeds_to_drives(by_force, run.blocks);
   EXPECT_NEAR(nth_feed_block(planned, 0).feed, 1500, 1e-6);
   // A 3-4-5 diagonal: X moves 3/5 of the path, so X at 25 mm/s allows 25 * 5/3 mm/s of path.
-  const auto diagonal = blocks_of("G0 X0 Y0 Z0\nG1 X30 Y40 F6000\nG0 Z50\n");
+  const auto diagonal = test::trochoid_blocks("G0 X0 Y0 Z0\nG1 X30 Y40 F6000\nG0 Z50\n");
   const DriveRun d = run_on_drives(diagonal, io, diagonal.front().start);
   const auto capped = limit_feeds_to_drives(diagonal, d.blocks);
   EXPECT_NEAR(nth_feed_block(capped, 0).feed, 60 * 25 * 5.0 / 3.0, 1e-6);
@@ -86,7 +65,7 @@ TEST(ForcePlanner, ShortFastBlockBetweenSlowOnesGetsOnlyTheSpeedItReaches) {
   // 20 mm at F600 (10 mm/s), 0.5 mm at F6000, 20 mm at F600, along X at a_X = 1000 mm/s^2. The
   // short block starts and ends at 10 mm/s; speeding up over half its length and slowing down
   // over the other half: v^2 = 10^2 + 2 * 1000 * 0.25, v = 24.49 mm/s, F = 1469.7 mm/min.
-  const auto blocks = blocks_of("G0 X0 Y0 Z0\nG1 X20 F600\nX20.5 F6000\nX40.5 F600\nG0 Z50\n");
+  const auto blocks = test::trochoid_blocks("G0 X0 Y0 Z0\nG1 X20 F600\nX20.5 F6000\nX40.5 F600\nG0 Z50\n");
   const double a = 1000, v0 = 10, s = 0.5;
   const double expected = 60 * std::sqrt(v0 * v0 + 2 * a * (s / 2));
   const DriveRun run = run_on_drives(blocks, plain_drives(500, a), blocks.front().start);
@@ -95,7 +74,7 @@ TEST(ForcePlanner, ShortFastBlockBetweenSlowOnesGetsOnlyTheSpeedItReaches) {
   EXPECT_NEAR(nth_feed_block(planned, 0).feed, 600, 1e-9);  // long enough for its own feed
   EXPECT_NEAR(nth_feed_block(planned, 2).feed, 600, 1e-9);
   // From rest (a rapid before it) into a long block at the same feed: 2 mm reach v^2 = 2 a s.
-  const auto from_rest = blocks_of("G0 X0 Y0 Z0\nG1 X2 F6000\nX100\nG0 Z50\n");
+  const auto from_rest = test::trochoid_blocks("G0 X0 Y0 Z0\nG1 X2 F6000\nX100\nG0 Z50\n");
   const DriveRun r2 = run_on_drives(from_rest, plain_drives(500, a), from_rest.front().start);
   const auto p2 = limit_feeds_to_drives(from_rest, r2.blocks);
   EXPECT_NEAR(nth_feed_block(p2, 0).feed, 60 * std::sqrt(2 * a * 2), 1e-6);
@@ -118,8 +97,7 @@ double interpolator_clock(const std::vector<ResolvedBlock>& blocks, const interp
 }
 
 TEST(ForcePlanner, CycleTimesAreTheInterpolatorsOnTheProgrammedAndPlannedSlot) {
-  std::ifstream f(kRoot / "samples/trochoid_slot_seed000.nc");
-  const auto blocks = blocks_of(f);
+  const auto blocks = test::seed000_slot_blocks();
   ForceOptions o;
   o.tool = {20, 3, 30, 60, 600, 0.8};
   o.sample_spacing = 0.1;

@@ -18,6 +18,7 @@
 #include "path_force.hpp"
 #include "stock.hpp"
 #include "trochoid.hpp"
+#include "force_test_util.hpp"
 
 namespace gcpipe::force {
 namespace {
@@ -213,28 +214,11 @@ TEST(ForceConfig, DefaultsUnknownKeysAndBadValuesNameFileAndKey) {
 
 // --- the seed 000 slot ------------------------------------------------------------------------
 
-/// The sample program of seed 000's slot (parse -> trochoid), its blocks.
-std::vector<ResolvedBlock> seed000_slot_blocks() {
-  const auto root = std::filesystem::path(GCPIPE_SOURCE_DIR);
-  const PipelineConfig pc = load_pipeline_config(root / "pipeline_configs/default.yaml");
-  std::ifstream f(root / "samples/trochoid_slot_seed000.nc");
-  Parser parser(load_parse_options(pc.root.section("parse")), pc.machine, "sample");
-  TrochoidExpander x(load_trochoid_options(pc.root.section("trochoid")));
-  std::vector<ResolvedBlock> out;
-  std::string line;
-  LineOutput got;
-  while (std::getline(f, line)) {
-    parser.feed(line, got);
-    for (const ResolvedBlock& b : got.blocks) (void)x.expand(b, out);
-  }
-  return out;
-}
-
 TEST(ForceTrochoid, SteadyLoopForceMatchesTheClimbCutOfTheSameEngagement) {
   // The trochoid stage's exact steady engagement for R 4, K 1.5, r 10 is 58.77 deg (59.84 deg on
   // the G1 polygon). A climb cut of that angle, a = 5, c = 0.1 (F1200 S4000, 3 flutes):
   // closed form |F| (README sec. 3). The swept loops must reach it within the node spacing.
-  const auto blocks = seed000_slot_blocks();
+  const auto blocks = test::seed000_slot_blocks();
   const ForceOptions o = slot_options(0.05);
   const auto moves = moves_from_blocks(blocks);
   HeightField stock = make_stock(moves, o);
@@ -256,7 +240,7 @@ TEST(ForceTrochoid, SteadyLoopForceMatchesTheClimbCutOfTheSameEngagement) {
 }
 
 TEST(ForceTrochoid, ForceAwareFeedHoldsThePeakWithinFivePercentAndShortensTheCycle) {
-  const auto blocks = seed000_slot_blocks();
+  const auto blocks = test::seed000_slot_blocks();
   ForceOptions o = slot_options(0.05);
   // Sampled every 0.1 mm: one sample per revolution (up to 0.9 mm at the planned feeds) misses
   // how fast the engagement changes along a loop.

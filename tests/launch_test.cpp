@@ -59,6 +59,29 @@ std::size_t occurrences(const std::string& text, const std::string& part) {
   return n;
 }
 
+// A stream of the seed 000 slot with its feed paced at `rate` bytes/s (so the program is still in
+// flight when the test acts), once every process it started is ready; its log is dir/stream.log.
+pid_t paced_slot_stream(const fs::path& dir, int domain, int rate) {
+  const fs::path log = dir / "stream.log";
+  const pid_t stream = spawn_gcpipe({"stream", (kSource / "samples" / "trochoid_slot_seed000.nc").string(), "-o",
+                                     (dir / "out").string(), "--domain", std::to_string(domain), "--feed-rate",
+                                     std::to_string(rate)},
+                                    dir / "stream.out", log);
+  EXPECT_TRUE(wait_for(log, "processes ready", 60)) << slurp(log);
+  return stream;
+}
+
+// Those of `pids` still running: an orphan that exited is a zombie until whoever adopted it
+// reaps it, and counts as gone.
+int still_running(const std::vector<pid_t>& pids) {
+  int n = 0;
+  for (pid_t p : pids) {
+    const std::string status = slurp(fs::path("/proc") / std::to_string(p) / "status");
+    n += !status.empty() && status.find("State:\tZ") == std::string::npos;
+  }
+  return n;
+}
+
 // The pid of the node process `stage` that the launcher started for `domain`.
 pid_t node_pid(const fs::path& log, const std::string& stage) {
   const std::regex re("  " + stage + ": started \\(pid ([0-9]+)\\)");
@@ -245,10 +268,7 @@ TEST(Stream, RunsOnTheDomainOfGcpipeDdsDomain) {
 TEST(Stream, ItsProcessesLeaveWhenTheStreamIsKilled) {
   const fs::path dir = tmpdir("stream_killed");
   const fs::path log = dir / "stream.log";
-  const pid_t stream = spawn_gcpipe({"stream", (kSource / "samples" / "trochoid_slot_seed000.nc").string(), "-o",
-                                     (dir / "out").string(), "--domain", "218", "--feed-rate", "200"},
-                                    dir / "stream.out", log);
-  ASSERT_TRUE(wait_for(log, "processes ready", 60)) << slurp(log);
+  const pid_t stream = paced_slot_stream(dir, 218, 200);
   std::vector<pid_t> children;
   for (const char* name : {"feed", "parse", "write", "compensate", "sink output.nc", "report-sink"}) {
     children.push_back(node_pid(log, name));
@@ -257,20 +277,11 @@ TEST(Stream, ItsProcessesLeaveWhenTheStreamIsKilled) {
   kill(stream, SIGKILL);
   wait_exit(stream, 10);
   const auto t0 = std::chrono::steady_clock::now();
-  // Running, not a zombie: an orphan that exited waits for whoever adopted it to reap it.
-  auto alive = [&] {
-    int n = 0;
-    for (pid_t p : children) {
-      const std::string status = slurp(fs::path("/proc") / std::to_string(p) / "status");
-      n += !status.empty() && status.find("State:\tZ") == std::string::npos;
-    }
-    return n;
-  };
-  while (alive() > 0 && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(15))
+  while (still_running(children) > 0 && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(15))
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("children of the killed stream gone after %.2f s\n", took);
-  EXPECT_EQ(alive(), 0) << "children still running 15 s after their supervisor was killed";
+  EXPECT_EQ(still_running(children), 0) << "children still running 15 s after their supervisor was killed";
   // They leave all at once, and Fast DDS then leaves port files of the domain in /dev/shm (their
   // segments too): the next stream removes what no live process maps, as `gcpipe dds clean` does.
   std::printf("shared-memory files of domain 218 left by the killed run: %zu\n", shm_of_domain(218).size());
@@ -286,10 +297,7 @@ TEST(Stream, ItsProcessesLeaveWhenTheStreamIsKilled) {
 TEST(Stream, SigtermMidProgramStopsEveryProcessAndLeavesOnlyPartFiles) {
   const fs::path dir = tmpdir("stream_sigterm");
   const fs::path log = dir / "stream.log";
-  const pid_t stream = spawn_gcpipe({"stream", (kSource / "samples" / "trochoid_slot_seed000.nc").string(), "-o",
-                                     (dir / "out").string(), "--domain", "217", "--feed-rate", "300"},
-                                    dir / "stream.out", log);
-  ASSERT_TRUE(wait_for(log, "processes ready", 60)) << slurp(log);
+  const pid_t stream = paced_slot_stream(dir, 217, 300);
   std::this_thread::sleep_for(std::chrono::seconds(1));  // the program is in flight (paced feed)
   std::vector<pid_t> children;
   for (const char* name : {"feed", "parse", "trochoid", "write", "force", "ik", "simulate", "compensate", "sink output.nc",
@@ -302,10 +310,7 @@ TEST(Stream, SigtermMidProgramStopsEveryProcessAndLeavesOnlyPartFiles) {
   EXPECT_EQ(status, 143);  // 128 + SIGTERM, as every gcpipe command
   EXPECT_LT(took, 3.0) << slurp(log);
   EXPECT_EQ(slurp(log).find("killed by signal 9"), std::string::npos) << "a process needed SIGKILL:\n" << slurp(log);
-  for (pid_t p : children) {
-    const std::string state = slurp(fs::path("/proc") / std::to_string(p) / "status");
-    EXPECT_TRUE(state.empty() || state.find("State:\tZ") != std::string::npos) << "pid " << p << " still running";
-  }
+  EXPECT_EQ(still_running(children), 0) << "processes of the stream still running after it exited";
   for (const char* f : {"output.nc", "compensated.nc", "report.json"}) EXPECT_FALSE(fs::exists(dir / "out" / f)) << f;
 }
 
