@@ -337,11 +337,10 @@ std::size_t clean_dead_shared_memory() {
     if (name.rfind("fastrtps_", 0) != 0 || name.ends_with("_el") || name.ends_with("_sl")) continue;
     files.insert(entry.path().string());
   }
-  std::size_t before = 0, after = 0;
-  for (const auto& f : files) before += std::filesystem::exists(f, ec);
   remove_unmapped_shm_files(files);
-  for (const auto& f : files) after += std::filesystem::exists(f, ec);
-  return before - after;
+  std::size_t left = 0;
+  for (const auto& f : files) left += std::filesystem::exists(f, ec);
+  return files.size() - left;
 }
 
 namespace {

@@ -35,10 +35,13 @@ std::uint64_t random_program_id() {
   return id;
 }
 
-std::string foreign_program_text(const std::string& who, std::uint64_t id, const std::string& file, std::uint64_t ours) {
-  return who + ": refusing program " + std::to_string(id) + " ('" + file + "'): started for program " +
-         std::to_string(ours) + " only. Another pipeline publishes on this DDS domain: give each its own " +
-         "(--domain, or GCPIPE_DDS_DOMAIN for the commands that read it)";
+bool ProgramFilter::refuses(std::uint64_t id, const std::string& file, std::ostream& log) {
+  if (only_ == 0 || id == only_) return false;
+  if (refused_.insert(id).second)
+    log << who_ << ": refusing program " << id << " ('" << file << "'): started for program " << only_
+        << " only. Another pipeline publishes on this DDS domain: give each its own (--domain, or "
+        << "GCPIPE_DDS_DOMAIN for the commands that read it)" << std::endl;
+  return true;
 }
 
 namespace {
@@ -179,7 +182,6 @@ struct SinkReceipt {
   msg::GcodeChunk last;  //!< the end marker, when `complete`
   std::uint64_t id = 0, next = 0, bytes = 0;
   std::uint64_t writer = 0;  //!< who sent the first chunk
-  std::set<std::uint64_t> foreign;  //!< other pipelines' programs refused (SinkOptions::program_id)
   std::string error;
   Clock::time_point t0;
   bool complete = false;
@@ -191,6 +193,7 @@ struct SinkReceipt {
 SinkReceipt receive_program(Participant& participant, Reader<msg::GcodeChunk>& reader, const SinkOptions& o,
                             std::ofstream& out, std::ostream& log) {
   SinkReceipt r;
+  ProgramFilter ours("gcpipe sink", o.program_id);
   msg::GcodeChunk& chunk = r.last;
   const double idle_timeout = participant.options().idle_timeout;
   bool idle = false;
@@ -202,20 +205,15 @@ SinkReceipt receive_program(Participant& participant, Reader<msg::GcodeChunk>& r
     if (!take_or_idle(reader, chunk, idle_timeout, idle, &source_time, r.id != 0 ? &lost : nullptr, &writer)) {
       if (idle)
         log << "gcpipe sink: nothing arrived on " << o.topic << " for " << idle_timeout << " s; giving up"
-            << (r.foreign.empty() ? "" : " (only another pipeline's programs did: see above)") << "\n";
+            << (ours.refused_any() ? " (only another pipeline's programs did: see above)" : "") << "\n";
       if (lost)
         log << "gcpipe sink: the writer of " << o.topic << " went away after chunk " << r.next
             << " of the program (its stage stopped or died): the rest is lost\n";
       r.status = idle || lost ? 1 : 130;
       return r;
     }
-    if (o.program_id != 0 && chunk.program_id() != o.program_id) {
-      // Another pipeline's program on a shared domain: never written, said once, and named
-      // again if this sink then waits in vain for its own.
-      if (r.foreign.insert(chunk.program_id()).second)
-        log << foreign_program_text("gcpipe sink", chunk.program_id(), chunk.file(), o.program_id) << "\n";
-      continue;
-    }
+    // Another pipeline's program on a shared domain: never written.
+    if (ours.refuses(chunk.program_id(), chunk.file(), log)) continue;
     if (r.id == 0 && skipped.count(chunk.program_id()) != 0) continue;
     if (r.id == 0 && participant.published_before_start(source_time)) {
       // Replayed from a writer's history (a node serving with --forever): an old program.
@@ -322,7 +320,7 @@ int collect_parts(Participant& participant, const ReportSinkOptions& o, Parts& p
   const double idle_timeout = participant.options().idle_timeout;
   msg::ReportFragment part;
   std::uint64_t program = o.program_id;
-  std::set<std::uint64_t> foreign;  // other pipelines' programs, named once each
+  ProgramFilter ours("gcpipe report-sink", o.program_id);
   double source_time = 0;
   bool idle = false;
   while (parts.size() < o.stages.size()) {
@@ -330,11 +328,7 @@ int collect_parts(Participant& participant, const ReportSinkOptions& o, Parts& p
       if (idle) log << "gcpipe report-sink: no report part for " << idle_timeout << " s; giving up\n";
       return idle ? 1 : 130;
     }
-    if (o.program_id != 0 && part.program_id() != o.program_id) {
-      if (foreign.insert(part.program_id()).second)
-        log << foreign_program_text("gcpipe report-sink", part.program_id(), part.file(), o.program_id) << "\n";
-      continue;
-    }
+    if (ours.refuses(part.program_id(), part.file(), log)) continue;
     if (participant.published_before_start(source_time)) continue;
     if (program == 0) program = part.program_id();
     if (part.program_id() != program) continue;

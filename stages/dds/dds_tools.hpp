@@ -7,7 +7,9 @@
 #include <cstdint>
 #include <filesystem>
 #include <iosfwd>
+#include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "dds_runtime.hpp"
@@ -47,8 +49,21 @@ struct SinkOptions {
 /// A random non-zero program id (what `gcpipe feed` publishes under unless told one).
 std::uint64_t random_program_id();
 
-/// What a sink or node says, once per program, about a program it was not started for.
-std::string foreign_program_text(const std::string& who, std::uint64_t id, const std::string& file, std::uint64_t ours);
+/// The one program a sink or node was started for (`--program-id`, as `gcpipe stream` gives it):
+/// any other is another pipeline's on a shared domain, refused and named once.
+class ProgramFilter {
+ public:
+  /// `who` names the process in what it says ("gcpipe sink"); `only` 0 takes every program.
+  ProgramFilter(std::string who, std::uint64_t only) : who_(std::move(who)), only_(only) {}
+  /// True when program `id` is not the one: said to `log` the first time.
+  bool refuses(std::uint64_t id, const std::string& file, std::ostream& log);
+  bool refused_any() const { return !refused_.empty(); }
+
+ private:
+  std::string who_;
+  std::uint64_t only_;
+  std::set<std::uint64_t> refused_;
+};
 
 /// Writes the first program that arrives on its topic to `output` and returns after its end
 /// marker, having checked that the chunks were contiguous, the bytes are the writer's, no stage

@@ -196,7 +196,7 @@ struct StageNode::Impl {
   BatchIntake<Program> intake;
   std::map<std::uint64_t, Program> chunk_programs;  // ProgramChunk input
   std::set<std::uint64_t> skipped;
-  std::set<std::uint64_t> foreign;  // programs refused: not the one this node was started for
+  ProgramFilter ours{"gcpipe node " + options.stage, options.program_id};
   std::size_t max_line;
   bool config_strict;  // parse.strict: batch mode's strict mode, as --strict
   int status = 0;
@@ -249,8 +249,7 @@ struct StageNode::Impl {
   // A program this node was not started for (StageNodeOptions::program_id): another pipeline's on
   // a shared domain. Not processed, so it can never reach this pipeline's files; named once.
   bool refused(std::uint64_t id, const std::string& file) {
-    if (options.program_id == 0 || id == options.program_id) return false;
-    if (foreign.insert(id).second) std::cerr << foreign_program_text("gcpipe node " + options.stage, id, file, options.program_id) << "\n";
+    if (!ours.refuses(id, file, std::cerr)) return false;
     ended = false;
     return true;
   }

@@ -8,20 +8,13 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "gcpipe/split_fields.hpp"
+
 namespace gcpipe::force {
 
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-
-std::vector<std::string> split_tabs(const std::string& line) {
-  std::vector<std::string> out;
-  std::string cell;
-  std::istringstream in(line);
-  while (std::getline(in, cell, '\t')) out.push_back(cell);
-  if (!line.empty() && line.back() == '\t') out.emplace_back();
-  return out;
-}
 
 /// A number cell; `blank_ok`: an empty cell reads as 0 (the aluminium rows have no strength).
 double number_cell(const std::string& cell, bool blank_ok, const std::string& where, const std::string& column) {
@@ -40,7 +33,7 @@ double number_cell(const std::string& cell, bool blank_ok, const std::string& wh
 /// Column positions by header name; every column the model needs must be there.
 std::map<std::string, std::size_t> header_columns(const std::string& line, const std::string& name) {
   std::map<std::string, std::size_t> at;
-  const auto names = split_tabs(line);
+  const auto names = split_fields(line, '\t');
   for (std::size_t i = 0; i < names.size(); ++i) at[names[i]] = i;
   for (const char* need : {"group", "iso", "material", "condition", "tensile_N_mm2", "hardness_HB", "kc1_N_mm2", "mc"})
     if (!at.count(need)) throw std::runtime_error(name + ":1: no column '" + need + "' (not the VDI 3323 Kienzle table)");
@@ -144,7 +137,7 @@ std::vector<KienzleGroup> parse_kienzle_table(std::istream& in, const std::strin
   for (int n = 2; std::getline(in, line); ++n) {
     if (line.empty()) continue;
     const std::string where = name + ":" + std::to_string(n);
-    rows.push_back(parse_row(split_tabs(line), at, where));
+    rows.push_back(parse_row(split_fields(line, '\t'), at, where));
     for (std::size_t i = 0; i + 1 < rows.size(); ++i)
       if (rows[i].group == rows.back().group) throw std::runtime_error(where + ": group " + std::to_string(rows.back().group) + " twice");
   }

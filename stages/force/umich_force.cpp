@@ -7,18 +7,11 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "gcpipe/split_fields.hpp"
+
 namespace gcpipe::force {
 
 namespace {
-
-std::vector<std::string> split_csv(const std::string& line) {
-  std::vector<std::string> out;
-  std::string cell;
-  std::istringstream in(line);
-  while (std::getline(in, cell, ',')) out.push_back(cell);
-  if (!line.empty() && line.back() == ',') out.emplace_back();
-  return out;
-}
 
 std::size_t column(const std::map<std::string, std::size_t>& header, const std::string& name, const std::string& file) {
   const auto it = header.find(name);
@@ -51,7 +44,7 @@ UmichRun read_umich_run(const std::filesystem::path& csv) {
   std::string line;
   std::getline(in, line);
   std::map<std::string, std::size_t> header;
-  const auto names = split_csv(line);
+  const auto names = split_fields(line, ',');
   for (std::size_t i = 0; i < names.size(); ++i) header[names[i]] = i;
   const std::size_t vx = column(header, "X1_CommandVelocity", file), vy = column(header, "Y1_CommandVelocity", file),
                     vz = column(header, "Z1_CommandVelocity", file), s = column(header, "S1_CommandVelocity", file),
@@ -60,7 +53,7 @@ UmichRun read_umich_run(const std::filesystem::path& csv) {
   UmichRun r;
   r.file = file;
   for (std::size_t n = 2; std::getline(in, line); ++n) {
-    const auto row = split_csv(line);
+    const auto row = split_fields(line, ',');
     if (row.size() < names.size() - 1) throw std::runtime_error(file + ":" + std::to_string(n) + ": short row");
     const double x = number(row, vx, file, n), y = number(row, vy, file, n), z = number(row, vz, file, n);
     r.feed.push_back(std::sqrt(x * x + y * y + z * z));
