@@ -106,14 +106,6 @@ void apply_output_effect(const servo::EffectSettings& e, double period, std::vec
   }
 }
 
-std::vector<double> predict_axis(const servo::DriveParams& p, int substeps, double margin,
-                                 double period, std::span<const double> command) {
-  std::vector<double> y = simulate_motor(p, substeps, margin, period, command);
-  for (const auto& e : p.effects)
-    if (!is_dynamic_effect(e.type)) apply_output_effect(e, period, y);
-  return y;
-}
-
 double estimate_noise(std::span<const double> y) {
   if (y.size() < 8) return 0;
   std::vector<double> d;

@@ -34,10 +34,6 @@ std::vector<double> simulate_motor(const servo::DriveParams& p, int substeps, do
 void apply_output_effect(const servo::EffectSettings& e, double period, std::vector<double>& y,
                          std::vector<std::vector<double>>* dydp = nullptr);
 
-/// Full prediction: simulate_motor, then the output effects of `p` in order.
-std::vector<double> predict_axis(const servo::DriveParams& p, int substeps, double margin,
-                                 double period, std::span<const double> command);
-
 /// Measurement noise of a position series [same unit]: the third difference of a smooth motion
 /// sampled at ~1 ms is below a nanometre, so what is left is noise: sigma = MAD(D3 y)/0.6745
 /// / sqrt(20) (D3 = [1 -3 3 -1], variance 20 sigma^2 for white noise).

@@ -257,20 +257,4 @@ void say_line(const std::string& line);
 int run_stage_node(const std::string& node, Participant& participant, RawWriter& output, bool forever,
                    const std::function<Taken(double timeout)>& take, int& status);
 
-/// run_stage_node for the usual node: one sample at a time from `input`, handed to
-/// `handle(sample, source_time)`, which returns true when the sample completed a program.
-template <class T, class Handle>
-int run_reader_node(const std::string& node, Participant& participant, Reader<T>& input, RawWriter& output,
-                    bool forever, Handle handle, int& status) {
-  T sample;
-  double source_time = 0;
-  return run_stage_node(
-      node, participant, output, forever,
-      [&](double timeout) {
-        if (!input.take(sample, timeout, &source_time)) return Taken::kNothing;
-        return handle(sample, source_time) ? Taken::kProgramEnd : Taken::kHandled;
-      },
-      status);
-}
-
 }  // namespace gcpipe::dds

@@ -221,12 +221,6 @@ std::vector<ResolvedBlock> apply_feeds(const std::vector<ResolvedBlock>& blocks,
   return out;
 }
 
-std::vector<Move> with_feeds(std::vector<Move> moves, const std::vector<double>& feeds) {
-  for (std::size_t i = 0; i < moves.size(); ++i)
-    if (moves[i].cutting) moves[i].feed = feeds[i];
-  return moves;
-}
-
 std::vector<Move> with_spindle_speed(std::vector<Move> moves, double rpm) {
   if (rpm > 0)
     for (Move& m : moves) m.spindle = rpm;

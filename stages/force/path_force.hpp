@@ -76,7 +76,4 @@ std::vector<ResolvedBlock> apply_feeds(const std::vector<ResolvedBlock>& blocks,
 /// The moves with the spindle speed replaced by `rpm` (the config's spindle_speed); rpm 0: as is.
 std::vector<Move> with_spindle_speed(std::vector<Move> moves, double rpm);
 
-/// The moves with their feeds replaced (to sweep the planned program again).
-std::vector<Move> with_feeds(std::vector<Move> moves, const std::vector<double>& feeds);
-
 }  // namespace gcpipe::force

@@ -85,11 +85,6 @@ enum class LineStatus : std::uint8_t {
   kDeleted,   //!< skipped on purpose: block delete, or not run where it stands (flow control)
 };
 
-/// What a diagnostic from the sink says about its line: a note is a skipped line.
-inline LineStatus status_of(const Diagnostic& d) {
-  return d.severity == Severity::kNote ? LineStatus::kDeleted : LineStatus::kRejected;
-}
-
 /// Receives the parser's output in program order; a callback returns false to stop the parse.
 struct ParseSink {
   std::function<bool(const ResolvedBlock&)> block;

@@ -1,8 +1,11 @@
 // Kinematics of a table-table XYZAC machine (A tilts the table about X, C turns it about Z).
 //
 // Pinocchio's Model idea: `MachineKinematics` is an immutable description loaded once from the
-// machine config; forward and inverse kinematics are free functions of (model, input). No state
-// is hidden anywhere: continuity across points comes in through the `previous` joint vector.
+// machine config; forward and inverse kinematics are free functions of (model, input): the same
+// input gives the same output, bit for bit. Continuity across points comes in through the
+// `previous` joint vector. One cache sits behind that: forward_kinematics keeps, per thread, the
+// sin and cos of the last A and C angles (the simulation calls it twice a tick with the same
+// angles, and sin/cos cost more than the rest); a cache hit returns the very values a call would.
 //
 // Frames (named aTb: the pose of frame b expressed in frame a):
 //   k  carrier: fixed to the X/Y table carriage. Joint values are the ISO "tool relative to
