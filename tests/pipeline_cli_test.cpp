@@ -259,3 +259,35 @@ TEST(PathMode, ExactStopRunsThroughBatchAndTheCompensatedProgramRunsAsPlanned) {
             0.5 * ss.at("contour_error_before").at("cutting").at("max_mm").get<double>());
   EXPECT_GE(ss.at("cycle_time_planned_s").get<double>(), ss.at("cycle_time_before_s").get<double>());
 }
+
+// gcpipe config --print builds the stages and lists what they read: the file's values as
+// written, the keys it leaves out as "# default", each file (pipeline config, machine, drives)
+// in its own group. A key a stage reads cannot be missing from it, so a new option shows up
+// without a hand-kept list.
+TEST(ConfigPrint, ShowsTheFilesValuesAndMarksTheDefaults) {
+  const Outcome r = gcpipe({"config", "--print", "--config", std::string(GCPIPE_SOURCE_DIR) + "/pipeline_configs/circle_test.yaml"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("# ---- " + std::string(GCPIPE_SOURCE_DIR) + "/pipeline_configs/circle_test.yaml"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("interpolate:\n  period: 0.001\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("nmv5000.yaml"), std::string::npos) << "the machine file has its own group";
+  EXPECT_NE(r.out.find("seed002.yaml"), std::string::npos) << "the drives file has its own group";
+  const std::size_t key = r.out.find("  max_machine_time: 3600");
+  ASSERT_NE(key, std::string::npos) << r.out;
+  const std::size_t eol = r.out.find('\n', key);
+  EXPECT_NE(r.out.substr(key, eol - key).find("# default"), std::string::npos) << "compensate.max_machine_time is not in the file";
+  EXPECT_EQ(r.out.find("  period: 0.001  "), std::string::npos) << "a value the file gives is not marked as a default";
+}
+
+TEST(ConfigPrint, AStageThatCannotBeBuiltIsNamedAndTheStatusIsOne) {
+  const fs::path dir = tmpdir("config_print");
+  {
+    std::ofstream f(dir / "bad.yaml");
+    f << "machine: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/machines/mx330.yaml\nservo:\n  drives: " << GCPIPE_SOURCE_DIR
+      << "/pipeline_configs/drives/seed002.yaml\ninterpolate:\n  smoothing: cubic\n";
+  }
+  const Outcome r = gcpipe({"config", "--print", "--config", (dir / "bad.yaml").string()});
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("stage simulate cannot be built"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("'interpolate.smoothing'"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("# stage simulate cannot be built"), std::string::npos) << "the printed config says it too";
+}

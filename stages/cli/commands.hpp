@@ -55,6 +55,12 @@ struct SimulateArgs : ProgramArgs {
 };
 int run_simulate(const SimulateArgs& args);
 
+struct ConfigArgs {
+  std::string config;  //!< pipeline config; empty = pipeline_configs/default.yaml
+  bool print = false;
+};
+int run_config(const ConfigArgs& args);
+
 struct SynthArgs {
   double blocks = 0, megabytes = 0;
   int cam_segments = 0;  //!< > 0: a CAM-like 2.5D finishing pass instead (cam_like_program)

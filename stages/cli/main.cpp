@@ -36,6 +36,16 @@ void add_program_options(CLI::App& sub, ProgramArgs& a) {
   sub.add_flag("--no-progress", a.no_progress, "no progress on stderr, even on a terminal");
 }
 
+void add_config(CLI::App& app, ConfigArgs& a) {
+  auto* s = app.add_subcommand("config", "show the effective pipeline config: every key the stages read, defaults included");
+  s->add_option("--config", a.config, "pipeline config (default: pipeline_configs/default.yaml)");
+  s->add_flag("--print", a.print, "print it as YAML (the default and only action)");
+  s->footer("Builds every registered stage from the config as gcpipe batch does and prints each key it reads,\n"
+            "grouped by file (the pipeline config, the machine file, the drives file, ...), a key the file leaves\n"
+            "out marked '# default'. Exit status: 0, or 1 when a stage cannot be built from this config (the\n"
+            "reason is printed at the end).");
+}
+
 void add_batch(CLI::App& app, BatchArgs& a) {
   auto* s = app.add_subcommand("batch", "run the whole pipeline on a program: file in, files out");
   add_program_options(*s, a);
@@ -375,6 +385,8 @@ int main(int argc, char** argv) {
   add_ik(app, ik);
   add_simulate(app, simulate);
   auto* stages = app.add_subcommand("stages", "list the registered stages, their edges and ports");
+  ConfigArgs config;
+  add_config(app, config);
   CalibrateArgs calibrate;
   EvaluateArgs evaluate;
   add_calibrate(app, calibrate);
@@ -409,6 +421,7 @@ int main(int argc, char** argv) {
     if (name == "ik") return run_ik(ik);
     if (name == "simulate") return run_simulate(simulate);
     if (name == "stages") return (void)stages, run_stages();
+    if (name == "config") return run_config(config);
     if (name == "calibrate") return run_calibrate(calibrate);
     if (name == "evaluate") return run_evaluate(evaluate);
     if (name == "train-ik") return run_train_ik(train_ik);

@@ -5,6 +5,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 
 namespace gcpipe {
@@ -68,7 +69,25 @@ void reject_duplicate_keys(const std::string& file, const YAML::Node& root) {
   reject_duplicate_keys(file, root, "", values);
 }
 
+thread_local ConfigReadLog* active_log = nullptr;
+
+std::string number_text(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.15g", v);
+  return buf;
+}
+
 }  // namespace
+
+ConfigReadLog::ConfigReadLog() : outer_(active_log) { active_log = this; }
+ConfigReadLog::~ConfigReadLog() { active_log = outer_; }
+void ConfigReadLog::note(ConfigRead read) {
+  if (active_log) active_log->reads_.push_back(std::move(read));
+}
+
+void Config::note(std::string_view key, std::string value, bool defaulted) const {
+  if (active_log) ConfigReadLog::note({impl_->file, join(impl_->path, key), std::move(value), defaulted});
+}
 
 Config::Config() : impl_(std::make_shared<Impl>()) {}
 Config::~Config() = default;
@@ -181,7 +200,10 @@ std::string range_text(double min, double max, std::string_view unit) {
 
 double Config::number(std::string_view key, double fallback, std::string_view unit, double min,
                       double max) const {
-  if (!has(key)) return fallback;
+  if (!has(key)) {
+    note(key, number_text(fallback), true);
+    return fallback;
+  }
   return number(key, unit, min, max);
 }
 
@@ -193,12 +215,16 @@ double Config::number(std::string_view key, std::string_view unit, double min, d
   if (!std::isfinite(v)) throw error(key, "value " + shown(n) + " is not finite");
   if (v < min || v > max)
     throw error(key, "value " + shown(n) + " is outside the valid range " + range_text(min, max, unit));
+  note(key, number_text(v), false);
   return v;
 }
 
 std::int64_t Config::integer(std::string_view key, std::int64_t fallback, std::int64_t min,
                              std::int64_t max) const {
-  if (!has(key)) return fallback;
+  if (!has(key)) {
+    note(key, std::to_string(fallback), true);
+    return fallback;
+  }
   YAML::Node n = impl_->node[std::string(key)];
   std::int64_t v = 0;
   try {
@@ -209,23 +235,33 @@ std::int64_t Config::integer(std::string_view key, std::int64_t fallback, std::i
   if (v < min || v > max)
     throw error(key, "value " + shown(n) + " is outside the valid range [" + std::to_string(min) +
                          ", " + std::to_string(max) + "]");
+  note(key, std::to_string(v), false);
   return v;
 }
 
 bool Config::boolean(std::string_view key, bool fallback) const {
-  if (!has(key)) return fallback;
+  if (!has(key)) {
+    note(key, fallback ? "true" : "false", true);
+    return fallback;
+  }
   YAML::Node n = impl_->node[std::string(key)];
   try {
-    return n.as<bool>();
+    const bool v = n.as<bool>();
+    note(key, v ? "true" : "false", false);
+    return v;
   } catch (const YAML::Exception&) {
     throw error(key, "value " + shown(n) + " is not true or false");
   }
 }
 
 std::string Config::string(std::string_view key, std::string fallback) const {
-  if (!has(key)) return fallback;
+  if (!has(key)) {
+    note(key, fallback, true);
+    return fallback;
+  }
   YAML::Node n = impl_->node[std::string(key)];
   if (!n.IsScalar()) throw error(key, "expected text, found " + shown(n));
+  note(key, n.Scalar(), false);
   return n.Scalar();
 }
 
@@ -256,6 +292,9 @@ std::vector<double> Config::numbers(std::string_view key, std::size_t n, std::st
                            ") is outside the valid range " + range_text(min, max, unit));
     out.push_back(v);
   }
+  std::string text;
+  for (double v : out) text += (text.empty() ? "[" : ", ") + number_text(v);
+  note(key, text.empty() ? "[]" : text + "]", false);
   return out;
 }
 
@@ -274,6 +313,9 @@ std::vector<std::string> Config::strings(std::string_view key, const std::vector
     }
     out.push_back(v);
   }
+  std::string text;
+  for (const auto& v : out) text += (text.empty() ? "[" : ", ") + v;
+  note(key, text + "]", false);
   return out;
 }
 

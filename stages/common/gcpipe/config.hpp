@@ -22,6 +22,31 @@ class ConfigError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// One value a stage read from a config, as `gcpipe config --print` shows it: the file and
+/// dotted key, the value as text, and whether the file gave it or the stage's default did.
+struct ConfigRead {
+  std::string file, key, value;
+  bool defaulted = false;
+};
+
+/// While one of these lives on a thread, every value read through Config on that thread is
+/// appended to it (the effective config: what the stages used, defaults included). Nothing is
+/// recorded when none lives, which is every run but `gcpipe config`.
+class ConfigReadLog {
+ public:
+  ConfigReadLog();
+  ~ConfigReadLog();
+  ConfigReadLog(const ConfigReadLog&) = delete;
+  ConfigReadLog& operator=(const ConfigReadLog&) = delete;
+  const std::vector<ConfigRead>& reads() const { return reads_; }
+  /// Appends to the log living on this thread, if any.
+  static void note(ConfigRead read);
+
+ private:
+  std::vector<ConfigRead> reads_;
+  ConfigReadLog* outer_;
+};
+
 /// A read-only view of one mapping inside a YAML document.
 class Config {
  public:
@@ -83,6 +108,8 @@ class Config {
  private:
   struct Impl;
   std::shared_ptr<const Impl> impl_;
+  /// Records a value read from `key` for an active ConfigReadLog.
+  void note(std::string_view key, std::string value, bool defaulted) const;
   explicit Config(std::shared_ptr<const Impl> impl);
 };
 
