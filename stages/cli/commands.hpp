@@ -77,6 +77,14 @@ struct TrainIkArgs {
 };
 int run_train_ik(const TrainIkArgs& args);
 
+struct TrainSpindleArgs {
+  std::vector<std::string> fit, verify;
+  std::string output, png, quantity = "power";
+  int hidden = 8, max_iterations = 40;
+  bool quiet = false;
+};
+int run_train_spindle(const TrainSpindleArgs& args);
+
 struct CalibrateArgs {
   std::vector<std::string> traces;
   std::string config, outdir, format;

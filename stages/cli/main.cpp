@@ -136,6 +136,26 @@ void add_train_ik(CLI::App& app, TrainIkArgs& a) {
   s->add_flag("--quiet", a.quiet, "no progress");
 }
 
+void add_train_spindle(CLI::App& app, TrainSpindleArgs& a) {
+  auto* s = app.add_subcommand("train-spindle", "train seed 003's NNOE on the spindle power or current of measured runs");
+  s->add_option("runs", a.fit, "measured runs to fit on (UMich mill CSV)")->required()->check(CLI::ExistingFile);
+  s->add_option("--verify", a.verify, "measured runs to choose the structure on (not fitted)")->required()->check(CLI::ExistingFile);
+  s->add_option("-o,--output", a.output, "the model file to write (force.spindle_model)")->required()->check(kNonEmpty);
+  s->add_option("--quantity", a.quantity, "power (S1_OutputPower) or current (S1_CurrentFeedback)")
+      ->check(CLI::IsMember({"power", "current"}));
+  s->add_option("--png", a.png, "the verification figure (default: MODEL's name with _verification.png)")->check(kNonEmpty);
+  s->add_option("--hidden", a.hidden, "tanh units of every structure (1..64)")->check(CLI::Range(1, 64));
+  s->add_option("--max-iterations", a.max_iterations, "Levenberg-Marquardt iterations (1..1000)")->check(CLI::Range(1, 1000));
+  s->add_flag("--quiet", a.quiet, "no progress");
+  s->footer("Reads the runs (spindle power and current, path feed from the commanded X Y Z velocities, commanded\n"
+            "spindle speed, a cutting flag from Machining_Process), trains seed 003's Table 1 structures on the\n"
+            "fit runs, prints each one's fit and verification FPE and keeps the lowest verification FPE. The model\n"
+            "file holds the quantity and its unit, the channels with their units and training ranges, the sample\n"
+            "period and the normalisation; gcpipe batch predicts the quantity along a program with\n"
+            "force.spindle_model: MODEL (stages/force/README.md sec. 8b).\n\n"
+            "Exit status: 0 written, 1 unreadable run or output, 2 usage.");
+}
+
 /// The trace-reading options calibrate and evaluate share (stages/calibrate/README.md §1).
 void add_trace_format_options(CLI::App* s, std::string& format, std::vector<std::string>& columns, double& period) {
   s->add_option("--format", format, "csv, umich, halsampler or shdr (default: detected from the first line)")
@@ -379,6 +399,7 @@ int main(int argc, char** argv) {
   SimulateArgs simulate;
   SynthArgs synth;
   TrainIkArgs train_ik;
+  TrainSpindleArgs train_spindle;
   add_batch(app, batch);
   add_parse(app, parse);
   add_trochoid(app, trochoid);
@@ -392,6 +413,7 @@ int main(int argc, char** argv) {
   add_calibrate(app, calibrate);
   add_evaluate(app, evaluate);
   add_train_ik(app, train_ik);
+  add_train_spindle(app, train_spindle);
   add_synth(app, synth);
 #ifdef GCPIPE_WITH_DDS
   DdsCommands dds;
@@ -425,6 +447,7 @@ int main(int argc, char** argv) {
     if (name == "calibrate") return run_calibrate(calibrate);
     if (name == "evaluate") return run_evaluate(evaluate);
     if (name == "train-ik") return run_train_ik(train_ik);
+    if (name == "train-spindle") return run_train_spindle(train_spindle);
     if (name == "synth") return run_synth(synth);
 #ifdef GCPIPE_WITH_DDS
     if (const void* args = dds.args_of(name)) return run_dds_command(name.c_str(), args);

@@ -117,7 +117,7 @@ Material load_material(const Config& c) {
 ForceOptions load_force_options(const Config& c) {
   c.reject_unknown({"material", "coefficients", "source", "tool_diameter", "flutes", "flute_length",
                     "stickout", "modulus", "effective_diameter_factor", "spindle_speed", "stock", "cell", "sample_spacing",
-                    "target_force", "peak_force", "max_feed_factor", "min_feed"});
+                    "target_force", "peak_force", "max_feed_factor", "min_feed", "spindle_model"});
   ForceOptions o;
   o.tool = load_tool(c);
   o.material = load_material(c);
@@ -139,6 +139,7 @@ ForceOptions load_force_options(const Config& c) {
                          "material.radial_to_tangential, axial_to_tangential and ratio_source (stages/force/README.md sec. 1b)");
   o.max_feed_factor = c.number("max_feed_factor", o.max_feed_factor, "", 1, 100);
   o.min_feed = c.number("min_feed", o.min_feed, "mm/min", 0.001, 1e5);
+  if (c.has("spindle_model")) o.spindle_model = c.file_path("spindle_model", "a spindle model file of gcpipe train-spindle");
   return o;
 }
 

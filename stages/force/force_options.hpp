@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <filesystem>
 #include <optional>
 #include <string>
 
@@ -48,6 +49,7 @@ struct ForceOptions {
   double peak_force = 0;         //!< instantaneous force never exceeded [N]; 0 = 2 * target
   double max_feed_factor = 3;    //!< planned feed <= factor * programmed feed [-]
   double min_feed = 10;          //!< planned feed never below [mm/min]
+  std::filesystem::path spindle_model;  //!< a model of gcpipe train-spindle (resolved); empty: none
 };
 
 /// Reads the section; throws ConfigError naming file, key, value and limit; unknown keys rejected.

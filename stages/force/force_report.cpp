@@ -96,4 +96,31 @@ void write_prediction_png(const std::filesystem::path& png, const std::vector<do
   f.save_png(png);
 }
 
+void write_spindle_prediction_png(const std::filesystem::path& png, const std::vector<double>& predicted,
+                                  const std::vector<double>& cutting, const std::vector<double>& feed, double period,
+                                  const std::string& title, const std::string& note, const std::string& ylabel) {
+  plot::FigureStyle style;
+  style.height = 520;
+  std::vector<double> t(predicted.size()), in_cut_t, in_cut;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    t[i] = static_cast<double>(i) * period;
+    if (cutting[i] == 0) continue;
+    in_cut_t.push_back(t[i]);
+    in_cut.push_back(predicted[i]);
+  }
+  plot::Figure quantity(style);
+  quantity.title(title);
+  quantity.note(note);
+  quantity.ylabel(ylabel);
+  quantity.line(t, predicted, plot::palette(0), 1, "NNOE, parallel (output-error) run along the program");
+  quantity.scatter(in_cut_t, in_cut, plot::palette(1), 2, "samples in cutting moves");
+  plot::Figure inputs(style);
+  inputs.xlabel("time on the interpolator's clock [s]");
+  inputs.ylabel("path feed [mm/s]");
+  inputs.line(t, feed, plot::palette(2), 1, "XYZ path speed of the commanded axes");
+  cv::Mat both;
+  cv::vconcat(quantity.render(), inputs.render(), both);
+  plot::write_png(png, both);
+}
+
 }  // namespace gcpipe::force

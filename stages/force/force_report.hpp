@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "path_force.hpp"
 
@@ -22,5 +23,12 @@ void write_force_time_png(const std::filesystem::path& png, const PathForce& p, 
 void write_prediction_png(const std::filesystem::path& png, const std::vector<double>& reference,
                           const std::vector<double>& predicted, double period, const std::string& title,
                           const std::string& note, const std::string& ylabel);
+
+/// Two panels against the program's time on the interpolator's clock (one value every `period`
+/// seconds): a spindle model's prediction, with its mean over the cutting samples; the path feed
+/// [mm/s] and the cutting flag the model was given.
+void write_spindle_prediction_png(const std::filesystem::path& png, const std::vector<double>& predicted,
+                                  const std::vector<double>& cutting, const std::vector<double>& feed, double period,
+                                  const std::string& title, const std::string& note, const std::string& ylabel);
 
 }  // namespace gcpipe::force

@@ -5,8 +5,11 @@
 // `target_force` set it plans the feeds: it then holds the program back (the feed of a block
 // depends on the engagement ahead of it) and emits it at the end with each feed block's F set,
 // capped by what the drives allow (drive_limits.hpp). Either way the program is timed by the
-// interpolate stage's Interpolator as the simulate stage runs it, before and after planning.
+// interpolate stage's Interpolator as the simulate stage runs it, before and after planning. With
+// `spindle_model` (a model of gcpipe train-spindle) it predicts the spindle's power or current along
+// the program as emitted, sampled on that interpolator's clock (README sec. 8b).
 #include <cstdio>
+#include <optional>
 #include <variant>
 
 #include <nlohmann/json.hpp>
@@ -17,6 +20,7 @@
 #include "force_report.hpp"
 #include "path_force.hpp"
 #include "simulate.hpp"
+#include "spindle_model.hpp"
 #include "stage.hpp"
 
 namespace gcpipe {
@@ -43,6 +47,7 @@ class ForceStage final : public pipeline::Stage {
     options_ = force::load_force_options(section_);
     planning_ = options_.target_force > 0;
     drives_ = drives_model(*c.config);
+    if (!options_.spindle_model.empty()) spindle_model_ = load_spindle_model();
   }
 
   bool block(const ResolvedBlock& b, Emitter& out) override {
@@ -71,6 +76,7 @@ class ForceStage final : public pipeline::Stage {
     before_ = force::sweep_path(moves, o, std::move(stock));
     if (!planning_) {
       before_run_ = run_on_drives(program_);
+      predict_spindle(program_);
       hand_on(before_, out);
       return true;
     }
@@ -84,6 +90,7 @@ class ForceStage final : public pipeline::Stage {
     o.target_force = 0;
     auto stock_after = force::make_stock(moves_after, o);
     after_ = force::sweep_path(moves_after, o, std::move(stock_after));
+    predict_spindle(planned);
     hand_on(after_, out);
     return release(planned, out);
   }
@@ -104,6 +111,10 @@ class ForceStage final : public pipeline::Stage {
     force::write_force_time_png(r.dir / "plots" / "force_time.png", shown, what, resultant);
     r.files->push_back("plots/force_path.png");
     r.files->push_back("plots/force_time.png");
+    if (!spindle_.value.empty()) {
+      write_spindle_figure(r.dir / "plots" / "spindle_prediction.png", r.input_base);
+      r.files->push_back("plots/spindle_prediction.png");
+    }
   }
 
   std::string failure() const override { return failure_; }
@@ -138,15 +149,90 @@ class ForceStage final : public pipeline::Stage {
     return m;
   }
 
-  /// `blocks` through the interpolator from where the simulate stage starts the machine.
-  force::DriveRun run_on_drives(const std::vector<ResolvedBlock>& blocks) const {
+  /// The interpolator's options and the machine's start for `blocks`, as the simulate stage
+  /// builds them; nullopt when no block moves.
+  std::optional<std::pair<interpolate::InterpolateOptions, Axes>> interpolator_for(const std::vector<ResolvedBlock>& blocks) const {
     std::size_t first = 0;
     while (first < blocks.size() && blocks[first].motion == Motion::kNone) ++first;
-    if (first == blocks.size()) return {std::vector<force::BlockDrive>(blocks.size()), 0, 0, ""};
+    if (first == blocks.size()) return std::nullopt;
     interpolate::InterpolateOptions io = drives_.interp;
     io.kinematics = &drives_.kin;
-    const Axes start = simulate::machine_start(drives_.kin, blocks[first], simulate::tool_length_of(drives_, blocks[first]));
-    return force::run_on_drives(blocks, io, start);
+    return std::pair{io, simulate::machine_start(drives_.kin, blocks[first], simulate::tool_length_of(drives_, blocks[first]))};
+  }
+
+  /// `blocks` through the interpolator from where the simulate stage starts the machine.
+  force::DriveRun run_on_drives(const std::vector<ResolvedBlock>& blocks) const {
+    const auto interp = interpolator_for(blocks);
+    if (!interp) return {std::vector<force::BlockDrive>(blocks.size()), 0, 0, ""};
+    return force::run_on_drives(blocks, interp->first, interp->second);
+  }
+
+  /// The model of `force.spindle_model`, refused (ConfigError naming the key) when this stage
+  /// cannot supply its channels or sample on its period.
+  force::SpindleModel load_spindle_model() const {
+    force::SpindleModel m = force::read_spindle_model(options_.spindle_model);
+    const std::string file = options_.spindle_model.string();
+    if (const std::string why = force::unsupplied_channels(m); !why.empty())
+      throw section_.error("spindle_model", file + ": " + why);
+    const double ratio = m.period / drives_.interp.period;
+    if (std::abs(ratio - std::round(ratio)) > 1e-6 * ratio)
+      throw section_.error("spindle_model", file + ": its sample period " + std::to_string(m.period) +
+                                                " s is not a whole number of interpolation periods (" +
+                                                std::to_string(drives_.interp.period) + " s)");
+    return m;
+  }
+
+  /// The spindle model's quantity along `blocks` (the program as emitted) on the interpolator's clock.
+  void predict_spindle(const std::vector<ResolvedBlock>& blocks) {
+    if (!spindle_model_) return;
+    const auto interp = interpolator_for(blocks);
+    if (!interp) return;
+    spindle_inputs_ = force::sample_program_inputs(blocks, interp->first, interp->second, spindle_model_->period,
+                                                   options_.spindle_speed);
+    if (!spindle_inputs_.failure.empty()) return;
+    spindle_ = force::predict_along_program(*spindle_model_, spindle_inputs_);
+  }
+
+  nlohmann::ordered_json spindle_json() const {
+    const force::SpindleModel& m = *spindle_model_;
+    nlohmann::ordered_json j = {{"file", options_.spindle_model.string()}, {"quantity", m.quantity},
+                                {"column", m.column}, {"unit", m.unit}, {"data", m.data},
+                                {"regressors", m.regressors}, {"verify_fpe_percent", m.verify_fpe},
+                                {"period_s", m.period}};
+    if (!spindle_inputs_.failure.empty()) {
+      j["failure"] = spindle_inputs_.failure;
+      return j;
+    }
+    j.update({{"samples", spindle_.value.size()}, {"cutting_samples", spindle_.cutting_samples},
+              {"mean_in_cutting", spindle_.mean_cutting}, {"max_in_cutting", spindle_.max_cutting},
+              {"max_whole_program", spindle_.max_program},
+              {"training_range", {m.output_min, m.output_max}},
+              {"prediction_within_training_range", spindle_.min_program >= m.output_min && spindle_.max_program <= m.output_max},
+              {"inputs_outside_training", spindle_.outside_training}});
+    return j;
+  }
+
+  std::string spindle_line() const {
+    if (!spindle_model_) return "";
+    if (!spindle_inputs_.failure.empty()) return "  spindle model: not run (" + spindle_inputs_.failure + ")\n";
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  "  spindle %s (NNOE of %s, %s): cutting mean %.4g, max %.4g over %zu samples of %g s; "
+                  "trained range %.4g..%.4g%s\n",
+                  spindle_model_->quantity.c_str(), spindle_model_->column.c_str(), spindle_model_->regressors.c_str(),
+                  spindle_.mean_cutting, spindle_.max_cutting, spindle_.cutting_samples, spindle_model_->period,
+                  spindle_model_->output_min, spindle_model_->output_max,
+                  spindle_.outside_training.empty() ? "" : "; inputs outside the training range (report.json)");
+    return buf;
+  }
+
+  void write_spindle_figure(const std::filesystem::path& png, const std::string& input) const {
+    const force::SpindleModel& m = *spindle_model_;
+    char note[400];
+    std::snprintf(note, sizeof note, "%s, verification FPE %.1f %%; %s", m.regressors.c_str(), m.verify_fpe, m.data.c_str());
+    force::write_spindle_prediction_png(png, spindle_.value, spindle_inputs_.cutting, spindle_inputs_.feed, m.period,
+                                        input + ": predicted spindle " + m.quantity + " (" + m.column + ")", note,
+                                        m.quantity == "current" ? "current [A]" : m.column + " [as recorded]");
   }
 
   /// How many feed blocks the drives slowed below the force's feed, and by which rule.
@@ -228,6 +314,7 @@ class ForceStage final : public pipeline::Stage {
   nlohmann::ordered_json report_json() const {
     nlohmann::ordered_json j = {{"material", options_.material.source}};
     if (options_.material.group) j["kienzle"] = kienzle_json();
+    if (spindle_model_) j["spindle_model"] = spindle_json();
     j["tool"] = {{"diameter_mm", options_.tool.diameter}, {"flutes", options_.tool.flutes},
                  {"stickout_mm", options_.tool.stickout}, {"effective_diameter_mm", options_.tool.effective_diameter()}};
     j["programmed"] = summary(before_, before_run_);
@@ -266,7 +353,7 @@ class ForceStage final : public pipeline::Stage {
                     before_run_.feed_move_time);
       s += buf;
     }
-    return s;
+    return s + spindle_line();
   }
 
   MachineConfig machine_;
@@ -280,6 +367,9 @@ class ForceStage final : public pipeline::Stage {
   force::DriveRun before_run_, after_run_;
   std::size_t velocity_limited_ = 0, reach_limited_ = 0;
   double force_only_cycle_ = 0;
+  std::optional<force::SpindleModel> spindle_model_;
+  force::ProgramInputs spindle_inputs_;
+  force::SpindlePrediction spindle_;
   std::string failure_;
 };
 

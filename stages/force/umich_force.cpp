@@ -77,7 +77,7 @@ UmichRun concatenate(const std::vector<UmichRun>& runs) {
 }
 
 std::vector<StructureScore> compare_on_umich(const UmichRun& fit, const UmichRun& verify, bool use_current,
-                                             const calibrate::NnoeOptions& options) {
+                                             const calibrate::NnoeOptions& options, int hidden) {
   const std::vector<double>& y_fit = use_current ? fit.current : fit.power;
   const std::vector<double>& y_ver = use_current ? verify.current : verify.power;
   calibrate::NnoeModel norm;
@@ -87,7 +87,7 @@ std::vector<StructureScore> compare_on_umich(const UmichRun& fit, const UmichRun
   norm.u_scale = {stdev_of(fit.feed), stdev_of(fit.spindle), stdev_of(fit.cutting)};
   const calibrate::Channels u_fit{fit.feed, fit.spindle, fit.cutting}, u_ver{verify.feed, verify.spindle, verify.cutting};
   std::vector<calibrate::NnoeStructure> structures;
-  for (auto st : table1_structures(8)) {
+  for (auto st : table1_structures(hidden)) {
     // Table 1's lags of the feed and of the depth; the spindle speed gets the feed's, the cutting
     // flag stands where the depth of cut stood.
     st.channel_lags = {st.channel_lags[0], st.channel_lags[0], st.channel_lags[1]};

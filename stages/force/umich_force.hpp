@@ -31,8 +31,9 @@ UmichRun concatenate(const std::vector<UmichRun>& runs);
 
 /// Table-1-style comparison on power (`use_current` false) or current: structures over the three
 /// channels (feed, spindle, cutting), trained on `fit`, FPE on `verify` [% of the fit variance];
-/// a sixth row is the first structure without the feed (does the feed explain anything?).
+/// a sixth row is the first structure without the feed (does the feed explain anything?). Each
+/// structure has `hidden` tanh units.
 std::vector<StructureScore> compare_on_umich(const UmichRun& fit, const UmichRun& verify, bool use_current,
-                                             const calibrate::NnoeOptions& options = {});
+                                             const calibrate::NnoeOptions& options = {}, int hidden = 8);
 
 }  // namespace gcpipe::force

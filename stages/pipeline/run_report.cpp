@@ -32,7 +32,7 @@ std::vector<std::string> run_outputs() {
   return {"output.nc", "compensated.nc", "report.json", "report.txt", "summary.json", "diagnostics.txt",
           "plots/toolpath.png", "plots/ballbar.png", "plots/contour_error.png", "plots/following_error.png",
           "plots/ik_divergence.png", "plots/ik_tip_error.png", "plots/trochoid_engagement.png",
-          "plots/force_path.png", "plots/force_time.png", "plots/error_budget.png"};
+          "plots/force_path.png", "plots/force_time.png", "plots/error_budget.png", "plots/spindle_prediction.png"};
 }
 
 std::string write_run_report(RunReport r, const std::filesystem::path& outdir, double seconds) {
