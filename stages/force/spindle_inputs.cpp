@@ -15,8 +15,8 @@ bool is_cutting_motion(const ResolvedBlock& b) {
 /// spindle state of the block that emitted it.
 class EveryNthSample final : public interpolate::SampleSink {
  public:
-  EveryNthSample(std::size_t stride, double spindle_rpm, ProgramInputs& out)
-      : stride_(stride), spindle_rpm_(spindle_rpm), out_(out) {}
+  EveryNthSample(std::size_t stride, double spindle_rpm, const Axes& start, ProgramInputs& out)
+      : stride_(stride), spindle_rpm_(spindle_rpm), last_(start), out_(out) {}
 
   /// The block whose samples follow (the interpolator emits them inside add()).
   void running(const ResolvedBlock& b) {
@@ -25,10 +25,12 @@ class EveryNthSample final : public interpolate::SampleSink {
     cutting_ = turning && is_cutting_motion(b) ? 1.0 : 0.0;
   }
 
+  // The interpolator's first sample is at t = one period (t = 0 is the start, not emitted), so
+  // sample n * stride is at t = n * the model's period.
   void sample(const Axes& command) override {
-    if (n_++ % stride_ != 0) return;
+    if (++n_ % stride_ != 0) return;
     const double dx = command[kX] - last_[kX], dy = command[kY] - last_[kY], dz = command[kZ] - last_[kZ];
-    out_.feed.push_back(out_.feed.empty() ? 0.0 : std::sqrt(dx * dx + dy * dy + dz * dz) / out_.period);
+    out_.feed.push_back(std::sqrt(dx * dx + dy * dy + dz * dz) / out_.period);
     out_.spindle.push_back(spindle_);
     out_.cutting.push_back(cutting_);
     last_ = command;
@@ -37,7 +39,7 @@ class EveryNthSample final : public interpolate::SampleSink {
  private:
   std::size_t stride_, n_ = 0;
   double spindle_rpm_, spindle_ = 0, cutting_ = 0;
-  Axes last_{};
+  Axes last_;
   ProgramInputs& out_;
 };
 
@@ -48,7 +50,7 @@ ProgramInputs sample_program_inputs(const std::vector<ResolvedBlock>& blocks, co
   const auto stride = static_cast<std::size_t>(std::max(1.0, std::round(period / o.period)));
   ProgramInputs in;
   in.period = static_cast<double>(stride) * o.period;
-  EveryNthSample sink(stride, spindle_rpm, in);
+  EveryNthSample sink(stride, spindle_rpm, start, in);
   interpolate::Interpolator interp(o, start);
   for (const ResolvedBlock& b : blocks) {
     sink.running(b);
