@@ -121,7 +121,7 @@ TEST(ForceSpindle, ProgramInputsAreTheInterpolatorsFeedSpindleAndCuttingFlag) {
   EXPECT_NEAR(in.period, 0.1, 1e-12);
   ASSERT_NEAR(static_cast<double>(in.feed.size()), 150, 1);
   for (std::size_t i = 0; i < in.feed.size(); ++i) {
-    const double t = static_cast<double>(i + 1) * 0.1;  // the sample ends the interval (t - 0.1, t]
+    const double t = static_cast<double>(i + 1) * 0.1;  // the speed over the 1 ms tick ending at t
     if (std::abs(t - 10) < 0.05) continue;  // where the second block takes over
     EXPECT_NEAR(in.feed[i], t < 10 ? 10 : 20, 1e-6) << "t = " << t;
     EXPECT_EQ(in.spindle[i], t < 10 ? 0 : 3000) << "t = " << t;

@@ -14,7 +14,7 @@ namespace gcpipe::force {
 /// One value per model sample, the i-th at t_k = k * period, k = i + 1 (t = 0 is the start).
 struct ProgramInputs {
   double period = 0;             //!< [s]
-  std::vector<double> feed;      //!< |XYZ(t_k) - XYZ(t_k - period)| / period of the commanded machine axes [mm/s]
+  std::vector<double> feed;      //!< commanded XYZ path speed of the machine axes over the tick ending at t_k [mm/s]
   std::vector<double> spindle;   //!< spindle speed of the block running at t_k, 0 when stopped (M5) [rev/min]
   std::vector<double> cutting;   //!< 1 when that block is a G1/G2/G3 move with the spindle turning, else 0
   std::string failure;           //!< the interpolator refused a block: its message ("": ran whole)
