@@ -15,9 +15,9 @@ constexpr const char* kFormat = "gcpipe spindle NNOE 1";
 constexpr double kUmichPeriod = 0.1;  // the runs' 100 ms samples (../shared/data/PROVENANCE.md)
 constexpr std::size_t kTable1Rows = 5;  // compare_on_umich's rows before the ablation
 
-// The data set does not state the unit of the spindle's power or of its commanded velocity; the
-// spindle velocity reads 53.3 while the program asked for 3200 rev/min (53.3 rev/s), so it is read
-// as rev/s (stages/force/README.md sec. 8b). The current is the drive's feedback in A.
+// The data set does not state the unit of the spindle's power or of its commanded velocity. The
+// velocity is 0 or 53.3 in every fit run and is read as rev/s (3200 rev/min): an assumption, written
+// into the model as the channel's unit (stages/force/README.md sec. 8b). The current is in A.
 constexpr const char* kPowerUnit = "unit not stated by the data set (S1_OutputPower as recorded)";
 constexpr const char* kUmichData =
     "University of Michigan SMART mill runs (CC0): wax, low load; no force or depth of cut recorded";
