@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "force_nnoe_process.hpp"
 #include "force_report.hpp"
 #include "nnoe_fast.hpp"
 #include "nnoe_force.hpp"

@@ -1,47 +1,15 @@
-// Seed 003 on the force model: the NNOE of stages/calibrate/nnoe.hpp (one implementation) trained
-// to predict the mean cutting force one step ahead from past feed and depth of cut and its own
-// past outputs (eq. 13), the five regressor structures of its Table 1 compared by FPE.
-//
-// The data are the mechanistic model's (force_model.hpp) on a slot whose floor depth changes
-// along the path, run as a dynamic process (README sec. 7): the feed drive lags the command
-// (first order, tau_f), the depth the tool feels is the mean of the profile over its front half
-// (so a depth step enters over D/2 of travel), the force sensor and per-revolution averaging lag
-// (first order, tau_F), and white noise is added at the output (the output-error assumption).
+// Seed 003's Table 1: the five regressor structures of its NNOE (stages/calibrate/nnoe.hpp, one
+// implementation), each trained and scored by FPE. The spindle model of gcpipe train-spindle
+// (umich_force.hpp, spindle_model.hpp) compares them on measured runs; the tests reproduce the
+// table on the mechanistic force (tests/force_nnoe_process.hpp, README sec. 7).
 #pragma once
 
-#include <cstdint>
 #include <string>
 #include <vector>
 
-#include "force_model.hpp"
 #include "nnoe.hpp"
 
 namespace gcpipe::force {
-
-struct ForceProcess {
-  CuttingCoefficients coefficients = material_coefficients("al7075");
-  double diameter = 25;       //!< seed 003's cutters [mm]
-  int flutes = 4;
-  double spindle = 1000;      //!< s0 of seed 003 [rev/min]
-  double period = 0.1;        //!< sample period [s]
-  double tau_feed = 0.15;     //!< feed-drive lag [s]
-  double tau_force = 0.1;     //!< sensor and averaging lag [s]
-  double noise = 0.02;        //!< output noise, fraction of the series' mean force
-  double feed_min = 50, feed_max = 300;     //!< commanded feed range [mm/min]
-  double depth_min = 2, depth_max = 8;      //!< depth-of-cut range [mm] (seed 003: a0 = 6)
-  double feed_hold_min = 2, feed_hold_max = 8;   //!< time between feed changes [s]
-  double depth_step_min = 5, depth_step_max = 20;  //!< length between depth changes [mm]
-};
-
-struct ForceSeries {
-  std::vector<double> feed;    //!< commanded feed f(t) [mm/min]
-  std::vector<double> depth;   //!< depth of cut a(t) where the tool's front edge is [mm]
-  std::vector<double> force;   //!< measured mean force (with noise) [N]
-  std::vector<double> clean;   //!< the same without noise [N]
-};
-
-/// `n` samples of the process with random feed and depth steps drawn from `seed`.
-ForceSeries simulate_force_process(const ForceProcess& p, std::size_t n, std::uint64_t seed);
 
 /// One row of the Table 1 reproduction.
 struct StructureScore {
@@ -56,10 +24,5 @@ struct StructureScore {
 std::vector<calibrate::NnoeStructure> table1_structures(int hidden = 12);
 /// "F(t-1) F(t-2) f(t-1) f(t-2) a(t-1)": names[0] the output's, names[1 + c] channel c's.
 std::string regressor_text(const calibrate::NnoeStructure& s, const std::vector<std::string>& names = {"F", "f", "a"});
-
-/// Trains every structure on `train` and scores it on `verify` (normalisation from `train`).
-std::vector<StructureScore> compare_structures(const ForceSeries& train, const ForceSeries& verify,
-                                               const std::vector<calibrate::NnoeStructure>& structures,
-                                               const calibrate::NnoeOptions& options = {});
 
 }  // namespace gcpipe::force

@@ -14,6 +14,7 @@
 #include <random>
 #include <vector>
 
+#include "../force_nnoe_process.hpp"
 #include "mlp.hpp"
 #include "nnoe_fast.hpp"
 #include "nnoe_force.hpp"
