@@ -112,7 +112,27 @@ Json kffp_per_segment_json(const ReportInput& in) {
   return list;
 }
 
+// A feed above an axis's speed bound is clamped as a control clamps it; the report says where.
+Json feed_clamp_json(const interpolate::InterpolateStats& s) {
+  return {{"blocks", s.velocity_limited_blocks},
+          {"first_line", s.first_clamped_line},
+          {"last_line", s.last_clamped_line},
+          {"most_clamped", {{"line", s.most_clamped_line}, {"feed_percent", 100 * s.most_clamped_factor}}}};
+}
+
 }  // namespace
+
+std::string feed_clamp_note(const interpolate::InterpolateStats& s) {
+  if (s.velocity_limited_blocks == 0) return {};
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                "%llu blocks (lines %llu-%llu) programmed faster than an axis's speed bound run at the bound, as the "
+                "control clamps them; line %llu the most, at %.0f %% of its F",
+                static_cast<unsigned long long>(s.velocity_limited_blocks),
+                static_cast<unsigned long long>(s.first_clamped_line), static_cast<unsigned long long>(s.last_clamped_line),
+                static_cast<unsigned long long>(s.most_clamped_line), 100 * s.most_clamped_factor);
+  return buf;
+}
 
 nlohmann::ordered_json report_json(const ReportInput& in) {
   Json j;
@@ -126,6 +146,7 @@ nlohmann::ordered_json report_json(const ReportInput& in) {
     j["cycle_time_planned_s"] = static_cast<double>(in.nominal->reference.size()) * T;
   if (in.result && in.result->points > 0 && in.after)
     j["cycle_time_after_s"] = static_cast<double>(in.result->end_tick) * T;
+  if (in.nominal->stats.interp.velocity_limited_blocks > 0) j["feed_clamped"] = feed_clamp_json(in.nominal->stats.interp);
   j["contour_error_before"] = contour_json(*in.before);
   if (in.after) {
     j["contour_error_after"] = contour_json(*in.after);
@@ -215,6 +236,7 @@ void contour_lines(const ReportInput& in, std::string& s) {
 // The compensation's note, the slowed-original baseline, the rapids, the cycle times.
 void outcome_lines(const ReportInput& in, std::string& s) {
   char buf[400];
+  if (const std::string clamp = feed_clamp_note(in.nominal->stats.interp); !clamp.empty()) s += "  feed clamped: " + clamp + "\n";
   if (in.result && !in.result->note.empty()) s += "  compensation: " + in.result->note + "\n";
   if (const std::string why = reduction_limited_by(in); !why.empty()) s += "  below 10x: " + why + "\n";
   if (in.slowed != nullptr && in.slowed->ok) {
