@@ -25,6 +25,7 @@ struct BatchArgs : ProgramArgs {
   std::string outdir;
   bool quiet = false;
   bool no_simulate = false;
+  bool keep_going = false;  //!< compensate a program with rejected lines (what was accepted)
 };
 int run_batch(const BatchArgs& args);
 
