@@ -389,10 +389,11 @@ TEST(Compensate, CircleTestAt2PiComesDownTenfoldWithinLimitsAndReadsBack) {
   // The figures are written and are not blank.
   const fs::path dir = fs::temp_directory_path() / "gcpipe_compensate_test";
   fs::create_directories(dir);
-  plot_toolpath(dir / "toolpath.png", before, &after, "test");
-  plot_contour_error(dir / "contour.png", before, &after, "test");
-  plot_following_error(dir / "following.png", before, &after, "test");
-  EXPECT_TRUE(plot_ballbar(dir / "ballbar.png", nom, before, &after, "test"));
+  const FigureRuns runs{{plot::Role::kBefore, &before, false, "original"}, {plot::Role::kAfter, &after, true, "compensated"}};
+  plot_toolpath(dir / "toolpath.png", runs, "test");
+  plot_contour_error(dir / "contour.png", model, nom, runs, "test");
+  plot_following_error(dir / "following.png", model, runs, "test");
+  EXPECT_TRUE(plot_ballbar(dir / "ballbar.png", nom, runs, "test"));
   for (const char* f : {"toolpath.png", "contour.png", "following.png", "ballbar.png"})
     EXPECT_GT(fs::file_size(dir / f), 20000u) << f;
   fs::remove_all(dir);

@@ -160,6 +160,11 @@ nlohmann::ordered_json report_json(const ReportInput& in) {
                                        {"contour_error", {{"max_mm", b.contour.max}, {"rms_mm", b.contour.rms}}}}
                                 : Json{{"note", b.note}};
   }
+  Json ideal = Json::array();
+  for (int i = 0; i < kNumAxes; ++i)
+    if (in.model->drives.axes[static_cast<std::size_t>(i)].model == servo::DriveModel::kIdeal)
+      ideal.push_back(std::string(1, kAxisLetters[i]));
+  j["ideal_axes"] = std::move(ideal);  // actual = command by assumption: their zeros are not measured
   j["axes_before"] = axis_stats_json(in.before->axes);
   if (in.after) j["axes_after"] = axis_stats_json(in.after->axes);
   j["segments"] = segments_json(in);
@@ -218,9 +223,22 @@ std::string reduction_limited_by(const ReportInput& in) {
 
 namespace {
 
-// The contour error before and after, with the reduction.
+bool has_cutting_moves(const Nominal& nom) {
+  for (std::size_t i = 0; i < nom.brief.size(); ++i) {
+    const Motion m = nom.brief[i].motion;
+    if (m == Motion::kLinear || m == Motion::kArcCW || m == Motion::kArcCCW) return true;
+  }
+  return false;
+}
+
+// The contour error before and after, with the reduction. A program without a cutting move has no
+// contour error to state: "0.00 um" would read as a measured figure.
 void contour_lines(const ReportInput& in, std::string& s) {
   char buf[400];
+  if (!has_cutting_moves(*in.nominal)) {
+    s += "  contour error: none to measure, the program has no cutting moves (G1, G2, G3)\n";
+    return;
+  }
   const ErrorStats& b = in.before->contour;
   std::snprintf(buf, sizeof buf, "  contour error before: max %.2f um (line %llu, t %.3f s), RMS %.2f um\n", b.max * 1e3,
                 static_cast<unsigned long long>(b.line_at_max), b.t_at_max, b.rms * 1e3);
@@ -252,7 +270,7 @@ void outcome_lines(const ReportInput& in, std::string& s) {
     s += buf;
   }
   s += "\n";
-  if (in.result && in.result->points > 0) {
+  if (in.result && in.result->points > 0 && in.after) {
     std::snprintf(buf, sizeof buf,
                   "  compensated program runs %.3f s (original %.3f s as the control runs it, %.3f s planned to "
                   "compensate.path_tolerance)\n",
@@ -268,15 +286,24 @@ void axis_lines(const ReportInput& in, std::string& s) {
   char buf[400];
   s += "  following error max (command - actual), before";
   s += in.after ? " / after:" : ":";
+  std::string ideal;
   for (int i = 0; i < kNumAxes; ++i) {
     const auto k = static_cast<std::size_t>(i);
+    // An ideal drive (model: ideal) follows its command exactly by assumption: "0" would read as
+    // a measured figure.
+    if (in.model->drives.axes[k].model == servo::DriveModel::kIdeal) {
+      ideal += std::string(ideal.empty() ? "" : " ") + kAxisLetters[i];
+      continue;
+    }
     if (in.after)
       std::snprintf(buf, sizeof buf, " %c %.4g/%.4g", kAxisLetters[i], in.before->axes.max_following[k], in.after->axes.max_following[k]);
     else
       std::snprintf(buf, sizeof buf, " %c %.4g", kAxisLetters[i], in.before->axes.max_following[k]);
     s += buf;
   }
-  s += " (mm, deg)\n  travel margin min:";
+  s += " (mm, deg)";
+  if (!ideal.empty()) s += "; " + ideal + " ideal (model: ideal, actual = command)";
+  s += "\n  travel margin min:";
   const AxisStats& m = in.after ? in.after->axes : in.before->axes;
   for (int i = 0; i < kNumAxes; ++i) {
     std::snprintf(buf, sizeof buf, " %c %.4g", kAxisLetters[i], m.travel_margin[static_cast<std::size_t>(i)]);
