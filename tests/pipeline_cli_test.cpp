@@ -387,3 +387,50 @@ TEST(RealPosts, AConfigWithoutDrivesSaysSoInItsExitStatus) {
   const Outcome n = gcpipe({"batch", program.string(), "-o", (dir / "asked").string(), "--config", config, "--no-simulate"});
   EXPECT_EQ(n.status, 0) << n.err;
 }
+
+// The tool-path figure is drawn in the plane that holds the error (issue 31 item 6): a G18
+// profile's in XZ, where an XY projection showed a line; a G17 square's in XY. The plane and the
+// magnification the figure states are in report.json, in batch and in a DDS node alike.
+TEST(Figures, TheToolPathIsDrawnInThePlaneOfItsError) {
+  const fs::path dir = tmpdir("planes");
+  auto plane_of = [&](const std::string& name, const std::string& text) {
+    const fs::path program = dir / (name + ".nc");
+    std::ofstream(program) << text;
+    const Outcome r = gcpipe({"batch", program.string(), "-o", (dir / name).string(), "--quiet"});
+    EXPECT_EQ(r.status, 0) << r.err;
+    const auto figure = read_json(dir / name / "report.json").at("simulation").at("toolpath_figure");
+    EXPECT_GE(figure.at("magnification").get<double>(), 1.0);
+    return figure.at("plane").get<std::string>();
+  };
+  EXPECT_EQ(plane_of("g18", "G21 G18 G90 G94\nG0 X0 Y0 Z5\nG1 Z0 F500\nG1 X20 F3000\nG2 X40 Z0 I10 K0\nG1 X60\n"
+                            "G3 X80 Z0 I10 K0\nG1 Z5\nM30\n"),
+            "XZ");
+  EXPECT_EQ(plane_of("g17", "G21 G17 G90 G94\nG0 X0 Y0 Z5\nG1 Z0 F500\nG1 X20 F3000\nY20\nX0\nY0\nG0 Z5\nM30\n"), "XY");
+  EXPECT_TRUE(fs::exists(dir / "g18" / "plots" / "toolpath.png"));
+}
+
+// Reports that fit the program (issue 33 item 5): a three-axis program gets no neural-IK section
+// or figures unless --model asks for them; ideal drives are named as such, not "Z 0/0".
+TEST(Reports, AThreeAxisProgramGetsNoNeuralIkUnlessAskedAndIdealAxesAreNamed) {
+  const fs::path dir = tmpdir("three_axis");
+  const Outcome r = gcpipe({"batch", kSamples + "shop_pocket_inch.nc", "-o", (dir / "out").string(), "--quiet"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "out" / "plots" / "ik_divergence.png"));
+  EXPECT_FALSE(fs::exists(dir / "out" / "plots" / "ik_tip_error.png"));
+  const auto report = read_json(dir / "out" / "report.json");
+  EXPECT_TRUE(report.at("ik").at("neural").is_null()) << report.at("ik").dump();
+  EXPECT_NE(report.at("ik").value("neural_skipped", "").find("three-axis"), std::string::npos);
+  const std::string text = slurp(dir / "out" / "report.txt");
+  EXPECT_EQ(text.find("neural_outside_envelope"), std::string::npos) << text;
+  // The default drives model Z and A as ideal (pipeline_configs/drives/seed002.yaml).
+  EXPECT_EQ(report.at("simulation").at("ideal_axes"), nlohmann::json::array({"Z", "A"}));
+  EXPECT_NE(text.find("Z A ideal (model: ideal, actual = command)"), std::string::npos) << text;
+  EXPECT_EQ(text.find(" Z 0/0"), std::string::npos) << text;
+
+  const std::string model = std::string(GCPIPE_SOURCE_DIR) + "/pipeline_configs/models/mx330_improved_seed1.model";
+  const Outcome asked = gcpipe({"batch", kSamples + "shop_pocket_inch.nc", "-o", (dir / "asked").string(), "--quiet",
+                                "--model", model});
+  ASSERT_EQ(asked.status, 0) << asked.err;
+  EXPECT_TRUE(fs::exists(dir / "asked" / "plots" / "ik_divergence.png"));
+  EXPECT_FALSE(read_json(dir / "asked" / "report.json").at("ik").at("neural").is_null());
+}

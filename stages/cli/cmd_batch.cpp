@@ -94,6 +94,7 @@ int run_batch_in_prepared_folder(const BatchArgs& a) {
   PrintedLog log(20, &diagnostics, a.quiet);
   pipeline::StageContext overrides;
   overrides.keep_going = a.keep_going;
+  overrides.ik_model = a.model;
   ProgramRun run(a, [&a](const PipelineConfig& pc) {
     return simulation_skipped(a, pc).empty() ? std::vector<std::string>{"write", "compensate"}
                                              : std::vector<std::string>{"write", "ik"};

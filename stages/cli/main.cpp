@@ -42,6 +42,10 @@ void add_batch(CLI::App& app, BatchArgs& a) {
   s->add_option("-o,--output-dir", a.outdir, "output folder (created when missing)")->required()->check(kNonEmpty);
   s->add_flag("--no-simulate", a.no_simulate,
               "streaming stages only (parse, trochoid, ik, write): memory independent of the program's length");
+  s->add_option("--model", a.model,
+                "neural IK model (default: the config's ik.model); given, the neural IK is compared and drawn also on a "
+                "program whose A and C do not move")
+      ->check(CLI::ExistingFile);
   s->add_flag("--keep-going", a.keep_going,
               "write compensated.nc although lines were rejected (without them); by default such a program is not compensated");
   s->add_flag("--quiet", a.quiet, "print nothing but errors that stop the run");

@@ -44,6 +44,26 @@ std::string run_label(const FigureRun& r) {
   return s;
 }
 
+// The raw sample of the nominal run that point i of a run's series stands for (FigureRun).
+std::size_t raw_sample_of(const Nominal& nom, const FigureRun& run, std::size_t i) {
+  const Series& s = run.evaluation->series;
+  const auto n = static_cast<std::size_t>(std::max(0.0, std::round(s.t[i] / nom.period)));
+  const std::size_t raw = run.on_reference_clock ? nom.progress[std::min(n, nom.progress.size() - 1)] : n;
+  return std::min(raw, nom.raw.size() - 1);
+}
+
+// Per point of the run's series: on a cutting move, not a G0 rapid (whose error is no contour
+// error of the part: it would choose the plane and the magnification otherwise). All points
+// count when the nominal cannot say.
+std::vector<bool> cutting_points(const Nominal& nom, const FigureRun& run) {
+  const Series& s = run.evaluation->series;
+  std::vector<bool> cutting(s.t.size(), true);
+  if (nom.raw.size() == 0 || (run.on_reference_clock && nom.progress.size() == 0)) return cutting;
+  for (std::size_t i = 0; i < s.t.size(); ++i)
+    cutting[i] = nom.brief[nom.block[raw_sample_of(nom, run, i)]].motion != Motion::kRapid;
+  return cutting;
+}
+
 /// The plane a tool path is drawn in: the two axes (0 X, 1 Y, 2 Z) that hold most of the run's
 /// deviation from the nominal path (its sum of squares per axis over the run): the axis with the
 /// least is the one looked along. A G18 profile's error lies in XZ and is drawn there.
@@ -52,10 +72,11 @@ struct Plane {
   const char* name = "XY";
 };
 
-Plane plane_of_largest_error(const Series& s) {
+Plane plane_of_largest_error(const Series& s, const std::vector<bool>& cutting) {
   std::array<double, 3> sum{};
   for (std::size_t i = 0; i < s.t.size(); ++i)
-    for (std::size_t k = 0; k < 3; ++k) sum[k] += (s.tip[k][i] - s.nominal[k][i]) * (s.tip[k][i] - s.nominal[k][i]);
+    if (cutting[i])
+      for (std::size_t k = 0; k < 3; ++k) sum[k] += (s.tip[k][i] - s.nominal[k][i]) * (s.tip[k][i] - s.nominal[k][i]);
   const auto normal = static_cast<std::size_t>(std::min_element(sum.begin(), sum.end()) - sum.begin());
   if (sum[normal] == sum[2]) return {0, 1, "XY"};  // a tie keeps the usual view
   if (normal == 0) return {1, 2, "YZ"};
@@ -69,24 +90,39 @@ const char* kAxisName[3] = {"X [mm]", "Y [mm]", "Z [mm]"};
 
 namespace {
 
-// Panel of the tool path in `pl`: the whole path, or (zoom) a window of 2 half around (cu, cv)
-// where the deviation is magnified enough to be seen. The factor is chosen from the first run's
-// largest deviation in view: about 5 % of the extent shown, a 1-2-5 step, at least 1.
-cv::Mat toolpath_panel(const FigureRuns& runs, const Plane& pl, double cu, double cv, double half, bool zoom,
-                       const std::string& title) {
-  const Series& b = runs.front().evaluation->series;
-  auto in_view = [&](const Series& s, std::size_t i, double scale) {
-    return !zoom || (std::abs(s.nominal[pl.u][i] - cu) <= scale * half && std::abs(s.nominal[pl.v][i] - cv) <= scale * half);
-  };
+// What a tool-path panel shows: the whole path, or (zoom) a window of 2 half around (cu, cv).
+struct View {
+  Plane plane;
+  bool zoom = false;
+  double cu = 0, cv = 0, half = 0;
+  bool shows(const Series& s, std::size_t i, double scale) const {
+    return !zoom || (std::abs(s.nominal[plane.u][i] - cu) <= scale * half && std::abs(s.nominal[plane.v][i] - cv) <= scale * half);
+  }
+};
+
+// The deviation's magnification in a view, chosen from the series' largest deviation in it: about
+// 5 % of the extent shown, a 1-2-5 step, at least 1.
+double magnification(const Series& b, const std::vector<bool>& cutting, const View& view) {
+  const Plane& pl = view.plane;
   double u0 = 1e300, u1 = -1e300, v0 = 1e300, v1 = -1e300, emax = 0;
   for (std::size_t i = 0; i < b.t.size(); ++i) {
-    if (!in_view(b, i, 1.0)) continue;
+    if (!view.shows(b, i, 1.0)) continue;
     const double u = b.nominal[pl.u][i], v = b.nominal[pl.v][i];
     u0 = std::min(u0, u), u1 = std::max(u1, u), v0 = std::min(v0, v), v1 = std::max(v1, v);
-    emax = std::max(emax, std::hypot(b.tip[pl.u][i] - u, b.tip[pl.v][i] - v));
+    if (cutting[i]) emax = std::max(emax, std::hypot(b.tip[pl.u][i] - u, b.tip[pl.v][i] - v));
   }
-  const double extent = zoom ? 2 * half : std::max(u1 - u0, v1 - v0);
-  const double k = emax > 0 ? std::max(1.0, nice_below(0.05 * extent / emax)) : 1.0;
+  const double extent = view.zoom ? 2 * view.half : std::max(u1 - u0, v1 - v0);
+  return emax > 0 ? std::max(1.0, nice_below(0.05 * extent / emax)) : 1.0;
+}
+
+// Panel of the tool path in a view, the deviation magnified enough to be seen.
+cv::Mat toolpath_panel(const FigureRuns& runs, const std::vector<bool>& cutting, const View& view, const std::string& title) {
+  const Series& b = runs.front().evaluation->series;
+  const Plane& pl = view.plane;
+  const bool zoom = view.zoom;
+  const double cu = view.cu, cv = view.cv, half = view.half;
+  auto in_view = [&](const Series& s, std::size_t i, double scale) { return view.shows(s, i, scale); };
+  const double k = magnification(b, cutting, view);
   plot::FigureStyle style;
   style.height = 900;
   style.width = 900;
@@ -133,14 +169,31 @@ cv::Mat toolpath_panel(const FigureRuns& runs, const Plane& pl, double cu, doubl
 
 }  // namespace
 
-void plot_toolpath(const std::filesystem::path& png, const FigureRuns& runs, const std::string& title) {
-  const Series& b = runs.front().evaluation->series;
-  const Plane pl = plane_of_largest_error(b);
+// The first run's largest error on a cutting move: the centre of the zoomed panel.
+std::size_t worst_cutting_point(const Series& b, const std::vector<bool>& cutting) {
   std::size_t worst = 0;
   for (std::size_t i = 1; i < b.contour.size(); ++i)
-    if (b.contour[i] > b.contour[worst]) worst = i;
-  std::vector<cv::Mat> panels{toolpath_panel(runs, pl, 0, 0, 0, false, title)};
-  if (!b.t.empty()) panels.push_back(toolpath_panel(runs, pl, b.nominal[pl.u][worst], b.nominal[pl.v][worst], 10.0, true, title));
+    if (cutting[i] && (!cutting[worst] || b.contour[i] > b.contour[worst])) worst = i;
+  return worst;
+}
+
+ToolpathView toolpath_view(const Nominal& nominal, const FigureRuns& runs) {
+  const Series& b = runs.front().evaluation->series;
+  const std::vector<bool> cutting = cutting_points(nominal, runs.front());
+  const View whole{plane_of_largest_error(b, cutting)};
+  return {whole.plane.name, magnification(b, cutting, whole)};
+}
+
+void plot_toolpath(const std::filesystem::path& png, const Nominal& nominal, const FigureRuns& runs,
+                   const std::string& title) {
+  const Series& b = runs.front().evaluation->series;
+  const std::vector<bool> cutting = cutting_points(nominal, runs.front());
+  const Plane pl = plane_of_largest_error(b, cutting);
+  std::vector<cv::Mat> panels{toolpath_panel(runs, cutting, View{pl}, title)};
+  if (!b.t.empty()) {
+    const std::size_t worst = worst_cutting_point(b, cutting);
+    panels.push_back(toolpath_panel(runs, cutting, View{pl, true, b.nominal[pl.u][worst], b.nominal[pl.v][worst], 10.0}, title));
+  }
   cv::Mat out;
   cv::hconcat(panels, out);
   plot::write_png(png, out);
@@ -229,13 +282,8 @@ std::vector<double> programmed_path_length(const Model& model, const Nominal& no
   if (N == 0 || (run.on_reference_clock && nom.progress.size() == 0)) return {};
   // The raw sample each point stands for, then one pass over the raw samples in order summing
   // the tool tip's steps (forward kinematics with the block's tool length), read where asked.
-  const double T = model.interp.period;
   std::vector<std::pair<std::size_t, std::size_t>> wanted(s.t.size());  // (raw sample, point)
-  for (std::size_t i = 0; i < s.t.size(); ++i) {
-    const auto n = static_cast<std::size_t>(std::max(0.0, std::round(s.t[i] / T)));
-    const std::size_t raw = run.on_reference_clock ? nom.progress[std::min(n, nom.progress.size() - 1)] : n;
-    wanted[i] = {std::min(raw, N - 1), i};
-  }
+  for (std::size_t i = 0; i < s.t.size(); ++i) wanted[i] = {raw_sample_of(nom, run, i), i};
   std::sort(wanted.begin(), wanted.end());
   std::vector<double> length(s.t.size(), 0.0);
   double sum = 0;

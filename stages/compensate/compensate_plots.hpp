@@ -33,10 +33,20 @@ using FigureRuns = std::vector<FigureRun>;
 /// Empty when the nominal run no longer holds what it takes (its progress was released).
 std::vector<double> programmed_path_length(const Model& model, const Nominal& nominal, const FigureRun& run);
 
-/// Workpiece-frame tool path in the plane of the largest error of the first run (XY, XZ or YZ):
+/// How toolpath.png shows the whole path: the plane ("XY", "XZ" or "YZ") and the deviation's
+/// magnification (report.json simulation.toolpath_figure, in batch and in a DDS node alike).
+struct ToolpathView {
+  std::string plane;
+  double magnification = 1;
+};
+ToolpathView toolpath_view(const Nominal& nominal, const FigureRuns& runs);
+
+/// Workpiece-frame tool path in the plane holding most of the first run's deviation on cutting
+/// moves (XY, XZ or YZ; rapids are not the part's error):
 /// nominal and every run, the deviation from the nominal magnified by a factor chosen so that the
 /// largest error is visible, stated in the figure; beside it a 20 mm window around that error.
-void plot_toolpath(const std::filesystem::path& png, const FigureRuns& runs, const std::string& title);
+void plot_toolpath(const std::filesystem::path& png, const Nominal& nominal, const FigureRuns& runs,
+                   const std::string& title);
 
 /// Ballbar-style polar plots, one panel per circle segment (up to 6): radial deviation of the
 /// actual tool tip from the fitted nominal circle against the angle, magnified around the circle.

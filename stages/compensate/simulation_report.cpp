@@ -54,7 +54,7 @@ void draw(pipeline::ReportContext& r, const Model& model, const Nominal& nominal
   if (r.progress) r.progress("drawing the error figures", 0, 0);
   const std::filesystem::path plots = r.dir / "plots";
   const std::string& base = r.input_base;
-  plot_toolpath(plots / "toolpath.png", runs, base + ": tool path");
+  plot_toolpath(plots / "toolpath.png", nominal, runs, base + ": tool path");
   r.files->push_back("plots/toolpath.png");
   if (plot_ballbar(plots / "ballbar.png", nominal, runs, base)) r.files->push_back("plots/ballbar.png");
   plot_contour_error(plots / "contour_error.png", model, nominal, runs, base + ": contour error along the program");
@@ -96,7 +96,10 @@ void report_simulation(pipeline::ReportContext& r, const SimulationOutcome& o) {
                   static_cast<unsigned long long>(o.written_nodes));
     *r.text += buf;
   }
-  draw(r, *o.model, nominal, figure_runs(*o.run->before, o.after));
+  const FigureRuns runs = figure_runs(*o.run->before, o.after);
+  const ToolpathView view = toolpath_view(nominal, runs);
+  (*r.json)["simulation"]["toolpath_figure"] = {{"plane", view.plane}, {"magnification", view.magnification}};
+  draw(r, *o.model, nominal, runs);
 }
 
 }  // namespace gcpipe::compensate
