@@ -223,12 +223,14 @@ std::string reduction_limited_by(const ReportInput& in) {
 
 namespace {
 
-bool has_cutting_moves(const Nominal& nom) {
-  for (std::size_t i = 0; i < nom.brief.size(); ++i) {
-    const Motion m = nom.brief[i].motion;
-    if (m == Motion::kLinear || m == Motion::kArcCW || m == Motion::kArcCCW) return true;
-  }
+bool has_motion(const Nominal& nom, std::initializer_list<Motion> motions) {
+  for (std::size_t i = 0; i < nom.brief.size(); ++i)
+    if (std::find(motions.begin(), motions.end(), nom.brief[i].motion) != motions.end()) return true;
   return false;
+}
+
+bool has_cutting_moves(const Nominal& nom) {
+  return has_motion(nom, {Motion::kLinear, Motion::kArcCW, Motion::kArcCCW});
 }
 
 // The contour error before and after, with the reduction. A program without a cutting move has no
@@ -263,11 +265,15 @@ void outcome_lines(const ReportInput& in, std::string& s) {
                   in.slowed->feed_factor, in.slowed->cycle_time, in.slowed->contour.max * 1e3, in.slowed->contour.rms * 1e3);
     s += buf;
   }
-  std::snprintf(buf, sizeof buf, "  rapids (G0, not cutting): max %.2f um before", in.before->rapid.max * 1e3);
-  s += buf;
-  if (in.after) {
-    std::snprintf(buf, sizeof buf, ", %.2f um after", in.after->rapid.max * 1e3);
+  if (!has_motion(*in.nominal, {Motion::kRapid})) {
+    s += "  rapids (G0): none in the program";
+  } else {
+    std::snprintf(buf, sizeof buf, "  rapids (G0, not cutting): max %.2f um before", in.before->rapid.max * 1e3);
     s += buf;
+    if (in.after) {
+      std::snprintf(buf, sizeof buf, ", %.2f um after", in.after->rapid.max * 1e3);
+      s += buf;
+    }
   }
   s += "\n";
   if (in.result && in.result->points > 0 && in.after) {
