@@ -313,6 +313,7 @@ TEST(RealPosts, AFeedAboveAnAxisBoundIsClampedWithANoteAndCompensated) {
   const auto& clamp = sim.at("feed_clamped");
   EXPECT_GE(clamp.at("blocks").get<int>(), 100) << clamp.dump();
   EXPECT_EQ(clamp.at("first_line").get<int>(), 4) << clamp.dump();  // the plunge at F999 too
+  EXPECT_NEAR(clamp.at("most_clamped").at("programmed_feed_mm_min").get<double>(), 999 * 25.4, 0.1) << "F999 in/min";
   const double percent = clamp.at("most_clamped").at("feed_percent").get<double>();
   EXPECT_GT(percent, 0.0);
   EXPECT_LT(percent, 100.0 * 250.0 / 423.0 + 5.0) << "X's bound over the programmed 423 mm/s";

@@ -117,7 +117,9 @@ Json feed_clamp_json(const interpolate::InterpolateStats& s) {
   return {{"blocks", s.velocity_limited_blocks},
           {"first_line", s.first_clamped_line},
           {"last_line", s.last_clamped_line},
-          {"most_clamped", {{"line", s.most_clamped_line}, {"feed_percent", 100 * s.most_clamped_factor}}}};
+          {"most_clamped", {{"line", s.most_clamped_line},
+                            {s.most_clamped_inverse_time ? "programmed_feed_per_min" : "programmed_feed_mm_min", s.most_clamped_feed},
+                            {"feed_percent", 100 * s.most_clamped_factor}}}};
 }
 
 }  // namespace
@@ -127,10 +129,11 @@ std::string feed_clamp_note(const interpolate::InterpolateStats& s) {
   char buf[400];
   std::snprintf(buf, sizeof buf,
                 "%llu blocks (lines %llu-%llu) programmed faster than an axis's speed bound run at the bound, as the "
-                "control clamps them; line %llu the most, at %.0f %% of its F",
+                "control clamps them; line %llu the most: F%.6g %s run at %.0f %% of it",
                 static_cast<unsigned long long>(s.velocity_limited_blocks),
                 static_cast<unsigned long long>(s.first_clamped_line), static_cast<unsigned long long>(s.last_clamped_line),
-                static_cast<unsigned long long>(s.most_clamped_line), 100 * s.most_clamped_factor);
+                static_cast<unsigned long long>(s.most_clamped_line), s.most_clamped_feed,
+                s.most_clamped_inverse_time ? "(G93, 1/min)" : "mm/min", 100 * s.most_clamped_factor);
   return buf;
 }
 

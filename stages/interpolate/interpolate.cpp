@@ -577,6 +577,8 @@ void Interpolator::count_clamped_feed(const ResolvedBlock& b, const InterpolateR
   if (res.feed_factor < stats_.most_clamped_factor) {
     stats_.most_clamped_factor = res.feed_factor;
     stats_.most_clamped_line = b.line;
+    stats_.most_clamped_feed = b.feed;
+    stats_.most_clamped_inverse_time = b.feed_mode == FeedMode::kInverseTime;
   }
 }
 

@@ -140,6 +140,8 @@ struct InterpolateStats {
   /// above an axis's maximum: the first and last source line, and the one clamped most.
   std::uint64_t first_clamped_line = 0, last_clamped_line = 0, most_clamped_line = 0;
   double most_clamped_factor = 1;  //!< the fraction of its programmed feed that block ran at
+  double most_clamped_feed = 0;    //!< that block's programmed F [mm/min; 1/min in G93]
+  bool most_clamped_inverse_time = false;  //!< that F is G93's
   Axes peak_velocity{};      //!< of the smoothed commands [mm/s, deg/s]
   Axes peak_acceleration{};  //!< of the smoothed commands [mm/s^2, deg/s^2]
   std::array<std::uint64_t, kNumAxes> travel_violations{};  //!< samples outside travel per axis
