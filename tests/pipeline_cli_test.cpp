@@ -389,6 +389,24 @@ TEST(RealPosts, AConfigWithoutDrivesSaysSoInItsExitStatus) {
   EXPECT_EQ(n.status, 0) << n.err;
 }
 
+// compensate.enabled: false asks for the simulation and its report only: exit 0, the reason in
+// summary.json, no failure (it was "no compensated program", exit 1).
+TEST(RealPosts, ACompensationTurnedOffInTheConfigIsNoFailure) {
+  const fs::path dir = tmpdir("compensate_off");
+  const fs::path config = dir / "off.yaml";
+  std::ofstream(config) << "machine: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/machines/mx330.yaml\n"
+                        << "servo:\n  drives: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/drives/seed002.yaml\n"
+                        << "compensate:\n  enabled: false\n";
+  const Outcome r = gcpipe({"batch", kSamples + "five_axis_demo.nc", "-o", (dir / "out").string(), "--config", config.string(), "--quiet"});
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "out" / "compensated.nc"));
+  const auto summary = read_json(dir / "out" / "summary.json");
+  EXPECT_FALSE(summary.contains("failure")) << summary.dump();
+  EXPECT_NE(summary.value("not_compensated", "").find("compensate.enabled is false"), std::string::npos) << summary.dump();
+  EXPECT_TRUE(fs::exists(dir / "out" / "plots" / "contour_error.png")) << "the original is still simulated and drawn";
+  expect_listed_files_are_the_written_ones(dir / "out");
+}
+
 // The tool-path figure is drawn in the plane that holds the error (issue 31 item 6): a G18
 // profile's in XZ, where an XY projection showed a line; a G17 square's in XY. The plane and the
 // magnification the figure states are in report.json, in batch and in a DDS node alike.

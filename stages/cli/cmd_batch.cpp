@@ -33,10 +33,15 @@ struct Outcome {
   std::string not_compensated;     // why not, when nothing failed (exit 4 unless asked for)
 };
 
-// 4: finished, nothing failed, and no compensated.nc where one was expected (not --no-simulate).
-int batch_exit_status(const BatchArgs& a, const Outcome& o) {
+// The user asked for no compensated.nc: --no-simulate, or compensate.enabled: false.
+bool compensation_declined(const BatchArgs& a, const PipelineConfig& pc) {
+  return a.no_simulate || (pc.root.has("compensate") && !pc.root.section("compensate").boolean("enabled", true));
+}
+
+// 4: finished, nothing failed, and no compensated.nc where one was expected.
+int batch_exit_status(const BatchArgs& a, const PipelineConfig& pc, const Outcome& o) {
   const int status = exit_status(o.complete, o.failure, o.rejected);
-  if (status == 0 && !o.compensated && !a.no_simulate) return 4;
+  if (status == 0 && !o.compensated && !compensation_declined(a, pc)) return 4;
   return status;
 }
 
@@ -123,8 +128,9 @@ int run_batch_in_prepared_folder(const BatchArgs& a) {
     std::cerr << "... " << log.not_shown() << " more in " << (outdir / "diagnostics.txt").string() << "\n";
   if (!o.complete) std::cerr << "gcpipe batch: " << run.error() << "\n";
   else if (!o.failure.empty()) std::cerr << "gcpipe batch: " << o.failure << "\n";
-  else if (!o.not_compensated.empty() && !a.no_simulate) std::cerr << "gcpipe batch: not compensated: " << o.not_compensated << "\n";
-  return batch_exit_status(a, o);
+  else if (!o.not_compensated.empty() && !compensation_declined(a, run.config()))
+    std::cerr << "gcpipe batch: not compensated: " << o.not_compensated << "\n";
+  return batch_exit_status(a, run.config(), o);
 }
 
 }  // namespace

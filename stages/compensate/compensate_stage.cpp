@@ -196,6 +196,7 @@ class CompensateStage final : public pipeline::Stage {
   // compensated.nc: a program with rejected lines runs without them (unless --keep-going says
   // that is meant), and one of rapids only would only be slowed (1.4x on a real post).
   std::string reason_not_to_compensate() const {
+    if (!options_.enabled) return "compensate.enabled is false: the config asks for the simulation and its report only";
     if (rejected_lines_ > 0 && !keep_going_)
       return std::to_string(rejected_lines_) + (rejected_lines_ == 1 ? " line was" : " lines were") +
              " rejected (the first at line " + std::to_string(first_rejected_line_) +
