@@ -226,7 +226,7 @@ bool plot_ballbar(const std::filesystem::path& png, const Nominal& nominal, cons
     st.width = 620;
     st.height = 660;
     st.margin_left = 60;
-    st.margin_bottom = 50;
+    st.margin_bottom = 75;  // the tick labels and the axis label below them, apart
     st.grid = false;
     plot::Figure f(st);
     // Polar: radius = 3 rings + deviation; the dashed-looking reference is the nominal circle.
