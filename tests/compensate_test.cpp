@@ -3,6 +3,7 @@
 // and the compensated program written as G-code reads back and runs as simulated.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -389,13 +390,45 @@ TEST(Compensate, CircleTestAt2PiComesDownTenfoldWithinLimitsAndReadsBack) {
   // The figures are written and are not blank.
   const fs::path dir = fs::temp_directory_path() / "gcpipe_compensate_test";
   fs::create_directories(dir);
-  plot_toolpath(dir / "toolpath.png", before, &after, "test");
-  plot_contour_error(dir / "contour.png", before, &after, "test");
-  plot_following_error(dir / "following.png", before, &after, "test");
-  EXPECT_TRUE(plot_ballbar(dir / "ballbar.png", nom, before, &after, "test"));
+  const FigureRuns runs{{plot::Role::kBefore, &before, false, "original"}, {plot::Role::kAfter, &after, true, "compensated"}};
+  // The contour figure's x: both runs reach the same programmed path length at the end, each
+  // point in order (a place of the part is at one x whichever clock the run has).
+  const auto lb = programmed_path_length(model, nom, runs[0]), la = programmed_path_length(model, nom, runs[1]);
+  ASSERT_EQ(lb.size(), before.series.t.size());
+  ASSERT_EQ(la.size(), after.series.t.size());
+  EXPECT_TRUE(std::is_sorted(lb.begin(), lb.end()));
+  EXPECT_TRUE(std::is_sorted(la.begin(), la.end()));
+  EXPECT_NEAR(la.back(), lb.back(), 0.005 * lb.back());
+  plot_toolpath(dir / "toolpath.png", nom, runs, "test");
+  plot_contour_error(dir / "contour.png", model, nom, runs, "test");
+  plot_following_error(dir / "following.png", model, runs, "test");
+  EXPECT_TRUE(plot_ballbar(dir / "ballbar.png", nom, runs, "test"));
   for (const char* f : {"toolpath.png", "contour.png", "following.png", "ballbar.png"})
     EXPECT_GT(fs::file_size(dir / f), 20000u) << f;
   fs::remove_all(dir);
+}
+
+// The contour figure's axis is the programmed tool-tip path length: on a square with a half
+// circle (no rotary axis moving) it is the program's own geometry, lines |target - start| and the
+// arc pi R, summed independently of the sampled forward kinematics it is measured with.
+TEST(CompensateFigures, ThePathLengthAxisIsTheProgramsGeometry) {
+  const PipelineConfig pc = circle_config();
+  const Model model = load_model(pc);
+  const auto program = parse_text("G21 G17 G90 G94\nG0 X0 Y0 Z0 A0 C0\nG1 X20 F3000\nY20\nG3 X0 Y20 I-10 J0\nG1 Y0\nM30\n", pc);
+  const Axes start = program[1].start;
+  const Nominal nom = build_nominal(model, program, start);
+  const Evaluation before = evaluate(model, nom, program, program, start, [](std::uint32_t i) { return i; });
+  double expected = 0;
+  for (const ResolvedBlock& b : program) {
+    if (b.motion == Motion::kLinear || b.motion == Motion::kRapid)
+      expected += std::sqrt(std::pow(b.target[kX] - b.start[kX], 2) + std::pow(b.target[kY] - b.start[kY], 2) +
+                            std::pow(b.target[kZ] - b.start[kZ], 2));
+    if (b.motion == Motion::kArcCCW) expected += M_PI * 10;  // the half circle of radius 10
+  }
+  const auto length = programmed_path_length(model, nom, {plot::Role::kBefore, &before, false, ""});
+  ASSERT_FALSE(length.empty());
+  EXPECT_TRUE(std::is_sorted(length.begin(), length.end()));
+  EXPECT_NEAR(length.back(), expected, 0.002 * expected) << "20 + 20 + 10 pi + 20 mm after the rapid";
 }
 
 TEST(Compensate, ConfigRejectsUnknownKeysAndBadValues) {

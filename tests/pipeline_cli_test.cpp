@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <set>
 #include <thread>
 
 #include "cli_helpers.hpp"
@@ -290,4 +292,194 @@ TEST(ConfigPrint, AStageThatCannotBeBuiltIsNamedAndTheStatusIsOne) {
   EXPECT_NE(r.err.find("stage simulate cannot be built"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("'interpolate.smoothing'"), std::string::npos) << r.err;
   EXPECT_NE(r.out.find("# stage simulate cannot be built"), std::string::npos) << "the printed config says it too";
+// Real posts (issue 31 item 5): what a shop's program meets in batch.
+namespace {
+
+// A spiral of 120 G2 arcs at F999 in/min (423 mm/s): above X's speed bound on the MX-330 (250
+// mm/s, the acceleration over the drive's Ts), as arcspiral.ngc with its feed raised is.
+fs::path spiral_at_f999(const fs::path& dir) {
+  const fs::path path = dir / "spiral999.nc";
+  std::ofstream p(path);
+  p << "G20 G64\nG0 Z1\nG0 X1.8 Y0\nG1 Z-0.1 F999\n";
+  double r = 1.8, a = 0;
+  char line[120];
+  for (int k = 0; k < 120; ++k) {
+    a += 0.35, r -= 0.01;
+    std::snprintf(line, sizeof line, "G2 X%.6f Y%.6f R%.6f\n", r * std::cos(-a), r * std::sin(-a), r);
+    p << line;
+  }
+  p << "G0 Z1\nM30\n";
+  return path;
+}
+
+// Every file report.json and report.txt list exists, and every file in the folder is listed.
+void expect_listed_files_are_the_written_ones(const fs::path& out) {
+  const auto report = read_json(out / "report.json");
+  std::set<std::string> listed;
+  for (const auto& f : report.at("outputs")) listed.insert(f.get<std::string>());
+  const std::string text = slurp(out / "report.txt");
+  for (const auto& f : listed) {
+    EXPECT_TRUE(fs::exists(out / f)) << f << " is listed but was not written";
+    EXPECT_NE(text.find(f), std::string::npos) << f << " is not in report.txt";
+  }
+  for (const auto& e : fs::recursive_directory_iterator(out)) {
+    if (!e.is_regular_file()) continue;
+    const std::string rel = fs::relative(e.path(), out).string();
+    EXPECT_EQ(listed.count(rel), 1u) << rel << " was written but is not listed";
+  }
+}
+
+}  // namespace
+
+// Before the fix every point of such a program was refused ("no iterate stayed within the axis
+// limits: points slowed by the interpolator's speed bound", exit 1): a control clamps the feed.
+TEST(RealPosts, AFeedAboveAnAxisBoundIsClampedWithANoteAndCompensated) {
+  const fs::path dir = tmpdir("f999");
+  const fs::path out = dir / "out";
+  const Outcome r = gcpipe({"batch", spiral_at_f999(dir).string(), "-o", out.string(), "--quiet"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto sim = read_json(out / "report.json").at("simulation");
+  EXPECT_TRUE(sim.at("compensated").get<bool>()) << sim.at("note");
+  const auto& clamp = sim.at("feed_clamped");
+  EXPECT_GE(clamp.at("blocks").get<int>(), 100) << clamp.dump();
+  EXPECT_EQ(clamp.at("first_line").get<int>(), 4) << clamp.dump();  // the plunge at F999 too
+  EXPECT_NEAR(clamp.at("most_clamped").at("programmed_feed_mm_min").get<double>(), 999 * 25.4, 0.1) << "F999 in/min";
+  const double percent = clamp.at("most_clamped").at("feed_percent").get<double>();
+  EXPECT_GT(percent, 0.0);
+  EXPECT_LT(percent, 100.0 * 250.0 / 423.0 + 5.0) << "X's bound over the programmed 423 mm/s";
+  EXPECT_NE(slurp(out / "report.txt").find("feed clamped: "), std::string::npos);
+  EXPECT_LT(sim.at("contour_error_after").at("max_mm").get<double>(), sim.at("contour_error_before").at("max_mm").get<double>());
+  expect_listed_files_are_the_written_ones(out);
+}
+
+// A program with a rejected line would run without it: no compensated.nc unless --keep-going.
+TEST(RealPosts, RejectedLinesGetNoCompensatedProgramUnlessKeepGoing) {
+  const fs::path dir = tmpdir("rejected_post");
+  const fs::path program = dir / "bad.nc";
+  {
+    std::ofstream p(program);
+    p << "G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F500\nG1 X20 B2\nG1 X20 Y10 F3000\nG1 X0\nM30\n";
+  }
+  const Outcome r = gcpipe({"batch", program.string(), "-o", (dir / "out").string(), "--quiet"});
+  EXPECT_EQ(r.status, 3) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "out" / "compensated.nc"));
+  EXPECT_TRUE(fs::exists(dir / "out" / "output.nc"));
+  const auto summary = read_json(dir / "out" / "summary.json");
+  ASSERT_TRUE(summary.contains("not_compensated")) << summary.dump();
+  for (const char* part : {"1 line was rejected", "line 4", "--keep-going"})
+    EXPECT_NE(summary.at("not_compensated").get<std::string>().find(part), std::string::npos) << part;
+  EXPECT_NE(slurp(dir / "out" / "report.txt").find("not compensated: 1 line was rejected"), std::string::npos);
+  expect_listed_files_are_the_written_ones(dir / "out");
+
+  const Outcome k = gcpipe({"batch", program.string(), "-o", (dir / "kept").string(), "--quiet", "--keep-going"});
+  EXPECT_EQ(k.status, 3) << k.err;  // lines were still rejected
+  EXPECT_TRUE(fs::exists(dir / "kept" / "compensated.nc"));
+  EXPECT_TRUE(read_json(dir / "kept" / "report.json").at("simulation").at("compensated").get<bool>());
+  expect_listed_files_are_the_written_ones(dir / "kept");
+}
+
+// A program of rapids only has nothing to compensate: it is said, exit 4, and no "0.00 um".
+TEST(RealPosts, AProgramWithoutCuttingMovesIsNotCompensated) {
+  const fs::path dir = tmpdir("rapids_only");
+  const fs::path program = dir / "rapids.nc";
+  {
+    std::ofstream p(program);
+    p << "G21 G90\nG0 X0 Y0 Z5\nG0 X20 Y10\nG0 X40 Y0 Z10\nM30\n";
+  }
+  const Outcome r = gcpipe({"batch", program.string(), "-o", (dir / "out").string()});
+  EXPECT_EQ(r.status, 4) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "out" / "compensated.nc"));
+  EXPECT_NE(r.err.find("not compensated: the program has no cutting moves"), std::string::npos) << r.err;
+  const auto summary = read_json(dir / "out" / "summary.json");
+  EXPECT_NE(summary.value("not_compensated", "").find("no cutting moves"), std::string::npos) << summary.dump();
+  EXPECT_FALSE(summary.contains("failure")) << summary.dump();
+  const std::string text = slurp(dir / "out" / "report.txt");
+  EXPECT_EQ(text.find("contour error after"), std::string::npos) << text;
+  EXPECT_EQ(text.find("0.00 um"), std::string::npos) << text;
+  expect_listed_files_are_the_written_ones(dir / "out");
+}
+
+// A config without drives (LinuxCNC's xyzac-trt machine: no servo section) compensates nothing:
+// batch says why and exits 4, not 0; --no-simulate asks for that and exits 0.
+TEST(RealPosts, AConfigWithoutDrivesSaysSoInItsExitStatus) {
+  const fs::path dir = tmpdir("no_drives");
+  const fs::path program = dir / "square.nc";
+  {
+    std::ofstream p(program);
+    p << "G21 G90 G94\nG0 X0 Y0 Z5\nG1 Z0 F500\nG1 X20 F1000\nY20\nX0\nY0\nG0 Z5\nM30\n";
+  }
+  const std::string config = std::string(GCPIPE_SOURCE_DIR) + "/pipeline_configs/linuxcnc_xyzac_trt.yaml";
+  const Outcome r = gcpipe({"batch", program.string(), "-o", (dir / "out").string(), "--config", config});
+  EXPECT_EQ(r.status, 4) << r.err;
+  EXPECT_NE(r.err.find("not compensated: the config has no servo section"), std::string::npos) << r.err;
+  EXPECT_NE(read_json(dir / "out" / "summary.json").value("not_compensated", "").find("no servo section"), std::string::npos);
+  EXPECT_FALSE(fs::exists(dir / "out" / "compensated.nc"));
+  expect_listed_files_are_the_written_ones(dir / "out");
+  const Outcome n = gcpipe({"batch", program.string(), "-o", (dir / "asked").string(), "--config", config, "--no-simulate"});
+  EXPECT_EQ(n.status, 0) << n.err;
+}
+
+// compensate.enabled: false asks for the simulation and its report only: exit 0, the reason in
+// summary.json, no failure (it was "no compensated program", exit 1).
+TEST(RealPosts, ACompensationTurnedOffInTheConfigIsNoFailure) {
+  const fs::path dir = tmpdir("compensate_off");
+  const fs::path config = dir / "off.yaml";
+  std::ofstream(config) << "machine: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/machines/mx330.yaml\n"
+                        << "servo:\n  drives: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/drives/seed002.yaml\n"
+                        << "compensate:\n  enabled: false\n";
+  const Outcome r = gcpipe({"batch", kSamples + "five_axis_demo.nc", "-o", (dir / "out").string(), "--config", config.string(), "--quiet"});
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "out" / "compensated.nc"));
+  const auto summary = read_json(dir / "out" / "summary.json");
+  EXPECT_FALSE(summary.contains("failure")) << summary.dump();
+  EXPECT_NE(summary.value("not_compensated", "").find("compensate.enabled is false"), std::string::npos) << summary.dump();
+  EXPECT_TRUE(fs::exists(dir / "out" / "plots" / "contour_error.png")) << "the original is still simulated and drawn";
+  expect_listed_files_are_the_written_ones(dir / "out");
+}
+
+// The tool-path figure is drawn in the plane that holds the error (issue 31 item 6): a G18
+// profile's in XZ, where an XY projection showed a line; a G17 square's in XY. The plane and the
+// magnification the figure states are in report.json, in batch and in a DDS node alike.
+TEST(Figures, TheToolPathIsDrawnInThePlaneOfItsError) {
+  const fs::path dir = tmpdir("planes");
+  auto plane_of = [&](const std::string& name, const std::string& text) {
+    const fs::path program = dir / (name + ".nc");
+    std::ofstream(program) << text;
+    const Outcome r = gcpipe({"batch", program.string(), "-o", (dir / name).string(), "--quiet"});
+    EXPECT_EQ(r.status, 0) << r.err;
+    const auto figure = read_json(dir / name / "report.json").at("simulation").at("toolpath_figure");
+    EXPECT_GE(figure.at("magnification").get<double>(), 1.0);
+    return figure.at("plane").get<std::string>();
+  };
+  EXPECT_EQ(plane_of("g18", "G21 G18 G90 G94\nG0 X0 Y0 Z5\nG1 Z0 F500\nG1 X20 F3000\nG2 X40 Z0 I10 K0\nG1 X60\n"
+                            "G3 X80 Z0 I10 K0\nG1 Z5\nM30\n"),
+            "XZ");
+  EXPECT_EQ(plane_of("g17", "G21 G17 G90 G94\nG0 X0 Y0 Z5\nG1 Z0 F500\nG1 X20 F3000\nY20\nX0\nY0\nG0 Z5\nM30\n"), "XY");
+  EXPECT_TRUE(fs::exists(dir / "g18" / "plots" / "toolpath.png"));
+}
+
+// Reports that fit the program (issue 33 item 5): a three-axis program gets no neural-IK section
+// or figures unless --model asks for them; ideal drives are named as such, not "Z 0/0".
+TEST(Reports, AThreeAxisProgramGetsNoNeuralIkUnlessAskedAndIdealAxesAreNamed) {
+  const fs::path dir = tmpdir("three_axis");
+  const Outcome r = gcpipe({"batch", kSamples + "shop_pocket_inch.nc", "-o", (dir / "out").string(), "--quiet"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "out" / "plots" / "ik_divergence.png"));
+  EXPECT_FALSE(fs::exists(dir / "out" / "plots" / "ik_tip_error.png"));
+  const auto report = read_json(dir / "out" / "report.json");
+  EXPECT_TRUE(report.at("ik").at("neural").is_null()) << report.at("ik").dump();
+  EXPECT_NE(report.at("ik").value("neural_skipped", "").find("three-axis"), std::string::npos);
+  const std::string text = slurp(dir / "out" / "report.txt");
+  EXPECT_EQ(text.find("neural_outside_envelope"), std::string::npos) << text;
+  // The default drives model Z and A as ideal (pipeline_configs/drives/seed002.yaml).
+  EXPECT_EQ(report.at("simulation").at("ideal_axes"), nlohmann::json::array({"Z", "A"}));
+  EXPECT_NE(text.find("Z A ideal (model: ideal, actual = command)"), std::string::npos) << text;
+  EXPECT_EQ(text.find(" Z 0/0"), std::string::npos) << text;
+
+  const std::string model = std::string(GCPIPE_SOURCE_DIR) + "/pipeline_configs/models/mx330_improved_seed1.model";
+  const Outcome asked = gcpipe({"batch", kSamples + "shop_pocket_inch.nc", "-o", (dir / "asked").string(), "--quiet",
+                                "--model", model});
+  ASSERT_EQ(asked.status, 0) << asked.err;
+  EXPECT_TRUE(fs::exists(dir / "asked" / "plots" / "ik_divergence.png"));
+  EXPECT_FALSE(read_json(dir / "asked" / "report.json").at("ik").at("neural").is_null());
 }

@@ -21,7 +21,7 @@ namespace fs = std::filesystem;
 // --no-simulate) the batch runs the streaming stages only, in memory independent of the length.
 std::string simulation_skipped(const BatchArgs& a, const PipelineConfig& pc) {
   if (a.no_simulate) return "--no-simulate given";
-  if (!pc.root.has("servo")) return "the config has no servo section";
+  if (!pc.root.has("servo")) return "the config has no servo section: no drives to simulate or to compensate for";
   return {};
 }
 
@@ -29,10 +29,24 @@ struct Outcome {
   bool complete = false;
   std::string failure;
   std::uint64_t rejected = 0;
+  bool compensated = false;        // compensated.nc was written
+  std::string not_compensated;     // why not, when nothing failed (exit 4 unless asked for)
 };
 
+// The user asked for no compensated.nc: --no-simulate, or compensate.enabled: false.
+bool compensation_declined(const BatchArgs& a, const PipelineConfig& pc) {
+  return a.no_simulate || (pc.root.has("compensate") && !pc.root.section("compensate").boolean("enabled", true));
+}
+
+// 4: finished, nothing failed, and no compensated.nc where one was expected.
+int batch_exit_status(const BatchArgs& a, const PipelineConfig& pc, const Outcome& o) {
+  const int status = exit_status(o.complete, o.failure, o.rejected);
+  if (status == 0 && !o.compensated && !compensation_declined(a, pc)) return 4;
+  return status;
+}
+
 // report.json, report.txt and summary.json: the stages' parts in the run's frame (run_report.hpp).
-void write_reports(ProgramRun& run, const BatchArgs& a, const Outcome& o, double seconds) {
+void write_reports(ProgramRun& run, const BatchArgs& a, Outcome& o, double seconds) {
   const fs::path outdir = a.outdir;
   const std::vector<std::string> stages = run.pipeline().names();
   pipeline::RunReport r;
@@ -43,7 +57,8 @@ void write_reports(ProgramRun& run, const BatchArgs& a, const Outcome& o, double
   run.pipeline().report(r.json, r.text, outdir, base, r.files, {});
   r.simulation_skipped = simulation_skipped(a, run.config());
   r.failure = o.failure;
-  r.compensated = fs::exists(outdir / "compensated.nc.part") || fs::exists(outdir / "compensated.nc");
+  r.compensated = o.compensated;
+  if (!o.compensated && o.failure.empty()) o.not_compensated = r.not_compensated = pipeline::why_not_compensated(r);
   const std::string text = pipeline::write_run_report(std::move(r), outdir, seconds);
   if (!a.quiet) std::fputs(text.c_str(), stdout);
 }
@@ -82,10 +97,13 @@ int run_batch_in_prepared_folder(const BatchArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   pipeline::AtomicFile diagnostics((outdir / "diagnostics.txt").string());
   PrintedLog log(20, &diagnostics, a.quiet);
+  pipeline::StageContext overrides;
+  overrides.keep_going = a.keep_going;
+  overrides.ik_model = a.model;
   ProgramRun run(a, [&a](const PipelineConfig& pc) {
     return simulation_skipped(a, pc).empty() ? std::vector<std::string>{"write", "compensate"}
                                              : std::vector<std::string>{"write", "ik"};
-  }, log);
+  }, log, overrides);
   TextFileSink output((outdir / "output.nc").string());
   run.pipeline().attach("write", output);
   std::unique_ptr<TextFileSink> compensated;
@@ -101,13 +119,18 @@ int run_batch_in_prepared_folder(const BatchArgs& a) {
   log.flush();
   diagnostics.commit();
   output.commit();
-  if (compensated && compensated->written()) compensated->commit();
+  // Only a program the compensation finished gets the name; a failed one's text stays a .part
+  // file, removed on the way out.
+  o.compensated = compensated && compensated->written() && o.complete && o.failure.empty();
+  if (o.compensated) compensated->commit();
   write_reports(run, a, o, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   if (!a.quiet && log.not_shown() > 0)
     std::cerr << "... " << log.not_shown() << " more in " << (outdir / "diagnostics.txt").string() << "\n";
   if (!o.complete) std::cerr << "gcpipe batch: " << run.error() << "\n";
   else if (!o.failure.empty()) std::cerr << "gcpipe batch: " << o.failure << "\n";
-  return exit_status(o.complete, o.failure, o.rejected);
+  else if (!o.not_compensated.empty() && !compensation_declined(a, run.config()))
+    std::cerr << "gcpipe batch: not compensated: " << o.not_compensated << "\n";
+  return batch_exit_status(a, run.config(), o);
 }
 
 }  // namespace

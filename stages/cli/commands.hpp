@@ -25,6 +25,8 @@ struct BatchArgs : ProgramArgs {
   std::string outdir;
   bool quiet = false;
   bool no_simulate = false;
+  bool keep_going = false;  //!< compensate a program with rejected lines (what was accepted)
+  std::string model;        //!< neural IK model; given, the neural IK is compared on any program
 };
 int run_batch(const BatchArgs& args);
 

@@ -52,6 +52,12 @@ void add_batch(CLI::App& app, BatchArgs& a) {
   s->add_option("-o,--output-dir", a.outdir, "output folder (created when missing)")->required()->check(kNonEmpty);
   s->add_flag("--no-simulate", a.no_simulate,
               "streaming stages only (parse, trochoid, ik, write): memory independent of the program's length");
+  s->add_option("--model", a.model,
+                "neural IK model (default: the config's ik.model); given, the neural IK is compared and drawn also on a "
+                "program whose A and C do not move")
+      ->check(CLI::ExistingFile);
+  s->add_flag("--keep-going", a.keep_going,
+              "write compensated.nc although lines were rejected (without them); by default such a program is not compensated");
   s->add_flag("--quiet", a.quiet, "print nothing but errors that stop the run");
   s->footer(std::string("Runs every stage in-process, in pipeline order (gcpipe stages): parse -> trochoid -> write\n"
       "(output.nc) and -> ik -> simulate -> compensate (compensated.nc), then the report and the\n"
@@ -59,7 +65,11 @@ void add_batch(CLI::App& app, BatchArgs& a) {
       "summary.json, diagnostics.txt. Files of an earlier run there are removed first; every file is\n"
       "written as NAME.part and renamed when complete. The simulation's long series and the program's\n"
       "blocks are kept in unlinked scratch files in $GCPIPE_SCRATCH_DIR (default /var/tmp; about 50\n"
-      "bytes a planned millisecond while the run lasts), not in memory.") + "\n\n" + kExitStatus);
+      "bytes a planned millisecond while the run lasts), not in memory.") + "\n\n" + kExitStatus +
+      "\nbatch also exits 4 when it finished without writing compensated.nc and nothing failed: the config\n"
+      "has no servo section (no drives to compensate for) or the program has no cutting moves; the reason\n"
+      "is in report.txt and in summary.json as `not_compensated`. A program with rejected lines exits 3 and\n"
+      "gets no compensated.nc unless --keep-going is given.");
 }
 
 void add_parse(CLI::App& app, ParseArgs& a) {

@@ -238,12 +238,33 @@ class NodeJoints {
     for (std::size_t i = 0; i < kNumAxes; ++i) offset_[k][i] = static_cast<float>(joints[i] - r[i]);
   }
   void release() { std::vector<AxesF>().swap(offset_); }
+  /// Moves node k's offset on axis i by one float step towards `towards` [mm | deg].
+  void nudge(std::size_t k, std::size_t i, double towards) {
+    offset_[k][i] = std::nextafter(offset_[k][i], static_cast<float>(towards - reference(k)[i]));
+  }
 
  private:
   const simulate::JointSeries* reference_;
   const std::vector<std::uint64_t>* grid_;
   std::vector<AxesF> offset_;
 };
+
+// The offsets are floats: a projected node read back can move past the bound by an ulp of its
+// offset (5e-7 mm at a 4 mm lag), more than project_step's 1e-6 relative margin on a 0.25 mm step
+// (F999 in/min at X's 250 mm/s bound: every point of arcspiral.ngc was refused as "slowed by the
+// interpolator's speed bound"). Such an axis's offset is stepped back, float by float, towards
+// the previous node until the step is within the bound again.
+Axes keep_within_bound(NodeJoints& nodes, std::size_t k, const Axes& r, const Axes& from, const Axes& vmax, double dt) {
+  Axes j = nodes.get(k, r);
+  for (std::size_t i = 0; i < kNumAxes; ++i) {
+    if (!(vmax[i] > 0)) continue;
+    for (int n = 0; n < 64 && std::abs(j[i] - from[i]) > vmax[i] * dt * (1 - 1e-7); ++n) {
+      nodes.nudge(k, i, from[i]);
+      j = nodes.get(k, r);
+    }
+  }
+  return j;
+}
 
 // Forward projection of every node onto the speed bound, in order (each against its projected
 // predecessor as stored), as project_step does it for one node.
@@ -257,7 +278,7 @@ void project_speed(NodeJoints& nodes, const std::vector<std::uint64_t>& grid, co
     project_step(before, j, vmax, static_cast<double>(grid[k] - grid[k - 1]) * period);
     if (j != unprojected) {
       nodes.set(k, r, j);
-      j = nodes.get(k, r);
+      j = keep_within_bound(nodes, k, r, before, vmax, static_cast<double>(grid[k] - grid[k - 1]) * period);
     }
     before = j;
   }

@@ -1,6 +1,7 @@
 #include "compensate_plots.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 
@@ -14,9 +15,7 @@ namespace gcpipe::compensate {
 
 namespace {
 
-const cv::Scalar kNominal(120, 120, 120);
-const cv::Scalar kBefore(40, 39, 214);   // red
-const cv::Scalar kAfter(180, 119, 31);   // blue
+const cv::Scalar kNominal = plot::role_colour(plot::Role::kNominal);
 
 /// 1, 2 or 5 x 10^k at or below v.
 double nice_below(double v) {
@@ -38,80 +37,171 @@ std::string fmt(const char* f, double a, double b = 0, double c = 0) {
   return buf;
 }
 
+// "before (control runs the original)": the role, then what the run is.
+std::string run_label(const FigureRun& r) {
+  std::string s = plot::role_name(r.role);
+  if (!r.what.empty()) s += " (" + r.what + ")";
+  return s;
+}
+
+// The raw sample of the nominal run that point i of a run's series stands for (FigureRun).
+std::size_t raw_sample_of(const Nominal& nom, const FigureRun& run, std::size_t i) {
+  const Series& s = run.evaluation->series;
+  const auto n = static_cast<std::size_t>(std::max(0.0, std::round(s.t[i] / nom.period)));
+  const std::size_t raw = run.on_reference_clock ? nom.progress[std::min(n, nom.progress.size() - 1)] : n;
+  return std::min(raw, nom.raw.size() - 1);
+}
+
+// Per point of the run's series: on a cutting move, not a G0 rapid (whose error is no contour
+// error of the part: it would choose the plane and the magnification otherwise). All points
+// count when the nominal cannot say.
+std::vector<bool> cutting_points(const Nominal& nom, const FigureRun& run) {
+  const Series& s = run.evaluation->series;
+  std::vector<bool> cutting(s.t.size(), true);
+  if (nom.raw.size() == 0 || (run.on_reference_clock && nom.progress.size() == 0)) return cutting;
+  for (std::size_t i = 0; i < s.t.size(); ++i)
+    cutting[i] = nom.brief[nom.block[raw_sample_of(nom, run, i)]].motion != Motion::kRapid;
+  return cutting;
+}
+
+/// The plane a tool path is drawn in: the two axes (0 X, 1 Y, 2 Z) that hold most of the run's
+/// deviation from the nominal path (its sum of squares per axis over the run): the axis with the
+/// least is the one looked along. A G18 profile's error lies in XZ and is drawn there.
+struct Plane {
+  std::size_t u = 0, v = 1;
+  const char* name = "XY";
+};
+
+Plane plane_of_largest_error(const Series& s, const std::vector<bool>& cutting) {
+  std::array<double, 3> sum{};
+  for (std::size_t i = 0; i < s.t.size(); ++i)
+    if (cutting[i])
+      for (std::size_t k = 0; k < 3; ++k) sum[k] += (s.tip[k][i] - s.nominal[k][i]) * (s.tip[k][i] - s.nominal[k][i]);
+  const auto normal = static_cast<std::size_t>(std::min_element(sum.begin(), sum.end()) - sum.begin());
+  if (sum[normal] == sum[2]) return {0, 1, "XY"};  // a tie keeps the usual view
+  if (normal == 0) return {1, 2, "YZ"};
+  if (normal == 1) return {0, 2, "XZ"};
+  return {0, 1, "XY"};
+}
+
+const char* kAxisName[3] = {"X [mm]", "Y [mm]", "Z [mm]"};
+
 }  // namespace
 
-void plot_toolpath(const std::filesystem::path& png, const Evaluation& before, const Evaluation* after,
-                   const std::string& title) {
-  const Series& b = before.series;
-  // Panel 1: the whole path; panel 2: a 20 mm window around the worst error before compensation,
-  // where the deviation is magnified enough to be seen.
-  auto panel = [&](double cx, double cy, double half, bool zoom) {
-    double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300, emax = 0;
-    for (std::size_t i = 0; i < b.t.size(); ++i) {
-      const double x = b.nominal[0][i], y = b.nominal[1][i];
-      if (zoom && (std::abs(x - cx) > half || std::abs(y - cy) > half)) continue;
-      x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
-      emax = std::max(emax, std::hypot(b.tip[0][i] - x, b.tip[1][i] - y));
-    }
-    const double extent = zoom ? 2 * half : std::max(x1 - x0, y1 - y0);
-    const double k = emax > 0 ? std::max(1.0, nice_below(0.05 * extent / emax)) : 1.0;
-    plot::FigureStyle style;
-    style.height = 900;
-    style.width = 900;
-    plot::Figure fig(style);
-    fig.title(zoom ? "around the largest error" : title);
-    fig.note(fmt("tool tip, workpiece frame; deviation from the nominal path magnified x%g", k));
-    if (!zoom)
-      fig.note(fmt("max contour error: before %.2f um", before.contour.max * 1e3) +
-               (after ? fmt(", after %.2f um (%.1fx smaller)", after->contour.max * 1e3,
-                            after->contour.max > 0 ? before.contour.max / after->contour.max : 0.0)
-                      : std::string()));
-    fig.xlabel("X [mm]");
-    fig.ylabel("Y [mm]");
-    fig.equal_aspect(true);
-    if (zoom) fig.limits(cx - half, cx + half, cy - half, cy + half);
-    auto draw = [&](const Series& s, bool nominal, cv::Scalar colour, int thick, const char* label) {
-      std::vector<double> x, y;
-      for (std::size_t i = 0; i < s.t.size(); ++i) {
-        const double nx = s.nominal[0][i], ny = s.nominal[1][i];
-        if (zoom && (std::abs(nx - cx) > 1.2 * half || std::abs(ny - cy) > 1.2 * half)) {
-          if (!x.empty()) {  // leave the window: end this stretch
-            fig.line(std::move(x), std::move(y), colour, thick, label);
-            label = "";
-            x.clear(), y.clear();
-          }
-          continue;
-        }
-        // The nearest path point jumps where the actual passes a crossing of the path: the
-        // nominal line is broken there instead of drawing a spoke across the loop.
-        if (nominal && !x.empty() && std::hypot(nx - x.back(), ny - y.back()) > 0.5) {
-          fig.line(std::move(x), std::move(y), colour, thick, label);
-          label = "";
-          x.clear(), y.clear();
-        }
-        x.push_back(nominal ? nx : nx + k * (s.tip[0][i] - nx));
-        y.push_back(nominal ? ny : ny + k * (s.tip[1][i] - ny));
-      }
+namespace {
+
+// What a tool-path panel shows: the whole path, or (zoom) a window of 2 half around (cu, cv).
+struct View {
+  Plane plane;
+  bool zoom = false;
+  double cu = 0, cv = 0, half = 0;
+  bool shows(const Series& s, std::size_t i, double scale) const {
+    return !zoom || (std::abs(s.nominal[plane.u][i] - cu) <= scale * half && std::abs(s.nominal[plane.v][i] - cv) <= scale * half);
+  }
+};
+
+// The deviation's magnification in a view, chosen from the series' largest deviation in it: about
+// 5 % of the extent shown, a 1-2-5 step, at least 1.
+double magnification(const Series& b, const std::vector<bool>& cutting, const View& view) {
+  const Plane& pl = view.plane;
+  double u0 = 1e300, u1 = -1e300, v0 = 1e300, v1 = -1e300, emax = 0;
+  for (std::size_t i = 0; i < b.t.size(); ++i) {
+    if (!view.shows(b, i, 1.0)) continue;
+    const double u = b.nominal[pl.u][i], v = b.nominal[pl.v][i];
+    u0 = std::min(u0, u), u1 = std::max(u1, u), v0 = std::min(v0, v), v1 = std::max(v1, v);
+    if (cutting[i]) emax = std::max(emax, std::hypot(b.tip[pl.u][i] - u, b.tip[pl.v][i] - v));
+  }
+  const double extent = view.zoom ? 2 * view.half : std::max(u1 - u0, v1 - v0);
+  return emax > 0 ? std::max(1.0, nice_below(0.05 * extent / emax)) : 1.0;
+}
+
+// Panel of the tool path in a view, the deviation magnified enough to be seen.
+cv::Mat toolpath_panel(const FigureRuns& runs, const std::vector<bool>& cutting, const View& view, const std::string& title) {
+  const Series& b = runs.front().evaluation->series;
+  const Plane& pl = view.plane;
+  const bool zoom = view.zoom;
+  const double cu = view.cu, cv = view.cv, half = view.half;
+  auto in_view = [&](const Series& s, std::size_t i, double scale) { return view.shows(s, i, scale); };
+  const double k = magnification(b, cutting, view);
+  plot::FigureStyle style;
+  style.height = 900;
+  style.width = 900;
+  plot::Figure fig(style);
+  fig.title(zoom ? "around the largest error" : title);
+  fig.note(std::string("plane ") + pl.name + (zoom ? "" : ", which holds most of the error") +
+           fmt("; deviation from the nominal path magnified x%g", k));
+  if (!zoom) {
+    std::string maxima = "max contour error:";
+    for (std::size_t i = 0; i < runs.size(); ++i)
+      maxima += std::string(i == 0 ? " " : ", ") + plot::role_name(runs[i].role) +
+                fmt(" %.2f um", runs[i].evaluation->contour.max * 1e3);
+    fig.note(maxima);
+  }
+  fig.xlabel(kAxisName[pl.u]);
+  fig.ylabel(kAxisName[pl.v]);
+  fig.equal_aspect(true);
+  if (zoom) fig.limits(cu - half, cu + half, cv - half, cv + half);
+  auto draw = [&](const Series& s, bool nominal, cv::Scalar colour, int thick, std::string label) {
+    std::vector<double> x, y;
+    auto flush = [&] {
       if (!x.empty()) fig.line(std::move(x), std::move(y), colour, thick, label);
+      label.clear();
+      x.clear(), y.clear();
     };
-    draw(b, true, kNominal, 1, "nominal path");
-    draw(b, false, kBefore, 2, "actual, uncompensated");
-    if (after) draw(after->series, false, kAfter, 2, "actual, compensated");
-    return fig.render();
+    for (std::size_t i = 0; i < s.t.size(); ++i) {
+      const double nu = s.nominal[pl.u][i], nv = s.nominal[pl.v][i];
+      if (!in_view(s, i, 1.2)) {  // leave the window: end this stretch
+        flush();
+        continue;
+      }
+      // The nearest path point jumps where the actual passes a crossing of the path: the
+      // nominal line is broken there instead of drawing a spoke across the loop.
+      if (nominal && !x.empty() && std::hypot(nu - x.back(), nv - y.back()) > 0.5) flush();
+      x.push_back(nominal ? nu : nu + k * (s.tip[pl.u][i] - nu));
+      y.push_back(nominal ? nv : nv + k * (s.tip[pl.v][i] - nv));
+    }
+    flush();
   };
+  draw(b, true, kNominal, 1, "nominal path");
+  for (const FigureRun& r : runs) draw(r.evaluation->series, false, plot::role_colour(r.role), 2, run_label(r));
+  return fig.render();
+}
+
+}  // namespace
+
+// The first run's largest error on a cutting move: the centre of the zoomed panel.
+std::size_t worst_cutting_point(const Series& b, const std::vector<bool>& cutting) {
   std::size_t worst = 0;
-  double wmax = -1;
-  for (std::size_t i = 0; i < b.t.size(); ++i)
-    if (b.contour[i] > wmax) wmax = b.contour[i], worst = i;
-  std::vector<cv::Mat> panels{panel(0, 0, 0, false)};
-  if (!b.t.empty()) panels.push_back(panel(b.nominal[0][worst], b.nominal[1][worst], 10.0, true));
+  for (std::size_t i = 1; i < b.contour.size(); ++i)
+    if (cutting[i] && (!cutting[worst] || b.contour[i] > b.contour[worst])) worst = i;
+  return worst;
+}
+
+ToolpathView toolpath_view(const Nominal& nominal, const FigureRuns& runs) {
+  const Series& b = runs.front().evaluation->series;
+  const std::vector<bool> cutting = cutting_points(nominal, runs.front());
+  const View whole{plane_of_largest_error(b, cutting)};
+  return {whole.plane.name, magnification(b, cutting, whole)};
+}
+
+void plot_toolpath(const std::filesystem::path& png, const Nominal& nominal, const FigureRuns& runs,
+                   const std::string& title) {
+  const Series& b = runs.front().evaluation->series;
+  const std::vector<bool> cutting = cutting_points(nominal, runs.front());
+  const Plane pl = plane_of_largest_error(b, cutting);
+  std::vector<cv::Mat> panels{toolpath_panel(runs, cutting, View{pl}, title)};
+  if (!b.t.empty()) {
+    const std::size_t worst = worst_cutting_point(b, cutting);
+    panels.push_back(toolpath_panel(runs, cutting, View{pl, true, b.nominal[pl.u][worst], b.nominal[pl.v][worst], 10.0}, title));
+  }
   cv::Mat out;
   cv::hconcat(panels, out);
   plot::write_png(png, out);
 }
 
-bool plot_ballbar(const std::filesystem::path& png, const Nominal& nominal, const Evaluation& before,
-                  const Evaluation* after, const std::string& title) {
+bool plot_ballbar(const std::filesystem::path& png, const Nominal& nominal, const FigureRuns& runs,
+                  const std::string& title) {
+  const Evaluation& before = *runs.front().evaluation;
   std::vector<std::size_t> circles;
   for (std::size_t s = 0; s < nominal.segments.size() && circles.size() < 6; ++s)
     if (nominal.segments[s].circle) circles.push_back(s);
@@ -136,7 +226,7 @@ bool plot_ballbar(const std::filesystem::path& png, const Nominal& nominal, cons
     st.width = 620;
     st.height = 660;
     st.margin_left = 60;
-    st.margin_bottom = 50;
+    st.margin_bottom = 75;  // the tick labels and the axis label below them, apart
     st.grid = false;
     plot::Figure f(st);
     // Polar: radius = 3 rings + deviation; the dashed-looking reference is the nominal circle.
@@ -162,8 +252,7 @@ bool plot_ballbar(const std::filesystem::path& png, const Nominal& nominal, cons
       }
       f.line(std::move(x), std::move(y), col, 2, label);
     };
-    trace(before, kBefore, "before");
-    if (after) trace(*after, kAfter, "after");
+    for (const FigureRun& r : runs) trace(*r.evaluation, plot::role_colour(r.role), plot::role_name(r.role));
     f.equal_aspect(true);
     f.limits(-5.4 * ring, 5.4 * ring, -5.4 * ring, 5.4 * ring);
     f.title(fmt("lines %.0f-%.0f, R %.3f mm", static_cast<double>(g.first_line), static_cast<double>(g.last_line), g.circle_radius));
@@ -187,38 +276,86 @@ bool plot_ballbar(const std::filesystem::path& png, const Nominal& nominal, cons
   return true;
 }
 
-void plot_contour_error(const std::filesystem::path& png, const Evaluation& before, const Evaluation* after,
-                        const std::string& title) {
+std::vector<double> programmed_path_length(const Model& model, const Nominal& nom, const FigureRun& run) {
+  const Series& s = run.evaluation->series;
+  const std::size_t N = nom.raw.size();
+  if (N == 0 || (run.on_reference_clock && nom.progress.size() == 0)) return {};
+  // The raw sample each point stands for, then one pass over the raw samples in order summing
+  // the tool tip's steps (forward kinematics with the block's tool length), read where asked.
+  std::vector<std::pair<std::size_t, std::size_t>> wanted(s.t.size());  // (raw sample, point)
+  for (std::size_t i = 0; i < s.t.size(); ++i) wanted[i] = {raw_sample_of(nom, run, i), i};
+  std::sort(wanted.begin(), wanted.end());
+  std::vector<double> length(s.t.size(), 0.0);
+  double sum = 0;
+  Vec3 last = forward_kinematics(model.kin, nom.raw[0], tool_length_of(model, nom.brief[nom.block[0]])).tip;
+  std::size_t k = 0;
+  for (const auto& [raw, point] : wanted) {
+    for (; k < raw; ++k) {
+      const Vec3 tip = forward_kinematics(model.kin, nom.raw[k + 1], tool_length_of(model, nom.brief[nom.block[k + 1]])).tip;
+      sum += std::sqrt((tip[0] - last[0]) * (tip[0] - last[0]) + (tip[1] - last[1]) * (tip[1] - last[1]) +
+                       (tip[2] - last[2]) * (tip[2] - last[2]));
+      last = tip;
+    }
+    length[point] = sum;
+  }
+  return length;
+}
+
+// The log axis starts three decades below the smallest of the runs' largest errors, so that the
+// run with the smallest error is a curve, not a line on the floor (at least 1 nm: compensated.nc
+// is written to 0.1 um).
+double contour_floor_um(const FigureRuns& runs) {
+  double least = 1e300;
+  for (const FigureRun& r : runs) least = std::min(least, r.evaluation->contour.max * 1e3);
+  return std::max(1e-3, nice_below(least / 1000));
+}
+
+void plot_contour_error(const std::filesystem::path& png, const Model& model, const Nominal& nominal,
+                        const FigureRuns& runs, const std::string& title) {
   plot::Figure fig;
   fig.title(title);
-  fig.xlabel("time [s]");
-  fig.ylabel("contour error [um]");
+  std::vector<std::vector<double>> xs;
+  for (const FigureRun& r : runs) xs.push_back(programmed_path_length(model, nominal, r));
+  const bool along_path = std::all_of(xs.begin(), xs.end(), [](const auto& x) { return !x.empty(); });
+  fig.xlabel(along_path ? "programmed path length run [mm] (each place of the part at one x)" : "time [s]");
+  fig.ylabel("contour error [um], log scale");
+  fig.log_y(contour_floor_um(runs));
   auto um = [](const std::vector<double>& v) {
     std::vector<double> r(v.size());
     for (std::size_t i = 0; i < v.size(); ++i) r[i] = v[i] * 1e3;
     return r;
   };
-  fig.line(before.series.t, um(before.series.contour), kBefore, 2,
-           fmt("uncompensated: max %.2f um, RMS %.2f um", before.contour.max * 1e3, before.contour.rms * 1e3));
-  if (after)
-    fig.line(after->series.t, um(after->series.contour), kAfter, 2,
-             fmt("compensated: max %.2f um, RMS %.2f um", after->contour.max * 1e3, after->contour.rms * 1e3));
-  fig.note("distance of the simulated tool tip to the nominal path (not to the time-matched point)");
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    const Evaluation& ev = *runs[i].evaluation;
+    fig.line(along_path ? xs[i] : ev.series.t, um(ev.series.contour), plot::role_colour(runs[i].role), 2,
+             run_label(runs[i]) + fmt(": max %.2f um, RMS %.2f um (cutting moves)", ev.contour.max * 1e3, ev.contour.rms * 1e3));
+  }
+  fig.note("distance of the simulated tool tip to the nominal path (not to the time-matched point); the curves "
+           "include rapids, the figures in the legend do not");
   fig.save_png(png);
 }
 
-void plot_following_error(const std::filesystem::path& png, const Evaluation& before, const Evaluation* after,
+void plot_following_error(const std::filesystem::path& png, const Model& model, const FigureRuns& runs,
                           const std::string& title) {
-  auto panel = [&](const Evaluation& ev, const std::string& what) {
+  auto panel = [&](const FigureRun& run) {
+    const Evaluation& ev = *run.evaluation;
     plot::FigureStyle st;
     st.height = 560;
     plot::Figure f(st);
-    f.title(title + ": " + what);
+    f.title(title + ": following error, " + run_label(run));
     f.xlabel("time [s]");
     f.ylabel("command - actual [um | mdeg]");
+    std::string ideal, still;
     for (int i = 0; i < kNumAxes; ++i) {
       const auto k = static_cast<std::size_t>(i);
-      if (ev.axes.max_following[k] <= 0) continue;
+      if (model.drives.axes[k].model == servo::DriveModel::kIdeal) {
+        ideal += std::string(ideal.empty() ? "" : " ") + kAxisLetters[i];
+        continue;
+      }
+      if (ev.axes.max_following[k] <= 0) {
+        still += std::string(still.empty() ? "" : " ") + kAxisLetters[i];
+        continue;
+      }
       std::vector<double> v(ev.series.following[k].size());
       for (std::size_t j = 0; j < v.size(); ++j) v[j] = ev.series.following[k][j] * 1e3;
       char label[80];
@@ -226,10 +363,12 @@ void plot_following_error(const std::filesystem::path& png, const Evaluation& be
                     ev.axes.max_following[k] * 1e3);
       f.line(ev.series.t, std::move(v), plot::palette(i), 2, label);
     }
+    if (!ideal.empty()) f.note(ideal + ": ideal drives (model: ideal, actual = command), not drawn");
+    if (!still.empty()) f.note(still + ": no following error (the axis does not move)");
     return f.render();
   };
-  std::vector<cv::Mat> panels{panel(before, "following error, uncompensated")};
-  if (after) panels.push_back(panel(*after, "following error, compensated program"));
+  std::vector<cv::Mat> panels;
+  for (const FigureRun& r : runs) panels.push_back(panel(r));
   save_stack(png, panels);
 }
 

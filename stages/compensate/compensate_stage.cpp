@@ -107,15 +107,22 @@ class CompensateStage final : public pipeline::Stage {
         parse_options_(load_parse_options(c.config->root.section("parse"))),
         machine_(c.config->machine),
         progress_(c.progress),
+        keep_going_(c.keep_going),
         collect_(std::find(c.stages.begin(), c.stages.end(), "simulate") == c.stages.end()),
         blocks_(options_.max_blocks) {}
 
   bool block(const ResolvedBlock& b, Emitter&) override {
+    if (is_cutting(b)) ++cutting_blocks_;
     if (collect_ && blocks_.size() < options_.max_blocks) blocks_.push_back(b);
     else if (collect_) too_many_ = true;
     return true;
   }
-  bool diagnostic(const Diagnostic&, DiagnosticKind, Emitter&) override { return true; }
+  bool diagnostic(const Diagnostic& d, DiagnosticKind kind, Emitter&) override {
+    if (kind == DiagnosticKind::kLineRejected || kind == DiagnosticKind::kBlockRejected) {
+      if (rejected_lines_++ == 0) first_rejected_line_ = d.line;
+    }
+    return true;
+  }
   void product(const std::shared_ptr<const pipeline::Product>& p, Emitter&) override {
     if (auto s = std::dynamic_pointer_cast<const SimulatedProgram>(p)) simulated_ = s;
     if (auto f = std::dynamic_pointer_cast<const force::ForceProfile>(p)) force_ = f;
@@ -124,7 +131,11 @@ class CompensateStage final : public pipeline::Stage {
   bool finish(bool complete, Emitter& out) override {
     if (!complete) return fail("the program did not arrive whole");
     if (too_many_) return fail("the program has more than compensate.max_blocks = " + std::to_string(options_.max_blocks) + " blocks");
+    not_compensated_ = reason_not_to_compensate();
+    // Simulated all the same: the report shows the original's error either way, in batch and
+    // in a DDS node alike.
     if (!simulated_) simulate_here();
+    if (!not_compensated_.empty()) return true;  // said in the report; not a failure of the run
     if (!simulated_->run.before) return fail("not simulated: " + simulated_->run.note);
     // compensated.nc goes out and is read back window by window as the learning commits its
     // nodes: on a long program neither the text (tens of MB) nor the nodes are held whole.
@@ -154,6 +165,7 @@ class CompensateStage final : public pipeline::Stage {
     o.written_nodes = written_nodes_;
     o.slowed = slowed_ ? &*slowed_ : nullptr;
     o.skipped = failure_;
+    o.not_compensated = not_compensated_;
     compensate::report_simulation(r, o);
     report_error_budget(r);
   }
@@ -174,6 +186,24 @@ class CompensateStage final : public pipeline::Stage {
     compensate::plot_error_budget(r.dir / "plots" / "error_budget.png", b,
                                   r.input_base + ": servo contour error and tool deflection");
     r.files->push_back("plots/error_budget.png");
+  }
+
+  static bool is_cutting(const ResolvedBlock& b) {
+    return b.motion == Motion::kLinear || b.motion == Motion::kArcCW || b.motion == Motion::kArcCCW;
+  }
+
+  // A program the shop would not run as it is, or one with nothing to compensate, gets no
+  // compensated.nc: a program with rejected lines runs without them (unless --keep-going says
+  // that is meant), and one of rapids only would only be slowed (1.4x on a real post).
+  std::string reason_not_to_compensate() const {
+    if (!options_.enabled) return "compensate.enabled is false: the config asks for the simulation and its report only";
+    if (rejected_lines_ > 0 && !keep_going_)
+      return std::to_string(rejected_lines_) + (rejected_lines_ == 1 ? " line was" : " lines were") +
+             " rejected (the first at line " + std::to_string(first_rejected_line_) +
+             ", see diagnostics.txt): the program would run without " + (rejected_lines_ == 1 ? "it" : "them") +
+             "; correct the program, or give --keep-going to compensate what was accepted";
+    if (cutting_blocks_ == 0) return "the program has no cutting moves (G1, G2, G3): nothing to compensate";
+    return {};
   }
 
   bool fail(std::string why) {
@@ -212,7 +242,12 @@ class CompensateStage final : public pipeline::Stage {
   ParseOptions parse_options_;
   MachineConfig machine_;
   pipeline::Progress progress_;
+  bool keep_going_;
   bool collect_;
+  std::uint64_t cutting_blocks_ = 0;     // G1 G2 G3 blocks seen
+  std::uint64_t rejected_lines_ = 0;     // lines rejected upstream (parse, trochoid)
+  std::uint64_t first_rejected_line_ = 0;
+  std::string not_compensated_;          // why the program was deliberately not compensated
   bool too_many_ = false;
   BlockStore blocks_;  // the program when no simulate stage runs in this process (a DDS node)
   std::shared_ptr<const SimulatedProgram> simulated_;

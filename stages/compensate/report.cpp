@@ -112,7 +112,30 @@ Json kffp_per_segment_json(const ReportInput& in) {
   return list;
 }
 
+// A feed above an axis's speed bound is clamped as a control clamps it; the report says where.
+Json feed_clamp_json(const interpolate::InterpolateStats& s) {
+  return {{"blocks", s.velocity_limited_blocks},
+          {"first_line", s.first_clamped_line},
+          {"last_line", s.last_clamped_line},
+          {"most_clamped", {{"line", s.most_clamped_line},
+                            {s.most_clamped_inverse_time ? "programmed_feed_per_min" : "programmed_feed_mm_min", s.most_clamped_feed},
+                            {"feed_percent", 100 * s.most_clamped_factor}}}};
+}
+
 }  // namespace
+
+std::string feed_clamp_note(const interpolate::InterpolateStats& s) {
+  if (s.velocity_limited_blocks == 0) return {};
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                "%llu blocks (lines %llu-%llu) programmed faster than an axis's speed bound run at the bound, as the "
+                "control clamps them; line %llu the most: F%.6g %s run at %.0f %% of it",
+                static_cast<unsigned long long>(s.velocity_limited_blocks),
+                static_cast<unsigned long long>(s.first_clamped_line), static_cast<unsigned long long>(s.last_clamped_line),
+                static_cast<unsigned long long>(s.most_clamped_line), s.most_clamped_feed,
+                s.most_clamped_inverse_time ? "(G93, 1/min)" : "mm/min", 100 * s.most_clamped_factor);
+  return buf;
+}
 
 nlohmann::ordered_json report_json(const ReportInput& in) {
   Json j;
@@ -126,6 +149,7 @@ nlohmann::ordered_json report_json(const ReportInput& in) {
     j["cycle_time_planned_s"] = static_cast<double>(in.nominal->reference.size()) * T;
   if (in.result && in.result->points > 0 && in.after)
     j["cycle_time_after_s"] = static_cast<double>(in.result->end_tick) * T;
+  if (in.nominal->stats.interp.velocity_limited_blocks > 0) j["feed_clamped"] = feed_clamp_json(in.nominal->stats.interp);
   j["contour_error_before"] = contour_json(*in.before);
   if (in.after) {
     j["contour_error_after"] = contour_json(*in.after);
@@ -139,6 +163,11 @@ nlohmann::ordered_json report_json(const ReportInput& in) {
                                        {"contour_error", {{"max_mm", b.contour.max}, {"rms_mm", b.contour.rms}}}}
                                 : Json{{"note", b.note}};
   }
+  Json ideal = Json::array();
+  for (int i = 0; i < kNumAxes; ++i)
+    if (in.model->drives.axes[static_cast<std::size_t>(i)].model == servo::DriveModel::kIdeal)
+      ideal.push_back(std::string(1, kAxisLetters[i]));
+  j["ideal_axes"] = std::move(ideal);  // actual = command by assumption: their zeros are not measured
   j["axes_before"] = axis_stats_json(in.before->axes);
   if (in.after) j["axes_after"] = axis_stats_json(in.after->axes);
   j["segments"] = segments_json(in);
@@ -197,9 +226,24 @@ std::string reduction_limited_by(const ReportInput& in) {
 
 namespace {
 
-// The contour error before and after, with the reduction.
+bool has_motion(const Nominal& nom, std::initializer_list<Motion> motions) {
+  for (std::size_t i = 0; i < nom.brief.size(); ++i)
+    if (std::find(motions.begin(), motions.end(), nom.brief[i].motion) != motions.end()) return true;
+  return false;
+}
+
+bool has_cutting_moves(const Nominal& nom) {
+  return has_motion(nom, {Motion::kLinear, Motion::kArcCW, Motion::kArcCCW});
+}
+
+// The contour error before and after, with the reduction. A program without a cutting move has no
+// contour error to state: "0.00 um" would read as a measured figure.
 void contour_lines(const ReportInput& in, std::string& s) {
   char buf[400];
+  if (!has_cutting_moves(*in.nominal)) {
+    s += "  contour error: none to measure, the program has no cutting moves (G1, G2, G3)\n";
+    return;
+  }
   const ErrorStats& b = in.before->contour;
   std::snprintf(buf, sizeof buf, "  contour error before: max %.2f um (line %llu, t %.3f s), RMS %.2f um\n", b.max * 1e3,
                 static_cast<unsigned long long>(b.line_at_max), b.t_at_max, b.rms * 1e3);
@@ -215,6 +259,7 @@ void contour_lines(const ReportInput& in, std::string& s) {
 // The compensation's note, the slowed-original baseline, the rapids, the cycle times.
 void outcome_lines(const ReportInput& in, std::string& s) {
   char buf[400];
+  if (const std::string clamp = feed_clamp_note(in.nominal->stats.interp); !clamp.empty()) s += "  feed clamped: " + clamp + "\n";
   if (in.result && !in.result->note.empty()) s += "  compensation: " + in.result->note + "\n";
   if (const std::string why = reduction_limited_by(in); !why.empty()) s += "  below 10x: " + why + "\n";
   if (in.slowed != nullptr && in.slowed->ok) {
@@ -223,14 +268,18 @@ void outcome_lines(const ReportInput& in, std::string& s) {
                   in.slowed->feed_factor, in.slowed->cycle_time, in.slowed->contour.max * 1e3, in.slowed->contour.rms * 1e3);
     s += buf;
   }
-  std::snprintf(buf, sizeof buf, "  rapids (G0, not cutting): max %.2f um before", in.before->rapid.max * 1e3);
-  s += buf;
-  if (in.after) {
-    std::snprintf(buf, sizeof buf, ", %.2f um after", in.after->rapid.max * 1e3);
+  if (!has_motion(*in.nominal, {Motion::kRapid})) {
+    s += "  rapids (G0): none in the program";
+  } else {
+    std::snprintf(buf, sizeof buf, "  rapids (G0, not cutting): max %.2f um before", in.before->rapid.max * 1e3);
     s += buf;
+    if (in.after) {
+      std::snprintf(buf, sizeof buf, ", %.2f um after", in.after->rapid.max * 1e3);
+      s += buf;
+    }
   }
   s += "\n";
-  if (in.result && in.result->points > 0) {
+  if (in.result && in.result->points > 0 && in.after) {
     std::snprintf(buf, sizeof buf,
                   "  compensated program runs %.3f s (original %.3f s as the control runs it, %.3f s planned to "
                   "compensate.path_tolerance)\n",
@@ -246,15 +295,24 @@ void axis_lines(const ReportInput& in, std::string& s) {
   char buf[400];
   s += "  following error max (command - actual), before";
   s += in.after ? " / after:" : ":";
+  std::string ideal;
   for (int i = 0; i < kNumAxes; ++i) {
     const auto k = static_cast<std::size_t>(i);
+    // An ideal drive (model: ideal) follows its command exactly by assumption: "0" would read as
+    // a measured figure.
+    if (in.model->drives.axes[k].model == servo::DriveModel::kIdeal) {
+      ideal += std::string(ideal.empty() ? "" : " ") + kAxisLetters[i];
+      continue;
+    }
     if (in.after)
       std::snprintf(buf, sizeof buf, " %c %.4g/%.4g", kAxisLetters[i], in.before->axes.max_following[k], in.after->axes.max_following[k]);
     else
       std::snprintf(buf, sizeof buf, " %c %.4g", kAxisLetters[i], in.before->axes.max_following[k]);
     s += buf;
   }
-  s += " (mm, deg)\n  travel margin min:";
+  s += " (mm, deg)";
+  if (!ideal.empty()) s += "; " + ideal + " ideal (model: ideal, actual = command)";
+  s += "\n  travel margin min:";
   const AxisStats& m = in.after ? in.after->axes : in.before->axes;
   for (int i = 0; i < kNumAxes; ++i) {
     std::snprintf(buf, sizeof buf, " %c %.4g", kAxisLetters[i], m.travel_margin[static_cast<std::size_t>(i)]);

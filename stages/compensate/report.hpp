@@ -34,6 +34,10 @@ struct ReportInput {
 /// and per segment, per-axis following errors, travel margins, iterations, linearisation, K_FFP.
 nlohmann::ordered_json report_json(const ReportInput& in);
 
+/// Where the original's feed was clamped to an axis's speed bound (blocks, lines, the block
+/// clamped most), one sentence; empty when nowhere.
+std::string feed_clamp_note(const interpolate::InterpolateStats& s);
+
 /// Readable summary, a few lines, each starting with two spaces.
 std::string report_text(const ReportInput& in);
 

@@ -42,17 +42,24 @@ void recommend_kffp(const Model& model, const Nominal& nominal, ReportInput& rin
       rin.segment_kffp.push_back({g, {seg_omega[g], servo::best_kffp(model.drives, model.interp.smoothing, T, seg_omega[g], 2.0, 1.0)}});
 }
 
-void draw(pipeline::ReportContext& r, const Nominal& nominal, const Evaluation& before, const Evaluation* after) {
+// The runs every figure compares, in the palette's order: before, (feed-forward,) after.
+FigureRuns figure_runs(const Evaluation& before, const Evaluation* after) {
+  FigureRuns runs{{plot::Role::kBefore, &before, false, "the control runs the original"}};
+  if (after) runs.push_back({plot::Role::kAfter, after, true, "compensated.nc as written"});
+  return runs;
+}
+
+void draw(pipeline::ReportContext& r, const Model& model, const Nominal& nominal, const FigureRuns& runs) {
   if (r.dir.empty()) return;
   if (r.progress) r.progress("drawing the error figures", 0, 0);
   const std::filesystem::path plots = r.dir / "plots";
   const std::string& base = r.input_base;
-  plot_toolpath(plots / "toolpath.png", before, after, base + ": tool path");
+  plot_toolpath(plots / "toolpath.png", nominal, runs, base + ": tool path");
   r.files->push_back("plots/toolpath.png");
-  if (plot_ballbar(plots / "ballbar.png", nominal, before, after, base)) r.files->push_back("plots/ballbar.png");
-  plot_contour_error(plots / "contour_error.png", before, after, base + ": contour error, before and after compensation");
+  if (plot_ballbar(plots / "ballbar.png", nominal, runs, base)) r.files->push_back("plots/ballbar.png");
+  plot_contour_error(plots / "contour_error.png", model, nominal, runs, base + ": contour error along the program");
   r.files->push_back("plots/contour_error.png");
-  plot_following_error(plots / "following_error.png", before, after, base);
+  plot_following_error(plots / "following_error.png", model, runs, base);
   r.files->push_back("plots/following_error.png");
 }
 
@@ -60,8 +67,10 @@ void draw(pipeline::ReportContext& r, const Nominal& nominal, const Evaluation& 
 
 void report_simulation(pipeline::ReportContext& r, const SimulationOutcome& o) {
   if (o.run == nullptr || !o.run->before) {
-    (*r.json)["simulation"] = {{"skipped", o.skipped}};
-    *r.text += "  simulate: skipped (" + o.skipped + ")\n";
+    const std::string why = o.skipped.empty() ? o.not_compensated : o.skipped;
+    (*r.json)["simulation"] = {{"skipped", why}};
+    if (!o.not_compensated.empty()) (*r.json)["simulation"]["not_compensated"] = o.not_compensated;
+    *r.text += "  simulate: skipped (" + why + ")\n";
     return;
   }
   const Nominal& nominal = *o.run->nominal;
@@ -74,18 +83,23 @@ void report_simulation(pipeline::ReportContext& r, const SimulationOutcome& o) {
   rin.slowed = o.slowed;
   recommend_kffp(*o.model, nominal, rin);
   (*r.json)["simulation"] = report_json(rin);
+  if (!o.not_compensated.empty()) (*r.json)["simulation"]["not_compensated"] = o.not_compensated;
   char buf[256];
   std::snprintf(buf, sizeof buf, "  simulate: %.3f s of machine time at %.4g s\n",
                 static_cast<double>(nominal.raw.size() - 1) * o.model->interp.period, o.model->interp.period);
   *r.text += buf;
   *r.text += report_text(rin);
+  if (!o.not_compensated.empty()) *r.text += "  not compensated: " + o.not_compensated + "\n";
   if (o.after != nullptr) {
     std::snprintf(buf, sizeof buf,
                   "  compensated.nc: %llu timed points (G93, machine axes), read back and simulated for the 'after' figures\n",
                   static_cast<unsigned long long>(o.written_nodes));
     *r.text += buf;
   }
-  draw(r, nominal, *o.run->before, o.after);
+  const FigureRuns runs = figure_runs(*o.run->before, o.after);
+  const ToolpathView view = toolpath_view(nominal, runs);
+  (*r.json)["simulation"]["toolpath_figure"] = {{"plane", view.plane}, {"magnification", view.magnification}};
+  draw(r, *o.model, nominal, runs);
 }
 
 }  // namespace gcpipe::compensate

@@ -16,6 +16,7 @@ struct SimulationOutcome {
   const simulate::SlowedBaseline* slowed = nullptr;  //!< the sceptic's baseline, or null
   std::uint64_t written_nodes = 0;               //!< motion blocks of compensated.nc
   std::string skipped;                           //!< why nothing was simulated
+  std::string not_compensated;                   //!< why the program was deliberately not compensated
 };
 
 /// Writes "simulation" into the report, its text lines, and (with an output folder) the figures.

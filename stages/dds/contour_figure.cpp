@@ -58,8 +58,10 @@ void ContourFigure::draw(const std::string& title) {
   fig.ylabel("contour error [um]");
   char legend[160];
   const double rms = cutting_ ? std::sqrt(sum_sq_ / static_cast<double>(cutting_)) : 0.0;
-  std::snprintf(legend, sizeof legend, "cutting moves: max %.2f um, RMS %.2f um", max_ * 1e3, rms * 1e3);
-  fig.line(std::move(t), std::move(um), plot::palette(0), 2, legend);
+  std::snprintf(legend, sizeof legend, "before (the simulate stage runs the original), cutting moves: max %.2f um, RMS %.2f um",
+                max_ * 1e3, rms * 1e3);
+  // The simulate stage runs the original program: batch's "before" colour (one palette).
+  fig.line(std::move(t), std::move(um), plot::role_colour(plot::Role::kBefore), 2, legend);
   char note[200];
   std::snprintf(note, sizeof note, "live, from the simulate stage's telemetry: %llu ticks to t = %.2f s%s",
                 static_cast<unsigned long long>(ticks_), now_,

@@ -361,8 +361,11 @@ int run_report_sink(Participant& participant, const ReportSinkOptions& o, std::o
     r.files.insert(r.files.end(), part.files().begin(), part.files().end());
     diagnostics += part.diagnostics();
     if (r.failure.empty() && !part.failure().empty()) r.failure = stage + ": " + part.failure();
-    if (stage == "compensate") r.compensated = part.text_bytes() > 0;
+    if (stage == "compensate") r.compensated = part.text_bytes() > 0 && part.failure().empty();
   }
+  // As batch says it: why a pipeline with a compensate stage wrote no compensated.nc.
+  if (parts.count("compensate") != 0 && !r.compensated && r.failure.empty())
+    r.not_compensated = pipeline::why_not_compensated(r);
   pipeline::write_file_atomically(o.dir / "diagnostics.txt", diagnostics);
   pipeline::write_run_report(std::move(r), o.dir, seconds_since(t0));
   log << "gcpipe report-sink: wrote the report of '" << input << "' (" << parts.size() << " parts) to "

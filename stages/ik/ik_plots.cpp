@@ -12,8 +12,10 @@ namespace gcpipe {
 
 namespace {
 
-const cv::Scalar kNeural(40, 39, 214);    // red
-const cv::Scalar kAnalytic(180, 119, 31);  // blue
+// Red, orange and blue mean before, feed-forward and after in every figure (plot::Role): the two
+// solvers take other colours.
+const cv::Scalar kNeural = plot::palette(2);    // green
+const cv::Scalar kAnalytic = plot::palette(4);  // purple
 
 }  // namespace
 
@@ -44,8 +46,9 @@ void plot_ik_divergence(const std::filesystem::path& png, const IkSeries& s, con
     fig.line({a, b}, {-1.0, -1.0}, cv::Scalar(0, 0, 0), 1);
   }
   if (!s.flagged.empty()) fig.scatter(s.flagged, std::vector<double>(s.flagged.size(), 0.0), cv::Scalar(0, 0, 200), 3, "neural_diverged");
-  char note[96];
-  std::snprintf(note, sizeof note, "%zu points, %llu flagged neural_diverged", s.index.size(), static_cast<unsigned long long>(s.flagged_count));
+  char note[160];
+  std::snprintf(note, sizeof note, "%llu points (%zu of them drawn), %llu flagged neural_diverged",
+                static_cast<unsigned long long>(s.neural_points), s.index.size(), static_cast<unsigned long long>(s.flagged_count));
   fig.note(note);
   fig.save_png(png);
 }
@@ -54,15 +57,11 @@ void plot_ik_tip_error(const std::filesystem::path& png, const IkSeries& s, cons
   plot::Figure fig;
   fig.title(title);
   fig.xlabel("IK point (program order)");
-  fig.ylabel("log10 tool-tip error [mm]");
-  auto lg = [](const std::vector<double>& v) {
-    std::vector<double> r(v.size());
-    for (std::size_t i = 0; i < v.size(); ++i) r[i] = std::log10(std::max(v[i], 1e-16));
-    return r;
-  };
-  fig.line(s.index, lg(s.tip_error_neural), kNeural, 1, "neural IK: |FK(neural joints) - programmed tip|");
-  fig.line(s.index, lg(s.tip_error_analytic), kAnalytic, 2, "analytic IK: |FK(analytic joints) - programmed tip|");
-  fig.note("values below 1e-16 mm are drawn at -16");
+  fig.ylabel("tool-tip error [mm], log scale");
+  fig.log_y(1e-16);
+  fig.line(s.index, s.tip_error_neural, kNeural, 1, "neural IK: |FK(neural joints) - programmed tip|");
+  fig.line(s.index, s.tip_error_analytic, kAnalytic, 2, "analytic IK: |FK(analytic joints) - programmed tip|");
+  fig.note("values below 1e-16 mm are drawn at 1e-16");
   fig.save_png(png);
 }
 

@@ -23,11 +23,13 @@ struct IkSeries {
   std::uint64_t flagged_count = 0;                   //!< points flagged neural_diverged, all of them
   std::vector<double> tip_error_analytic;            //!< |FK(analytic) - programmed tip| [mm]
   std::vector<double> tip_error_neural;              //!< |FK(neural) - programmed tip| [mm]
+  std::uint64_t neural_points = 0;                   //!< points the neural IK solved, all of them
+                                                     //!< (the report's count; index holds a sample)
 };
 
 /// Neural minus analytic joints per axis along the path, with the tolerance band and flags.
 void plot_ik_divergence(const std::filesystem::path& png, const IkSeries& s, const std::string& title);
-/// Tool-tip error of each solver (log10 mm) along the path.
+/// Tool-tip error of each solver (mm, log axis) along the path.
 void plot_ik_tip_error(const std::filesystem::path& png, const IkSeries& s, const std::string& title);
 
 }  // namespace gcpipe

@@ -1,5 +1,6 @@
 #include "ik_stage.hpp"
 
+#include <bit>
 #include <cmath>
 #include <stdexcept>
 
@@ -73,12 +74,23 @@ std::optional<neural::NeuralIk> load_ik_model_for(const IkOptions& options, cons
 IkPipelineStage::IkPipelineStage(const pipeline::StageContext& c)
     : kin_(c.config->machine.kinematics),
       model_(load_ik_model_for(options_of(c), c.ik_model, c.config->machine.name)),
-      stage_(kin_, options_of(c), c.config->machine.initial_position, model_ ? &*model_ : nullptr) {
+      stage_(kin_, options_of(c), c.config->machine.initial_position, model_ ? &*model_ : nullptr),
+      neural_asked_(!c.ik_model.empty()) {
   sampler_.s.tolerance = stage_.options().neural_tolerance;
+}
+
+// A program whose rotary axes never move (a three-axis pocket) gives the neural IK nothing the
+// analytic IK does not solve trivially: its section and figures would only be noise in the report
+// ("neural_outside_envelope: 36"). They are shown when --model asks for them.
+bool IkPipelineStage::neural_shown() const {
+  return model_.has_value() && (rotary_moves_ || neural_asked_);
 }
 
 bool IkPipelineStage::block(const ResolvedBlock& b, pipeline::Emitter& out) {
   if (stage_.step(b, point_)) {
+    if (!first_joints_) first_joints_ = point_.joints;
+    rotary_moves_ = rotary_moves_ || std::abs(point_.joints[kA] - (*first_joints_)[kA]) > 1e-9 ||
+                    std::abs(point_.joints[kC] - (*first_joints_)[kC]) > 1e-9;
     sampler_.add(point_, kin_, b.tool_length_active ? b.tool_length : kin_.tool_length);
     if (tap_) tap_(point_);
     if (out.wants_telemetry()) out.ik_point(telemetry_of(point_));
@@ -87,10 +99,23 @@ bool IkPipelineStage::block(const ResolvedBlock& b, pipeline::Emitter& out) {
 }
 
 void IkPipelineStage::report(pipeline::ReportContext& r) const {
-  const bool neural = model_.has_value();
-  (*r.json)["ik"] = summary_json(stage_.summary(), neural, stage_.options().neural_tolerance);
+  const bool neural = neural_shown();
+  IkSummary summary = stage_.summary();
+  std::string text;
+  if (model_ && !neural) {
+    for (IkFlag f : {kIkNeuralDiverged, kIkNeuralOutsideEnvelope, kIkNeuralFailed})
+      summary.flag_counts[std::countr_zero(static_cast<unsigned>(f))] = 0;
+    summary.envelope_flag_only = 0;
+  }
+  (*r.json)["ik"] = summary_json(summary, neural, stage_.options().neural_tolerance);
   // format_summary starts each line with "ik: "; report.txt has its own column of stage names.
-  std::string text = format_summary(stage_.summary(), neural), indented = "  ik:       ";
+  text = format_summary(summary, neural);
+  if (model_ && !neural) {
+    const std::string why = "three-axis program (A and C do not move): the neural IK is not compared (--model compares it)";
+    (*r.json)["ik"]["neural_skipped"] = why;
+    text = text.substr(0, text.rfind("\nik: no neural model")) + "\nik: " + why;
+  }
+  std::string indented = "  ik:       ";
   for (std::size_t at = 0; at < text.size();) {
     const std::size_t end = std::min(text.find('\n', at), text.size());
     std::string_view line = std::string_view(text).substr(at, end - at);
@@ -111,6 +136,7 @@ void IkPipelineStage::report(pipeline::ReportContext& r) const {
 void IkPipelineStage::Sampler::add(const IkPoint& p, const MachineKinematics& kin, double tool_length) {
   const std::uint64_t k = seen++;
   if (!p.has_neural) return;
+  ++s.neural_points;
   if ((p.flags & kIkNeuralDiverged) != 0 && s.flagged_count++ % flag_stride == 0) {
     s.flagged.push_back(static_cast<double>(k));
     if (s.flagged.size() >= kCap) thin(s.flagged), flag_stride *= 2;

@@ -42,6 +42,10 @@ class IkPipelineStage final : public pipeline::Stage {
   IkStage stage_;
   Sampler sampler_;
   IkPoint point_;
+  bool neural_asked_ = false;  // --model given: the neural comparison is wanted, whatever the program
+  bool rotary_moves_ = false;  // A or C moves somewhere in the program
+  std::optional<Axes> first_joints_;
+  bool neural_shown() const;
   std::function<void(const IkPoint&)> tap_;
 };
 

@@ -464,6 +464,7 @@ std::optional<InterpolateResult> Interpolator::tcp_duration(const ResolvedBlock&
   res.limit_duration = need;
   if (need > duration * (1 + 1e-12)) {
     res.velocity_limited = feed_move && duration > 0;
+    if (res.velocity_limited) res.feed_factor = duration / need;
     duration = need;
   }
   return std::nullopt;
@@ -538,6 +539,7 @@ std::optional<InterpolateResult> Interpolator::plan_duration(const ResolvedBlock
     const double need = travel[i] / vlim[i];
     res.limit_duration = std::max(res.limit_duration, need);
     if (need > duration * (1 + 1e-12)) {
+      if (b.motion != Motion::kRapid) res.feed_factor = std::min(res.feed_factor, duration / need);
       duration = need;
       res.velocity_limited = b.motion != Motion::kRapid;
     }
@@ -565,6 +567,21 @@ bool Interpolator::travel_message(const ResolvedBlock& b, double duration, Inter
   return false;
 }
 
+// A feed above an axis's speed bound runs at the bound, as a control clamps it (LinuxCNC limits
+// a move's velocity to what its slowest axis allows; a Fanuc clamps to the axes' maximum cutting
+// feed): counted, so the report can say where and by how much.
+void Interpolator::count_clamped_feed(const ResolvedBlock& b, const InterpolateResult& res) {
+  ++stats_.velocity_limited_blocks;
+  if (stats_.first_clamped_line == 0) stats_.first_clamped_line = b.line;
+  stats_.last_clamped_line = std::max<std::uint64_t>(stats_.last_clamped_line, b.line);
+  if (res.feed_factor < stats_.most_clamped_factor) {
+    stats_.most_clamped_factor = res.feed_factor;
+    stats_.most_clamped_line = b.line;
+    stats_.most_clamped_feed = b.feed;
+    stats_.most_clamped_inverse_time = b.feed_mode == FeedMode::kInverseTime;
+  }
+}
+
 // The block counts as run: statistics, mode, and the bound on machine time (a block ending past
 // it is refused before its first tick).
 std::optional<InterpolateResult> Interpolator::account(const ResolvedBlock& b, const BlockPlan& plan, InterpolateResult& res) {
@@ -573,7 +590,7 @@ std::optional<InterpolateResult> Interpolator::account(const ResolvedBlock& b, c
   ++stats_.blocks;
   if (plan.tcp) ++stats_.tcp_blocks;
   if (plan.moves) tcp_space_ = plan.tcp;
-  if (res.velocity_limited) ++stats_.velocity_limited_blocks;
+  if (res.velocity_limited) count_clamped_feed(b, res);
   const double t_end = t_block_ + plan.duration;
   if (t_end > opt_.max_time && !plan.tcp && travel_message(b, plan.duration, res)) return res;
   if (t_end > opt_.max_time) {

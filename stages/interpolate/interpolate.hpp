@@ -122,6 +122,7 @@ struct InterpolateResult {
   std::string message;     //!< for kUnsupported / kInvalid: names the block and what to do
   double duration = 0;     //!< time the block takes [s]
   bool velocity_limited = false;  //!< the feed was lowered to respect an axis velocity limit
+  double feed_factor = 1;         //!< when it was: the fraction of the programmed feed the block runs at
   // What the axes allow on this block whatever its feed, for a feed planner ahead of the
   // interpolator (stages/force: the force-aware feed is capped by the drives). At a G94 feed F
   // [length/min] the block takes max(60 feed_length / F, limit_duration): the largest feed the
@@ -135,6 +136,12 @@ struct InterpolateStats {
   std::uint64_t samples = 0;
   std::uint64_t blocks = 0;
   std::uint64_t velocity_limited_blocks = 0;
+  /// Of the blocks whose feed was clamped to the axes' speed bound, as a control clamps a feed
+  /// above an axis's maximum: the first and last source line, and the one clamped most.
+  std::uint64_t first_clamped_line = 0, last_clamped_line = 0, most_clamped_line = 0;
+  double most_clamped_factor = 1;  //!< the fraction of its programmed feed that block ran at
+  double most_clamped_feed = 0;    //!< that block's programmed F [mm/min; 1/min in G93]
+  bool most_clamped_inverse_time = false;  //!< that F is G93's
   Axes peak_velocity{};      //!< of the smoothed commands [mm/s, deg/s]
   Axes peak_acceleration{};  //!< of the smoothed commands [mm/s^2, deg/s^2]
   std::array<std::uint64_t, kNumAxes> travel_violations{};  //!< samples outside travel per axis
@@ -172,6 +179,7 @@ class Interpolator {
                                                 double length_xyz) const;
   bool travel_message(const ResolvedBlock& b, double duration, InterpolateResult& res) const;
   std::optional<InterpolateResult> account(const ResolvedBlock& b, const BlockPlan& plan, InterpolateResult& res);
+  void count_clamped_feed(const ResolvedBlock& b, const InterpolateResult& res);
   void sample(const ResolvedBlock& b, const BlockPlan& plan, SampleSink& sink);
   void emit(const Axes& raw, SampleSink& sink);
   double hold_until_in_position(SampleSink& sink);

@@ -35,12 +35,21 @@ std::vector<std::string> run_outputs() {
           "plots/force_path.png", "plots/force_time.png", "plots/error_budget.png", "plots/spindle_prediction.png"};
 }
 
+std::string why_not_compensated(const RunReport& r) {
+  if (!r.simulation_skipped.empty()) return r.simulation_skipped;
+  const auto sim = r.json.find("simulation");
+  if (sim != r.json.end() && sim->contains("not_compensated")) return (*sim)["not_compensated"].get<std::string>();
+  if (sim != r.json.end() && sim->contains("skipped")) return (*sim)["skipped"].get<std::string>();
+  return "the compensation was not run";
+}
+
 std::string write_run_report(RunReport r, const std::filesystem::path& outdir, double seconds) {
   if (!r.simulation_skipped.empty()) {
     r.json["simulation"] = {{"skipped", r.simulation_skipped}};
     r.text += "  simulate: skipped (" + r.simulation_skipped + ")\n";
   }
   if (!r.failure.empty()) r.json["failure"] = r.failure;
+  if (!r.not_compensated.empty()) r.json["not_compensated"] = r.not_compensated;
   if (r.compensated) r.files.insert(r.files.begin() + 5, "compensated.nc");
   nlohmann::ordered_json summary = r.json;
   summary.erase("simulation");

@@ -18,6 +18,7 @@ struct RunReport {
   std::string simulation_skipped;  //!< why batch ran no simulation ("" when it did)
   std::string failure;             //!< "stage: why" of the first stage that failed, or ""
   bool compensated = false;        //!< compensated.nc was written
+  std::string not_compensated;     //!< why not, when nothing failed ("" when it was, or failed)
 };
 
 /// report.json's first keys: the input as given, the config file, the machine, the chain and
@@ -31,6 +32,10 @@ std::string report_text_head(const std::string& command, const std::string& inpu
 std::vector<std::string> report_files();
 /// Every file a run may write into its output folder (an earlier run's are removed first).
 std::vector<std::string> run_outputs();
+
+/// Why a run that did not fail wrote no compensated.nc: the simulation was skipped (a config
+/// without drives) or the compensate stage declined (its report's simulation.not_compensated).
+std::string why_not_compensated(const RunReport& r);
 
 /// Writes OUTDIR/summary.json (the report without the simulation and the file list),
 /// report.json and report.txt, each atomically; returns report.txt's text.

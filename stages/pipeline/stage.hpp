@@ -78,6 +78,7 @@ struct StageContext {
   DiagnosticLog* log = nullptr;   //!< never null while stages run
   Progress progress;              //!< may be empty
   bool strict = false;            //!< --strict (or parse.strict): stop a program at its first error
+  bool keep_going = false;        //!< --keep-going: compensate a program although lines of it were rejected
   std::string ik_model;           //!< --model: neural IK model instead of the config's ik.model
   bool ik_tool_vector = false;    //!< --tool-vector: TCP blocks give only their tool vector
   std::vector<std::string> stages;  //!< names of the stages in this process (set by Pipeline)

@@ -76,6 +76,26 @@ cv::Scalar palette(int index) {
   return tab10[std::size_t(((index % 10) + 10) % 10)];
 }
 
+cv::Scalar role_colour(Role role) {
+  switch (role) {
+    case Role::kBefore: return {40, 39, 214};       // red
+    case Role::kFeedForward: return {14, 127, 255};  // orange
+    case Role::kAfter: return {180, 119, 31};        // blue
+    case Role::kNominal: return {120, 120, 120};     // grey
+  }
+  return {0, 0, 0};
+}
+
+const char* role_name(Role role) {
+  switch (role) {
+    case Role::kBefore: return "before";
+    case Role::kFeedForward: return "feed-forward";
+    case Role::kAfter: return "after";
+    case Role::kNominal: return "nominal";
+  }
+  return "";
+}
+
 std::vector<double> nice_ticks(double lo, double hi, int target) {
   if (!(hi > lo) || !std::isfinite(lo) || !std::isfinite(hi)) return {lo};
   const double raw = (hi - lo) / std::max(1, target);
@@ -138,22 +158,22 @@ Figure::Frame Figure::frame() const {
   const FigureStyle& st = style_;
   Frame f;
   const int bar_room = bar_ ? st.colourbar_width + 110 : 0;
-  const int top = st.margin_top + int(notes_.size()) * int(std::lround(28 * st.font_scale / 0.6));
+  const int top = st.margin_top + notes_height() + legend_rows() * legend_row_height();
   f.area = cv::Rect(st.margin_left, top, st.width - st.margin_left - st.margin_right - bar_room, st.height - top - st.margin_bottom);
   double x0 = std::numeric_limits<double>::infinity(), x1 = -x0, y0 = x0, y1 = -x0;
   if (limits_) {
     x0 = (*limits_)[0];
     x1 = (*limits_)[1];
-    y0 = (*limits_)[2];
-    y1 = (*limits_)[3];
+    y0 = y_of((*limits_)[2]);
+    y1 = y_of((*limits_)[3]);
   } else {
     for (const auto& s : series_)
       for (std::size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
         if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) continue;
         x0 = std::min(x0, s.x[i]);
         x1 = std::max(x1, s.x[i]);
-        y0 = std::min(y0, s.y[i]);
-        y1 = std::max(y1, s.y[i]);
+        y0 = std::min(y0, y_of(s.y[i]));
+        y1 = std::max(y1, y_of(s.y[i]));
       }
     if (!std::isfinite(x0)) x0 = 0, x1 = 1, y0 = 0, y1 = 1;
     const double px = std::max(x1 - x0, 1e-9) * 0.03, py = std::max(y1 - y0, 1e-9) * 0.03;
@@ -191,6 +211,10 @@ int Figure::draw_grid(cv::Mat& img, const Frame& f) const {
     put(img, s, {px - sz.width / 2, area.y + area.height + 10 + sz.height}, fs);
   }
   int widest_ytick = 0;
+  if (log_floor_ > 0) {
+    draw_log_grid(img, f, widest_ytick);
+    return widest_ytick;
+  }
   for (double v : yt) {
     const int py = int(std::lround(f.to_px(f.x0, v).y));
     if (st.grid) cv::line(img, {area.x, py}, {area.x + area.width, py}, kGrey, 1, cv::LINE_AA);
@@ -201,6 +225,47 @@ int Figure::draw_grid(cv::Mat& img, const Frame& f) const {
     put(img, s, {area.x - 10 - sz.width, py + sz.height / 2}, fs);
   }
   return widest_ytick;
+}
+
+double Figure::y_of(double y) const {
+  return log_floor_ > 0 ? std::log10(std::max(y, log_floor_)) : y;
+}
+
+// Log y ticks: every 1, 2, 5 x 10^k within two decades, else every decade (with light lines at
+// 2 and 5 between); labels in the data's units.
+void Figure::draw_log_grid(cv::Mat& img, const Frame& f, int& widest_ytick) const {
+  const double fs = style_.font_scale;
+  const cv::Rect& area = f.area;
+  const bool fine = f.y1 - f.y0 <= 2.0;
+  for (int e = static_cast<int>(std::floor(f.y0)); e <= static_cast<int>(std::ceil(f.y1)); ++e)
+    for (double m : {1.0, 2.0, 5.0}) {
+      const double ly = e + std::log10(m);
+      if (ly < f.y0 || ly > f.y1) continue;
+      const int py = int(std::lround(f.to_px(f.x0, ly).y));
+      const bool major = m == 1.0 || fine;
+      if (style_.grid) cv::line(img, {area.x, py}, {area.x + area.width, py}, major ? kGrey : cv::Scalar(232, 232, 232), 1, cv::LINE_AA);
+      if (!major) continue;
+      cv::line(img, {area.x - 6, py}, {area.x, py}, kBlack, 1);
+      const double v = m * std::pow(10.0, e);
+      char small[32];
+      std::snprintf(small, sizeof small, "%g", v);
+      const std::string label = v < 1e-3 || v >= 1e5 ? std::string(small) : tick_label(v, v);
+      const cv::Size sz = text_size(label, fs, 1);
+      widest_ytick = std::max(widest_ytick, sz.width);
+      put(img, label, {area.x - 10 - sz.width, py + sz.height / 2}, fs);
+    }
+}
+
+int Figure::notes_height() const {
+  return int(notes_.size()) * int(std::lround(28 * style_.font_scale / 0.6));
+}
+
+int Figure::legend_rows() const {
+  return int(std::count_if(series_.begin(), series_.end(), [](const Series& s) { return !s.label.empty(); }));
+}
+
+int Figure::legend_row_height() const {
+  return text_size("Ag", style_.font_scale, 1).height + 12;
 }
 
 // The points of a line series worth drawing. A time series (x never decreasing, one colour) with
@@ -237,7 +302,7 @@ void Figure::draw_series(cv::Mat& img, const Frame& f) const {
   const cv::Rect& area = f.area;
   cv::Mat plot = img(area);
   auto local = [&](double x, double y) {
-    const cv::Point2d p = f.to_px(x, y);
+    const cv::Point2d p = f.to_px(x, y_of(y));
     // Sub-pixel precision with 4 fractional bits keeps dense paths smooth.
     return cv::Point(int(std::lround((p.x - area.x) * 16)), int(std::lround((p.y - area.y) * 16)));
   };
@@ -285,7 +350,8 @@ void Figure::draw_labels(cv::Mat& img, const Frame& f, int widest_ytick) const {
   }
 }
 
-// Legend, top right inside the plot.
+// Legend, one entry a row in the margin above the plot area (reserved by frame()): it never
+// covers data.
 void Figure::draw_legend(cv::Mat& img, const Frame& f) const {
   const double fs = style_.font_scale;
   const cv::Rect& area = f.area;
@@ -293,18 +359,10 @@ void Figure::draw_legend(cv::Mat& img, const Frame& f) const {
   for (const auto& s : series_)
     if (!s.label.empty()) labelled.push_back(&s);
   if (labelled.empty()) return;
-  int w = 0, h = 0;
-  for (auto* s : labelled) {
-    const cv::Size sz = text_size(s->label, fs, 1);
-    w = std::max(w, sz.width);
-    h = std::max(h, sz.height);
-  }
-  const int row = h + 10, bw = w + 60, bh = int(labelled.size()) * row + 10;
-  const cv::Rect box(area.x + area.width - bw - 8, area.y + 8, bw, bh);
-  cv::rectangle(img, box, kWhite, cv::FILLED);
-  cv::rectangle(img, box, kBlack, 1);
+  const int h = text_size("Ag", fs, 1).height, row = legend_row_height();
+  const cv::Rect box(area.x, area.y - int(labelled.size()) * row - 4, area.width, int(labelled.size()) * row);
   for (std::size_t i = 0; i < labelled.size(); ++i) {
-    const int cy = box.y + 5 + int(i) * row + row / 2;
+    const int cy = box.y + int(i) * row + row / 2;
     if (labelled[i]->marker_radius > 0)
       cv::circle(img, {box.x + 22, cy}, labelled[i]->marker_radius, labelled[i]->colour, cv::FILLED, cv::LINE_AA);
     else

@@ -25,6 +25,14 @@ cv::Scalar colour_at(ColourMap map, double t);
 /// Default line colours (matplotlib's "tab10"), BGR.
 cv::Scalar palette(int index);
 
+/// What a curve of a compensation figure stands for. Each has one colour in every figure (batch's,
+/// `monitor --plot`'s), so that red is always the original and blue always the compensation.
+enum class Role { kBefore, kFeedForward, kAfter, kNominal };
+/// BGR: before red, feed-forward orange, after blue, nominal grey.
+cv::Scalar role_colour(Role role);
+/// "before", "feed-forward", "after", "nominal".
+const char* role_name(Role role);
+
 /// "Nice" tick positions covering [lo, hi]: steps of 1, 2 or 5 x 10^k, about `target` ticks.
 std::vector<double> nice_ticks(double lo, double hi, int target = 6);
 
@@ -36,7 +44,8 @@ struct FigureStyle {
   int height = 900;            //!< [px]
   double font_scale = 0.6;     //!< Hershey simplex scale for ticks; titles 1.4x
   int margin_left = 100, margin_right = 40, margin_top = 60, margin_bottom = 80;  //!< [px]
-                               //!< (margin_top grows by one line per note)
+                               //!< (margin_top grows by one line per note and per legend entry:
+                               //!< the legend stands above the plot area, never on the data)
   int colourbar_width = 24;    //!< [px]; space is reserved only when a colour bar is set
   bool grid = true;            //!< light grid lines at the ticks
 };
@@ -52,6 +61,9 @@ class Figure {
   void limits(double xmin, double xmax, double ymin, double ymax);
   /// Same scale on both axes (the shown range grows to fill the plot area).
   void equal_aspect(bool on) { equal_ = on; }
+  /// Logarithmic y axis (ticks at 1, 2, 5 x 10^k, or at decades over a wide range); y values
+  /// below `floor` (zeros included) are drawn at it. `floor` <= 0 turns it off.
+  void log_y(double floor) { log_floor_ = floor; }
 
   /// A polyline in data coordinates; `label` non-empty adds a legend entry.
   void line(std::vector<double> x, std::vector<double> y, cv::Scalar colour, int thickness = 2,
@@ -104,10 +116,16 @@ class Figure {
   void draw_labels(cv::Mat& img, const Frame& f, int widest_ytick) const;
   void draw_legend(cv::Mat& img, const Frame& f) const;
   void draw_colourbar(cv::Mat& img, const Frame& f) const;
+  void draw_log_grid(cv::Mat& img, const Frame& f, int& widest_ytick) const;
+  double y_of(double y) const;         //!< y as drawn: log10 on a log axis
+  int legend_rows() const;
+  int legend_row_height() const;
+  int notes_height() const;
   FigureStyle style_;
   std::string title_, xlabel_, ylabel_;
   std::optional<std::array<double, 4>> limits_;
   bool equal_ = false;
+  double log_floor_ = 0;  // > 0: log y axis
   std::vector<Series> series_;
   std::optional<Bar> bar_;
   std::vector<std::string> notes_;
