@@ -292,6 +292,8 @@ TEST(ConfigPrint, AStageThatCannotBeBuiltIsNamedAndTheStatusIsOne) {
   EXPECT_NE(r.err.find("stage simulate cannot be built"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("'interpolate.smoothing'"), std::string::npos) << r.err;
   EXPECT_NE(r.out.find("# stage simulate cannot be built"), std::string::npos) << "the printed config says it too";
+}
+
 // Real posts (issue 31 item 5): what a shop's program meets in batch.
 namespace {
 
