@@ -183,6 +183,23 @@ TEST(CliHostileInput, ARunThatCannotStartLeavesSummaryWithItsFailure) {
   EXPECT_TRUE(contains(read_json(out / "summary.json").at("failure").get<std::string>(), "parse.max_line_length"));
 }
 
+// A line within parse.max_line_length whose comment the writer carries into compensated.nc, past
+// that limit there (issue 32: "compensated.nc does not read back: line is 261 bytes long").
+TEST(CliHostileInput, LongLineOfTheWritersOwnOutputReadsBack) {
+  const fs::path dir = tmpdir("longline");
+  const std::string comment(240, 'X');
+  const fs::path p = write_file(dir / "long.nc", "G21 G90 G94 G17\nG0 X0 Y0 Z10\nG1 X10 F500 (" + comment + ")\nG1 Y10\nM30\n");
+  Outcome r = gcpipe({"batch", p.string(), "-o", (dir / "out").string(), "--quiet"});
+  EXPECT_EQ(r.status, 0) << r.err;
+  const std::string compensated = slurp(dir / "out" / "compensated.nc");
+  std::size_t longest = 0;
+  for (std::size_t pos = 0, end; pos < compensated.size(); pos = end + 1) {
+    end = std::min(compensated.find('\n', pos), compensated.size());
+    longest = std::max(longest, end - pos);
+  }
+  EXPECT_GT(longest, 256u) << "the case needs a written line past the input limit";
+}
+
 TEST(CliHostileInput, OutputToAFolderIsRefusedAndLeavesNoPart) {
   const fs::path dir = tmpdir("outdir");
   fs::create_directories(dir / "folder");

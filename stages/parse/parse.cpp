@@ -29,7 +29,7 @@ ParseOptions load_parse_options(const Config& c) {
   o.decimal_point_increments = c.boolean("decimal_point_rule", false);
   o.block_delete = c.boolean("block_delete", true);
   o.strict = c.boolean("strict", false);
-  o.max_line_length = static_cast<std::size_t>(c.integer("max_line_length", 256, 16, 65536));
+  o.max_line_length = static_cast<std::size_t>(c.integer("max_line_length", 256, 16, static_cast<std::int64_t>(kLargestLineLength)));
   o.initial_units = c.choice("units", "mm", {"mm", "inch"}) == "mm" ? Units::kMillimetre : Units::kInch;
   o.absolute_arc_centres = c.choice("arc_centres", "incremental", {"incremental", "absolute"}) == "absolute";
   o.max_buffered_lines = static_cast<std::size_t>(c.integer("max_buffered_lines", 200000, 100, 10000000));

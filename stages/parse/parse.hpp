@@ -23,6 +23,9 @@ namespace gcpipe {
 
 class Config;
 
+/// The largest parse.max_line_length a config may set [bytes].
+inline constexpr std::size_t kLargestLineLength = 65536;
+
 struct ParseOptions {
   Dialect dialect = Dialect::kFanuc;
   /// Fanuc's decimal-point rule: an axis value written without a point counts in the smallest
