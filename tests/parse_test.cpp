@@ -1727,3 +1727,21 @@ TEST(ParseAccept, ToolNotInTheTableIsAWarningUntilItsGeometryIsUsed) {
   ASSERT_EQ(bad.diags.size(), 1u);
   EXPECT_EQ(bad.diags[0].severity, Severity::kError);
 }
+
+// Issue 32 item 2: LinuxCNC's predefined parameters (the modal ones are compared with rs274 in
+// tests/rs274_diff_test.cpp). #<_task> is 1 as in the running control, where rs274 alone reads 0:
+// a program that tests it to skip work in a preview does that work here, as the machine would.
+TEST(ParseAccept, LinuxCncTaskParameterReadsAsTheRunningControl) {
+  ParseOptions o;
+  o.dialect = Dialect::kLinuxCnc;
+  Parsed p = parse_text("G21 G90\nG0 X#<_task> Y#5599\nG0 Z[#5420 + 2]\n", o);
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.blocks.size(), 3u);
+  EXPECT_DOUBLE_EQ(p.blocks[1].target[kX], 1.0);
+  EXPECT_DOUBLE_EQ(p.blocks[1].target[kY], 1.0) << "#5599 is 1 until a program sets it";
+  EXPECT_DOUBLE_EQ(p.blocks[2].target[kZ], 3.0) << "#5420 is the X position";
+  // The loaded tool's data is not modelled: an error, never a silent 0.
+  expect_error("G0 X#5410\n", "parameter #5410 (LinuxCNC's data of the loaded tool) is not modelled", 5, o);
+  // Fanuc keeps its own system variables: #5599 is none of them.
+  expect_error("G0 X#5599\n", "system variable #5599 is not modelled", 5);
+}

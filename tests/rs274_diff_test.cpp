@@ -336,6 +336,31 @@ std::vector<std::pair<std::string, std::string>> generated_programs() {
       {"nested_call_defined_later", "G21 G90\no100 call [2]\nG0 X5\nM2\no100 sub\nG0 Y#1\no<later> call [#1 + 5]\n"
                                     "o100 endsub\no<later> sub\nG0 Z#1\no<later> endsub\n"},
       {"definition_after_m2", "G21 G90\no<late> call [2]\nG0 Y1\nM2\no<late> sub\nG0 X#1\no<late> endsub\nG0 Z9\n"},
+      // Issue 32: LinuxCNC's predefined named parameters of the modal state, read as axis words
+      // through modes changed one after another (#<_task> differs on purpose: parse_test).
+      {"predefined_named_parameters",
+       "G21 G90 G17 G94 G54\nG0 X#<_motion_mode> Y#<_plane> Z#<_ccomp>\nG0 X#<_metric> Y#<_imperial> Z#<_absolute>\n"
+       "G0 X#<_incremental> Y#<_inverse_time> Z#<_units_per_minute>\nG0 X#<_units_per_rev> Y#<_coord_system> Z#<_tool_offset>\n"
+       "G0 X#<_retract_r_plane> Y#<_retract_old_z> Z#<_spindle_rpm_mode>\nG0 X#<_spindle_css_mode> Y#<_ijk_absolute_mode> Z#<_spindle_on>\n"
+       "G0 X#<_spindle_cw> Y#<_mist> Z#<_flood>\nG0 X#<_rpm> Y#<_current_tool> Z#<_selected_tool>\nG0 X#<_call_level>\n"
+       "T2 M6 G43 S2000 M4 M8\nG10 L2 P2 X5 Z1\nG1 G55 X1 Z1 F100\nG99 G81 X1 Z-1 R1 F50\nG0 X#<_motion_mode> Y#<_plane> Z#<_ccomp>\n"
+       "G80\nG0 X#<_retract_r_plane> Y#<_retract_old_z> Z#<_motion_mode>\nG0 X#<_spindle_on> Y#<_spindle_cw> Z#<_flood>\n"
+       "G0 X#<_rpm> Y#<_current_tool> Z#<_selected_tool>\nG0 X#<_coord_system> Y#<_tool_offset> Z#<_mist>\n"
+       "G0 G59 X0 Y0 Z0\nG0 X#<_coord_system> M7 M3 T1\nG0 X#<_spindle_cw> Y#<_mist> Z#<_selected_tool>\n"
+       "G90.1 G95 G18 G0 X#<_ijk_absolute_mode> Y#<_units_per_rev> Z#<_plane>\n"
+       "G91.1 G19 G93 G1 X#<_ijk_absolute_mode> Y#<_inverse_time> Z#<_plane> F10\n"
+       "G94 G17 G20 G91 G1 X#<_metric> Y#<_imperial> Z#<_incremental> F10\nG90 G21 G0 X0 Y0 Z0\n"
+       "G41.1 D2 G1 X5 Y5 F10\nG1 X#<_ccomp> Y10\nG40 G0 X0 Y0\nG10 L1 P1 R1\nG42 D1 G1 X5 Y5 F10\nG1 X#<_ccomp> Y10\n"
+       "G40 G0 X0 Y0 Z#<_ccomp>\nG49 G0 X#<_tool_offset> Z0 M5 M9\nG0 X#<_spindle_on> Y#<_mist> Z#<_flood>\n"
+       "o100 sub\nG0 X#<_call_level>\no100 endsub\no100 call\nG0 Y#<_call_level>\nM2\n"},
+      // Issue 32: #5599 (LinuxCNC's DEBUG output flag, 1 until set), #5600/#5601 (the tool
+      // changer's: an assignment does not stay) and the position #5420.. as numbered parameters.
+      {"parameters_5420_to_5601", "G21 G90\nG0 X1 Y2 Z3\nG0 X#5599 Y#5600 Z#5601\nG0 X[#5420 + 1] Y#5421 Z#5422\n"
+                                  "#5599 = 0\n(DEBUG, hidden)\nG0 X#5599 Y[#5420 * 2]\n#5600 = 3\nG0 Z#5600\nM2\n"},
+      // Issue 32: G41.1/G42.1 with D0 (the programmed path) and a negative diameter (the other side).
+      {"comp_dynamic_diameter_zero_and_negative", "G21 G90 G17 F100\nG0 X-5 Y0 Z0\nG41.1 D0\nG1 X0 Y0\nG1 X10 Y0\n"
+                                                  "G1 X10 Y10\nG40\nG1 X20 Y20\nG42.1 D-1\nG1 X30 Y20\nG1 X30 Y30\n"
+                                                  "G40 G0 X40 Y40\nG41.1 D-2\nG1 X50 Y40\nG1 X50 Y50\nG40 G0 X60 Y60\nM2\n"},
   };
 }
 
@@ -459,7 +484,7 @@ TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
     expect_same(text, file, name, name.rfind("tool_entries", 0) == 0);
     ++n;
   }
-  EXPECT_EQ(n, 25);
+  EXPECT_EQ(n, 28);
 }
 
 TEST(Rs274Diff, CutterCompensationMatchesLinuxCnc) {

@@ -49,6 +49,7 @@ Parser::Impl::Impl(ParseOptions o, MachineConfig m, std::string f)
   st.cycle_to_r = opt.dialect == Dialect::kLinuxCnc;
   offsets = machine.work_offsets;
   if (opt.dialect == Dialect::kFanuc) params.enable_vacancy();  // Macro B: #0 and unset variables are vacant
+  else params.set_numbered(5599, 1);  // LinuxCNC: (DEBUG,) messages are shown until #5599 = 0
   st.work_origin = machine.work_offsets[0];
   st.origin = st.work_origin;
   for (int a = 0; a < kNumAxes; ++a) st.position[a] = machine.initial_position[a] + st.origin[a];

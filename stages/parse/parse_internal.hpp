@@ -377,6 +377,7 @@ struct Parser::Impl {
   bool read_expression_number(std::string_view s, std::size_t& p, char letter, Word& w);
   bool read_code(std::string_view s, std::size_t& p, char letter, int& code, std::uint32_t col);
   void refresh_system_parameters();
+  void refresh_linuxcnc_modes();
   bool fanuc_system_assignment(std::string_view s, std::size_t p, const Assignment& a, std::uint32_t col);
 
   // -- resolve.cpp

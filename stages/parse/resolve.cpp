@@ -518,8 +518,12 @@ GCPIPE_STEP bool Parser::Impl::apply_cutter_comp(const BlockCodes& c, ModalState
         return fail(col, code_text('G', code) + " outside the XY plane: gcpipe compensates the cutter radius in G17 only");
       if (ns.tcp || ns.tool_vector_mode)
         return fail(col, code_text('G', code) + " with tool centre point control (G43.4/G43.5/M428) on: not supported");
-      if (!comp_radius(c, ns, ns.comp_radius)) return false;
-      ns.comp_side = code == 410 || code == 411 ? 1 : -1;
+      double radius = 0;
+      if (!comp_radius(c, ns, radius)) return false;
+      // LinuxCNC's G41.1/G42.1 with a negative diameter compensate on the other side (rs274:
+      // G42.1 D-1 offsets to the left), and with D0 follow the programmed path.
+      ns.comp_side = (code == 410 || code == 411 ? 1 : -1) * (radius < 0 ? -1 : 1);
+      ns.comp_radius = std::fabs(radius);
     }
   }
   if ((st.comp_side != 0 || ns.comp_side != 0) && !check_under_comp(c, ns)) return false;
@@ -536,9 +540,7 @@ bool Parser::Impl::comp_radius(const BlockCodes& c, const ModalState& ns, double
   const std::string g = code_text('G', code);
   if (code == 411 || code == 421) {
     if (!sc.has('D')) return fail(col, g + " needs D: the tool diameter");
-    const double d = linear_value(sc.w('D'), ns.units);
-    if (d <= 0) return fail(sc.w('D').col, g + " D" + show(sc.w('D').value) + ": the tool diameter must be positive");
-    radius = d / 2;
+    radius = linear_value(sc.w('D'), ns.units) / 2;  // signed: see apply_cutter_comp
     return true;
   }
   int tool = ns.tool_in_spindle;
