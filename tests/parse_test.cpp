@@ -166,8 +166,8 @@ TEST(ParseModal, G64PIsThePathToleranceInForce) {
                             PathMode::kBlend, PathMode::kBlend};
   for (std::size_t i = 0; i < 6; ++i) EXPECT_EQ(p.blocks[i].path_mode, modes[i]) << i;
   EXPECT_EQ(parse_text("G61.1 G1 X1 F100\nG1 X2\n").blocks.back().path_mode, PathMode::kExactPath);
-  expect_error("G21 G64 P-0.01\n", "G64 P-0.01 is not a path tolerance of 0 to 1 mm", 9);
-  expect_error("G21 G64 P2\n", "G64 P2 is not a path tolerance", 9);
+  expect_error("G21 G64 P-0.01\n", "G64 P-0.01 is not a path tolerance of 0 to 25.4 mm", 9);
+  expect_error("G21 G64 P26\n", "G64 P26 is not a path tolerance", 9);
 }
 
 TEST(ParseModal, ToolLengthTcpSpindleCoolant) {
@@ -328,7 +328,7 @@ TEST(ParseErrors, EachClassNamesWordValueAndColumn) {
   expect_error("o<x> call\n", "no subroutine o<x> is defined in this file", 1);
   expect_error("G1 X0 Y0 F1\nG2 X10 Y0 R4\n", "cannot exist", 11);
   expect_error("G1 X0 Y0 F1\nG2 X10 Y0 I4 J0\n", "radius to end of arc differs", 11);
-  expect_error("G1 X0 Y0 F1\nG2 X10 Y0 K4\n", "K in a G2 block", 11);
+  expect_error("G1 X0 Y0 F1\nG2 X10 Y0 K4\n", "K4 in a G2 block in the XY (G17) plane: the centre is given by I and J", 11);
   expect_error("G0 X#<nope>\n", "used before it is set", 5);
   expect_error("G0 X1 G1 @\n", "unexpected '@'", 10);
   expect_error("G0 X1 /\n", "only allowed at the start", 7);
@@ -1744,4 +1744,54 @@ TEST(ParseAccept, LinuxCncTaskParameterReadsAsTheRunningControl) {
   expect_error("G0 X#5410\n", "parameter #5410 (LinuxCNC's data of the loaded tool) is not modelled", 5, o);
   // Fanuc keeps its own system variables: #5599 is none of them.
   expect_error("G0 X#5599\n", "system variable #5599 is not modelled", 5);
+}
+
+// Issue 32 item 2: K on a G17 arc, as Grbl ignores it and FreeCAD posts write it: an error by
+// default (LinuxCNC's rule), ignored with a warning on every line that has it when the leniency is on.
+TEST(ParseAccept, ArcNormalWordIsIgnoredOnlyWhenAskedAndEveryUseIsReported) {
+  const std::string text = "G21 G90 G17\nG1 X0 Y0 F100\nG2 X10 Y0 I5 J0 K0\nG3 X0 Y0 I-5 J0 K0.5\n";
+  expect_error(text, "K0 in a G2 block in the XY (G17) plane", 17);
+  ParseOptions lenient;
+  lenient.ignore_arc_normal_word = true;
+  Parsed p = parse_text(text, lenient);
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.diags.size(), 2u) << "one warning per line that has the word";
+  for (const Diagnostic& d : p.diags) {
+    EXPECT_EQ(d.severity, Severity::kWarning);
+    EXPECT_NE(d.message.find("ignored, as Grbl does (parse.ignore_arc_normal_word)"), std::string::npos) << d.message;
+  }
+  EXPECT_EQ(p.diags[0].line, 3u);
+  EXPECT_EQ(p.diags[1].message.substr(0, 4), "K0.5");
+  const Parsed plain = parse_text("G21 G90 G17\nG1 X0 Y0 F100\nG2 X10 Y0 I5 J0\nG3 X0 Y0 I-5 J0\n");
+  ASSERT_EQ(p.blocks.size(), plain.blocks.size());
+  for (std::size_t i = 0; i < p.blocks.size(); ++i)
+    for (int a = 0; a < kNumAxes; ++a) EXPECT_NEAR(p.blocks[i].target[a], plain.blocks[i].target[a], 1e-12);
+  EXPECT_NEAR(p.blocks[2].centre[kX], 5.0, 1e-12);
+}
+
+// Issue 32 item 2: LinuxCNC's M61 Q sets the tool in the spindle without a change (compared with
+// rs274 in tests/rs274_diff_test.cpp); a tool the table lacks is a warning, as T is; Fanuc has
+// no M61. G10 L2 R0 rotates by nothing and is accepted; any other R stays an error; G10 L11
+// names what it lacks.
+TEST(ParseAccept, M61AndG10WithoutRotation) {
+  ParseOptions o;
+  o.dialect = Dialect::kLinuxCnc;
+  Parsed p = parse_text("G21 G90\nT1 M6\nM61 Q2\nG43\nG0 Z1\nM61 Q7\n", o);
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.blocks.size(), 6u);
+  EXPECT_EQ(p.blocks[2].tool_in_spindle, 2);
+  EXPECT_FALSE(p.blocks[2].tool_change) << "M61 changes no tool";
+  EXPECT_DOUBLE_EQ(p.blocks[3].tool_length, test_machine().tools.at(2).length);
+  ASSERT_EQ(p.diags.size(), 1u);
+  EXPECT_EQ(p.diags[0].severity, Severity::kWarning);
+  EXPECT_EQ(p.diags[0].line, 6u);
+  expect_error("M61\n", "M61 needs Q", 1, o);
+  expect_error("M61 Q1.5\n", "Q is a tool number", 5, o);
+  expect_error("M61 Q2\n", "M61 is not a supported M code", 1);
+  Parsed r0 = parse_text("G21 G90\nG10 L2 P1 X5 R0\nG0 X1\n", o);
+  ASSERT_EQ(r0.first_error(), nullptr) << format(*r0.first_error());
+  EXPECT_DOUBLE_EQ(r0.blocks[2].target[kX], 6.0);
+  expect_error("G10 L2 P1 R5\n", "G10 with R5: a rotated coordinate system (LinuxCNC) is not supported (R0, no rotation, is)", 11, o);
+  expect_error("G10 L20 P1 R0 X1\n", "R is not allowed in G10 L20", 12, o);
+  expect_error("G10 L11 P1 Z0\n", "G10 L11 sets a tool entry measured in G59.3's coordinates", 5, o);
 }

@@ -361,6 +361,14 @@ std::vector<std::pair<std::string, std::string>> generated_programs() {
       {"comp_dynamic_diameter_zero_and_negative", "G21 G90 G17 F100\nG0 X-5 Y0 Z0\nG41.1 D0\nG1 X0 Y0\nG1 X10 Y0\n"
                                                   "G1 X10 Y10\nG40\nG1 X20 Y20\nG42.1 D-1\nG1 X30 Y20\nG1 X30 Y30\n"
                                                   "G40 G0 X40 Y40\nG41.1 D-2\nG1 X50 Y40\nG1 X50 Y50\nG40 G0 X60 Y60\nM2\n"},
+      // Issue 32: M61 Q sets the tool in the spindle (G43 then loads its length; lengths compared).
+      // (Standalone rs274 applies M61 one line late: a G43 right after it still loads the old
+      // tool's length, unlike the running control, so a line stands between them here.)
+      {"tool_entries_m61", "G21 G90\nT1 M6\nM61 Q2\nG10 L1 P2 Z30\nG43\nG0 X1 Z1\nM61 Q1\nG10 L1 P1 Z20\nG43\nG0 X2 Z2\nM2\n"},
+      // Issue 32: G10 L2/L20 with R0 (no rotation), as LinuxCNC's planner tests write it; G64 P in
+      // inches past 1 mm; R-format arcs with P turns (the centre from R, P - 1 more turns).
+      {"g10_r0_g64_arc_r_turns", "G20 G90 G17 F10\nG10 L2 P0 R0\nG10 L2 P1 X0.5 R0\nG64 P0.1 Q0.1\nG0 X0 Y0 Z0\n"
+                                 "G3 X1 Y1 R1 P3\nG2 X0 Y0 R1 P2 Z-0.1\nG3 X0.5 Y0.5 R-0.5 P2\nG10 L20 P1 R0 X1\nG1 X2\nM2\n"},
   };
 }
 
@@ -484,7 +492,7 @@ TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
     expect_same(text, file, name, name.rfind("tool_entries", 0) == 0);
     ++n;
   }
-  EXPECT_EQ(n, 28);
+  EXPECT_EQ(n, 30);
 }
 
 TEST(Rs274Diff, CutterCompensationMatchesLinuxCnc) {

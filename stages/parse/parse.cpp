@@ -22,7 +22,7 @@ using namespace parse_detail;
 ParseOptions load_parse_options(const Config& c) {
   c.reject_unknown({"dialect", "decimal_point_rule", "block_delete", "strict", "max_line_length", "units",
                     "arc_centres", "max_buffered_lines", "max_loop_passes", "max_cycle_moves",
-                    "min_feed", "boring_shift"});
+                    "min_feed", "boring_shift", "ignore_arc_normal_word"});
   ParseOptions o;
   o.dialect = c.choice("dialect", "fanuc", {"fanuc", "linuxcnc"}) == "fanuc" ? Dialect::kFanuc
                                                                                : Dialect::kLinuxCnc;
@@ -32,6 +32,7 @@ ParseOptions load_parse_options(const Config& c) {
   o.max_line_length = static_cast<std::size_t>(c.integer("max_line_length", 256, 16, static_cast<std::int64_t>(kLargestLineLength)));
   o.initial_units = c.choice("units", "mm", {"mm", "inch"}) == "mm" ? Units::kMillimetre : Units::kInch;
   o.absolute_arc_centres = c.choice("arc_centres", "incremental", {"incremental", "absolute"}) == "absolute";
+  o.ignore_arc_normal_word = c.boolean("ignore_arc_normal_word", false);
   o.max_buffered_lines = static_cast<std::size_t>(c.integer("max_buffered_lines", 200000, 100, 10000000));
   o.max_loop_passes = static_cast<std::uint64_t>(c.integer("max_loop_passes", 100000, 1, 100000000));
   o.max_cycle_moves = static_cast<std::uint64_t>(c.integer("max_cycle_moves", 1000000, 1000, 100000000));

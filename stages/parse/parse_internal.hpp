@@ -378,6 +378,8 @@ struct Parser::Impl {
   bool read_code(std::string_view s, std::size_t& p, char letter, int& code, std::uint32_t col);
   void refresh_system_parameters();
   void refresh_linuxcnc_modes();
+  bool set_tool_number(const BlockCodes& c, ModalState& ns);
+  void note_warning(std::uint32_t col, std::string message);
   bool fanuc_system_assignment(std::string_view s, std::size_t p, const Assignment& a, std::uint32_t col);
 
   // -- resolve.cpp

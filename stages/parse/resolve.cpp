@@ -108,7 +108,7 @@ enum MGroup : int { kMStop = 4, kMSubprogram = 5, kMToolChange = 6, kMSpindle = 
 int m_group(int code) {
   switch (code) {
     case 0: case 10: case 20: case 300: return kMStop;
-    case 60: return kMToolChange;
+    case 60: case 610: return kMToolChange;  // M61 Q: the tool in the spindle, without a change (LinuxCNC)
     case 30: case 40: case 50: return kMSpindle;
     case 70: case 80: case 90: return kMCoolant;
     case 4280: case 4290: case 4300: return kMKins;
@@ -244,7 +244,8 @@ GCPIPE_STEP bool Parser::Impl::sort_m_codes(BlockCodes& c) {
   for (int i = 0; i < s.nm; ++i) {
     const int code = s.m[i].code;
     const int grp = m_group(code);
-    if (grp == kMUnsupported || (grp == kMSubprogram && opt.dialect != Dialect::kFanuc))
+    if (grp == kMUnsupported || (grp == kMSubprogram && opt.dialect != Dialect::kFanuc) ||
+        (code == 610 && opt.dialect != Dialect::kLinuxCnc))
       return fail(s.m[i].col, unsupported_m(code));
     if (grp == kMCoolant) {
       bool& f = code == 70 ? c.mist : code == 80 ? c.flood : c.coolant_off;
@@ -349,7 +350,8 @@ GCPIPE_STEP bool Parser::Impl::apply_feed_speed_tool(const BlockCodes& c, ModalS
     if (t != 0 && !machine.tools.empty() && machine.tools.count(t) == 0) warn_unknown_tool(t, w.col);
     ns.tool = t;
   }
-  b.tool_change = c.m_col[kMToolChange] != 0;
+  if (c.m_code[kMToolChange] == 610 && !set_tool_number(c, ns)) return false;
+  b.tool_change = c.m_col[kMToolChange] != 0 && c.m_code[kMToolChange] == 60;
   if (b.tool_change) ns.tool_in_spindle = ns.tool;
   if (c.m_col[kMSpindle]) {
     const int m = c.m_code[kMSpindle];
@@ -461,7 +463,8 @@ GCPIPE_STEP bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, 
     if (c.group_code[kGPathMode] == 640 && sc.has('P')) {
       const Word& p = sc.w('P');
       const double mm = p.value * (ns.units == Units::kInch ? kInch : 1.0);
-      if (p.value < 0 || mm > 1) return fail(p.col, "G64 P" + show(p.value) + " is not a path tolerance of 0 to 1 mm");
+      // LinuxCNC takes any P; one inch bounds it far beyond any tolerance a program means.
+      if (p.value < 0 || mm > kInch) return fail(p.col, "G64 P" + show(p.value) + " is not a path tolerance of 0 to 25.4 mm");
       ns.path_tolerance = mm;  // P0: none (LinuxCNC: best speed)
     }
   }
@@ -500,6 +503,29 @@ GCPIPE_STEP bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, 
     b.stop = m == 0 ? ProgramStop::kStop : m == 10 ? ProgramStop::kOptionalStop
            : m == 20 ? ProgramStop::kEnd : ProgramStop::kEndRewind;
   }
+  return true;
+}
+
+// LinuxCNC's M61 Q: the tool in the spindle is Q, nothing moves (its manual: "set current tool");
+// the selected tool stays. Like T, a tool not in the table is a warning until its geometry is used
+// (rs274 rejects the line: its table is the control's, the machine file's need not be).
+// The line's warning (one a line: the first is kept), said before its blocks if the line is accepted.
+void Parser::Impl::note_warning(std::uint32_t col, std::string message) {
+  if (!warning.empty()) return;
+  warning = std::move(message);
+  warning_col = col;
+  warning_tool = 0;  // no tool to mark as warned about
+}
+
+bool Parser::Impl::set_tool_number(const BlockCodes& c, ModalState& ns) {
+  const std::uint32_t col = c.m_col[kMToolChange];
+  if (!sc.has('Q')) return fail(col, "M61 needs Q: the number of the tool in the spindle");
+  const Word& q = sc.w('Q');
+  if (q.value < 0 || q.value > 9999 || q.value != std::floor(q.value))
+    return fail(q.col, "M61 Q" + show(q.value) + ": Q is a tool number 0..9999");
+  const int t = static_cast<int>(q.value);
+  if (t != 0 && !machine.tools.empty() && machine.tools.count(t) == 0) warn_unknown_tool(t, q.col);
+  ns.tool_in_spindle = t;
   return true;
 }
 
@@ -599,9 +625,14 @@ GCPIPE_STEP bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalSt
   // R of G10 is a tool radius (LinuxCNC L1/L10) or an offset value (Fanuc L10..L13); on work
   // offsets (L2/L20) it would rotate the coordinate system, which is not supported.
   const double g10_l = c.non_modal == 100 && s.has('L') ? s.w('L').value : 0;
-  const bool g10_tool = opt.dialect == Dialect::kFanuc ? g10_l >= 10 && g10_l <= 13 : g10_l == 1 || g10_l == 10;
-  if (c.non_modal == 100 && s.has('R') && !g10_tool)
-    return fail(s.w('R').col, "G10 with R: a rotated coordinate system (LinuxCNC) is not supported");
+  const bool g10_tool = opt.dialect == Dialect::kFanuc ? g10_l >= 10 && g10_l <= 13 : g10_l == 1 || g10_l == 10 || g10_l == 11;
+  // R0 on a LinuxCNC G10 L2 rotates by nothing: CAM and LinuxCNC's own tests write it.
+  const bool g10_no_rotation = opt.dialect == Dialect::kLinuxCnc && g10_l == 2 && s.has('R') && s.w('R').value == 0;
+  if (c.non_modal == 100 && s.has('R') && opt.dialect == Dialect::kLinuxCnc && g10_l == 20)
+    return fail(s.w('R').col, "R is not allowed in G10 L20 (LinuxCNC: it sets no rotation)");
+  if (c.non_modal == 100 && s.has('R') && !g10_tool && !g10_no_rotation)
+    return fail(s.w('R').col, "G10 with R" + show(s.w('R').value) +
+                                  ": a rotated coordinate system (LinuxCNC) is not supported (R0, no rotation, is)");
   const int look = c.has(kGLookAhead) ? c.group_code[kGLookAhead] : -1;
   const bool path = c.has(kGPathMode) && c.group_code[kGPathMode] == 640;
   for (char L : {'D', 'W', 'Q', 'K', 'I', 'J', 'R', 'P', 'L'}) {
@@ -611,17 +642,18 @@ GCPIPE_STEP bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalSt
     const bool arc_word = L == 'I' || L == 'J' || L == 'K' || L == 'R' || L == 'P';
     const bool cycle_word = L == 'R' || L == 'Q' || L == 'P' || L == 'L' ||
                             (L == 'K' && opt.dialect == Dialect::kFanuc);  // Fanuc repeats: K
-    const bool g10_word = c.non_modal == 100 && (L == 'L' || L == 'P' || (L == 'R' && g10_tool));
+    const bool g10_word = c.non_modal == 100 && (L == 'L' || L == 'P' || (L == 'R' && (g10_tool || g10_no_rotation)));
     const bool m98_word = c.m_code[kMSubprogram] == 980 && (L == 'P' || L == 'L');
+    const bool m61_word = c.m_code[kMToolChange] == 610 && L == 'Q';
     const bool look_word = (look == 50 || look == 80) ? L == 'P' : look == 51 ? (L == 'Q' || L == 'R') : false;
     const bool comp_word = L == 'D' && c.has(kGCutterComp) && c.group_code[kGCutterComp] != 400;
     if ((c.g275 && slot_word) || comp_word || (arc_mode && arc_word) || (L == 'P' && c.g4) || (path && (L == 'P' || L == 'Q')) ||
-        (cycle_block && cycle_word) || g10_word || m98_word || look_word)
+        (cycle_block && cycle_word) || g10_word || m98_word || m61_word || look_word)
       continue;
     std::string where = L == 'L' ? "canned cycles (repeats) and G10"
                         : L == 'D' ? "G41/G42 (tool number), G41.1/G42.1 (diameter) and the G275 slot cycle"
                         : L == 'W' ? "the G275 slot cycle"
-                        : L == 'Q' ? "G73/G83 (peck), G64 and G275"
+                        : L == 'Q' ? (opt.dialect == Dialect::kLinuxCnc ? "G73/G83 (peck), G64, G275 and M61" : "G73/G83 (peck), G64 and G275")
                         : L == 'P' ? "G4 (dwell), G2/G3 (turns), canned cycles, G64 or G275"
                                    : "G2/G3 arcs, canned cycles (R) and G275 (K, R)";
     return fail(s.w(L).col, std::string("word ") + L + show(s.w(L).value) + " has no meaning here: it is used by " + where);
