@@ -1155,7 +1155,7 @@ TEST(ParseIssue14, CutterCompErrorsRejectTheirLineOnly) {
   expect_error(head + "G18\n", "cannot use a plane change with cutter radius compensation on", 1, linuxcnc());
   expect_error(head + "G81 X1 Y1 Z-1 R1\n", "cannot use a canned cycle with cutter radius compensation on", 1, linuxcnc());
   expect_error(head + "T2 M6\n", "cannot use a tool change", 4, linuxcnc());
-  expect_error("G18 G41 D1\n", "outside the XY plane", 5, linuxcnc());
+  expect_error("G19 G41 D1\n", "LinuxCNC allows cutter radius compensation only in the XY and XZ planes", 5, linuxcnc());
   expect_error("G41 D7\n", "tool 7 is not in", 5, linuxcnc());
   expect_error("G41\n", "without a tool", 1, linuxcnc());
   expect_error("G41.1\n", "G41.1 needs D: the tool diameter", 1, linuxcnc());

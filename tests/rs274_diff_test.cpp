@@ -418,6 +418,11 @@ std::vector<std::pair<std::string, std::string>> cutter_programs() {
       // Convex corners before G0 are straight traverses, before G1 arcs; no F until G1.
       {"comp_rapids", "G21 G90 G17\nT1 M6\nG10 L1 P1 R1\nG0 X-5 Y-5 Z0\nG41 D1\nG0 X0 Y0\nG0 X10 Y0\nG0 X10 Y-10\n"
                       "G1 X0 Y-10 F100\nG0 X-10 Y-10\nG40 G0 X-20 Y-20\nM2\n"},
+      // Issue 32: compensation in the XZ plane (G18), LinuxCNC's (Z, X) orientation: lines, a
+      // convex and a concave corner, arcs both ways, G42, the exit.
+      {"comp_xz_plane", h + "G18 G0 X-5 Y0 Z-5\nG41 D1\nG1 X0 Z0\nG1 X10 Z0\nG1 X10 Z-10\nG1 X20 Z-10\n"
+                            "G2 X30 Z-10 R5\nG3 X40 Z-10 R5\nG1 X40 Z5\nG40 G1 X45 Z10\nG42 D2\nG1 X50 Z0\n"
+                            "G1 X60 Z0\nG1 X60 Z10\nG40 G0 X70 Z20\nG17\nM2\n"},
       // Inch program, incremental moves, a rapid entry.
       {"comp_inch_incremental", "G20 G90 G17 F10\nG10 L1 P1 R0.1\nT1 M6\nG0 X-1 Y-1 Z0\nG41\nG0 X0 Y0\nG91 G1 X2\n"
                                 "Y1\nG3 X-1 Y1 R1\nG1 X-1\nG90 G1 X0 Y0\nG40 G0 X-1 Y-1\nM2\n"},

@@ -63,11 +63,20 @@ double cross(P2 a, P2 b) { return a.x * b.y - a.y * b.x; }
 double norm(P2 a) { return std::hypot(a.x, a.y); }
 P2 unit(P2 a) { return a * (1 / norm(a)); }
 P2 left_normal(P2 t) { return {-t.y, t.x}; }
-P2 xy(const Axes& a) { return {a[kX], a[kY]}; }
-void set_xy(Axes& a, P2 p) {
-  a[kX] = p.x;
-  a[kY] = p.y;
+// The compensation plane's two axes, (u, v) = (X, Y) in G17 and (Z, X) in G18 (LinuxCNC's order
+// for the XZ plane: its left side of a move along +X is -Z), and its normal.
+struct PlaneAxesUV {
+  int u, v, n;
+};
+PlaneAxesUV uv(Plane p) { return p == Plane::kZX ? PlaneAxesUV{kZ, kX, kY} : PlaneAxesUV{kX, kY, kZ}; }
+template <class Point>  // Axes or Vec3 (an arc's centre)
+P2 xy(const Point& a, Plane p) { return {a[uv(p).u], a[uv(p).v]}; }
+template <class Point>
+void set_xy(Point& a, Plane p, P2 q) {
+  a[uv(p).u] = q.x;
+  a[uv(p).v] = q.y;
 }
+std::uint8_t plane_bits(Plane p) { return static_cast<std::uint8_t>((1u << uv(p).u) | (1u << uv(p).v)); }
 
 bool is_arc(Motion m) { return m == Motion::kArcCW || m == Motion::kArcCCW; }
 
@@ -76,7 +85,7 @@ bool is_arc(Motion m) { return m == Motion::kArcCW || m == Motion::kArcCCW; }
 bool moves_in_xy(const ResolvedBlock& b) {
   if (is_arc(b.motion)) return true;
   if (b.motion != Motion::kRapid && b.motion != Motion::kLinear) return false;
-  return norm(xy(b.target) - xy(b.start)) > kEps;
+  return norm(xy(b.target, b.plane) - xy(b.start, b.plane)) > kEps;
 }
 
 // Unit tangent of an arc about `c` at `p`, in the arc's direction.
@@ -223,7 +232,8 @@ bool Parser::Impl::entry_move(const ModalState& ns, ResolvedBlock& b) {
                                   side_name(ns.comp_side) + ": the entry move of cutter compensation must be a "
                                   "straight line (G0 or G1) to the contour" +
                                   (fanuc ? " (Fanuc alarm PS0034: no arc in the start-up block)" : ""));
-  const P2 s = comp_next.off_path ? comp_next.at : xy(b.start), e = xy(b.target);
+  comp_next.plane = ns.plane;
+  const P2 s = comp_next.off_path ? comp_next.at : xy(b.start, ns.plane), e = xy(b.target, ns.plane);
   const double len = norm(e - s);
   if (len <= r && !fanuc)  // Fanuc's Type A start-up has no minimum length
     return fail(move_col(sc), "cutter compensation entry move is " + show(len) + " mm long, not longer than the tool "
@@ -245,7 +255,7 @@ bool Parser::Impl::entry_move(const ModalState& ns, ResolvedBlock& b) {
 
 // A move's path offset by the radius to the compensation's side, before any corner moves it.
 bool Parser::Impl::offset_path(const ModalState& ns, const ResolvedBlock& b, OffsetMove& m) {
-  const P2 s = xy(b.start), e = xy(b.target);
+  const P2 s = xy(b.start, ns.plane), e = xy(b.target, ns.plane);
   const double r = ns.comp_radius;
   m.corner = e;
   if (!is_arc(b.motion)) {
@@ -263,7 +273,7 @@ bool Parser::Impl::offset_path(const ModalState& ns, const ResolvedBlock& b, Off
   m.arc = true;
   m.full_circle = norm(e - s) < kEps;
   m.cw = b.motion == Motion::kArcCW;
-  m.centre = {b.centre[kX], b.centre[kY]};
+  m.centre = xy(b.centre, ns.plane);
   // The tool runs outside the arc when it is left of a clockwise arc or right of a
   // counter-clockwise one, else inside, where the offset radius shrinks.
   const double grow = (ns.comp_side > 0) == m.cw ? r : -r;
@@ -331,13 +341,17 @@ bool Parser::Impl::next_move(const ModalState& ns, ResolvedBlock& b) {
     const bool rapid = b.motion == Motion::kRapid;
     a.motion = rapid ? Motion::kRapid : ns.comp_side > 0 ? Motion::kArcCW : Motion::kArcCCW;
     a.target = a.start;
-    set_xy(a.start, held_end);
-    set_xy(a.target, n.start);
-    a.plane = Plane::kXY;
-    a.centre = rapid ? Vec3{0, 0, 0} : Vec3{corner.x, corner.y, a.start[kZ]};
+    set_xy(a.start, ns.plane, held_end);
+    set_xy(a.target, ns.plane, n.start);
+    a.plane = ns.plane;
+    a.centre = Vec3{0, 0, 0};
+    if (!rapid) {
+      set_xy(a.centre, ns.plane, corner);
+      a.centre[uv(ns.plane).n] = a.start[uv(ns.plane).n];
+    }
     a.radius = rapid ? 0 : ns.comp_radius;
     a.turns = 1;
-    a.axis_words = static_cast<std::uint8_t>((1u << kX) | (1u << kY));
+    a.axis_words = plane_bits(ns.plane);
     comp_out.push_back(std::move(a));
   }
   comp_next.pending = true;
@@ -392,8 +406,8 @@ void Parser::Impl::corner_moves(const ResolvedBlock& b, const std::vector<P2>& p
     a.stop = ProgramStop::kNone;
     a.motion = b.motion == Motion::kRapid ? Motion::kRapid : Motion::kLinear;
     a.target = a.start;
-    set_xy(a.start, pts[i]);
-    set_xy(a.target, pts[i + 1]);
+    set_xy(a.start, Plane::kXY, pts[i]);
+    set_xy(a.target, Plane::kXY, pts[i + 1]);
     a.plane = Plane::kXY;
     a.centre = Vec3{0, 0, 0};
     a.radius = 0;
@@ -421,16 +435,16 @@ bool Parser::Impl::concave_corner(const ModalState& ns, OffsetMove& n) {
 void Parser::Impl::finish_pending(P2 end) {
   CutterComp& c = comp_next;
   ResolvedBlock& f = c.block;
-  set_xy(f.start, c.move.start);
-  set_xy(f.target, end);
+  set_xy(f.start, c.plane, c.move.start);
+  set_xy(f.target, c.plane, end);
   if (c.move.arc) f.radius = norm(c.move.start - c.move.centre);
-  f.axis_words = static_cast<std::uint8_t>(f.axis_words | (1u << kX) | (1u << kY));
+  f.axis_words = static_cast<std::uint8_t>(f.axis_words | plane_bits(c.plane));
   Axes at = f.target;
   comp_out.push_back(std::move(f));
   for (ResolvedBlock& h : c.held) {  // from where the one before left the tool (a flow-control
     h.start = at;                    // statement's block carries no position of its own)
     if (h.motion == Motion::kNone || h.motion == Motion::kDwell) h.target = at;
-    set_xy(h.target, end);
+    set_xy(h.target, c.plane, end);
     at = h.target;
     comp_out.push_back(std::move(h));
   }
@@ -446,8 +460,8 @@ bool Parser::Impl::leave_offset(ResolvedBlock& b, const ModalState& ns, bool& pl
   CutterComp& c = comp_next;
   if (!c.off_path) return true;
   if (!moves.empty() || (ns.comp_side == 0 && (b.motion == Motion::kRapid || b.motion == Motion::kLinear))) {
-    set_xy(b.start, c.at);  // an expansion's first move starts at block.start too
-    b.axis_words = static_cast<std::uint8_t>(b.axis_words | (1u << kX) | (1u << kY));
+    set_xy(b.start, c.plane, c.at);  // an expansion's first move starts at block.start too
+    b.axis_words = static_cast<std::uint8_t>(b.axis_words | plane_bits(c.plane));
     c.off_path = false;
     return true;
   }
@@ -456,8 +470,8 @@ bool Parser::Impl::leave_offset(ResolvedBlock& b, const ModalState& ns, bool& pl
                                   " as the move after G40: the move that leaves cutter compensation must be a "
                                   "straight line (G0 or G1)" +
                                   (opt.dialect == Dialect::kFanuc ? " (Fanuc alarm PS0034: no arc in the cancel block)" : ""));
-  set_xy(b.start, c.at);  // a Z move, a dwell, a block that moves nothing
-  set_xy(b.target, c.at);
+  set_xy(b.start, c.plane, c.at);  // a move off the plane, a dwell, a block that moves nothing
+  set_xy(b.target, c.plane, c.at);
   return true;
 }
 

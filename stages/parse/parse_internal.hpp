@@ -211,6 +211,9 @@ struct CutterComp {
   std::vector<ResolvedBlock> held;  // blocks after it that do not move in XY
   bool off_path = false;  // after G40 (or before an entry): the tool stands at `at`, not at the
   P2 at;                  // programmed XY, until the next move
+  // The plane compensation runs in, set at its entry (no plane change while it is on): XY, or in
+  // LinuxCNC ZX, whose points are (Z, X) as rs274 reads that plane.
+  Plane plane = Plane::kXY;
 };
 
 // A line kept for flow control: a subroutine body, or a loop's lines to run again.

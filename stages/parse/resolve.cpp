@@ -540,8 +540,12 @@ GCPIPE_STEP bool Parser::Impl::apply_cutter_comp(const BlockCodes& c, ModalState
     } else {
       if (st.comp_side != 0)
         return fail(col, code_text('G', code) + ": cutter radius compensation is already on: program G40 first");
-      if (ns.plane != Plane::kXY)
-        return fail(col, code_text('G', code) + " outside the XY plane: gcpipe compensates the cutter radius in G17 only");
+      // LinuxCNC compensates in XY and XZ (rs274: "Cutter radius compensation allowed only in XY,
+      // XZ planes"); the Fanuc dialect here in G17 only.
+      if (opt.dialect == Dialect::kLinuxCnc && ns.plane == Plane::kYZ)
+        return fail(col, code_text('G', code) + " in the YZ plane (G19): LinuxCNC allows cutter radius compensation only in the XY and XZ planes");
+      if (opt.dialect == Dialect::kFanuc && ns.plane != Plane::kXY)
+        return fail(col, code_text('G', code) + " outside the XY plane: gcpipe compensates the cutter radius in G17 only (Fanuc dialect)");
       if (ns.tcp || ns.tool_vector_mode)
         return fail(col, code_text('G', code) + " with tool centre point control (G43.4/G43.5/M428) on: not supported");
       double radius = 0;
@@ -593,7 +597,7 @@ bool Parser::Impl::comp_radius(const BlockCodes& c, const ModalState& ns, double
 bool Parser::Impl::check_under_comp(const BlockCodes& c, const ModalState& ns) {
   const char* why = nullptr;
   std::uint32_t col = 1;
-  if (c.has(kGPlane) && c.group_code[kGPlane] != 170) why = "a plane change", col = c.group_col[kGPlane];
+  if (c.has(kGPlane) && c.group_code[kGPlane] != 10 * static_cast<int>(st.plane)) why = "a plane change", col = c.group_col[kGPlane];
   else if (ns.cycle != 0) why = "a canned cycle", col = c.motion_col ? c.motion_col : 1;
   else if (c.non_modal == 280 || c.non_modal == 300) why = "G28/G30", col = c.non_modal_col;
   else if (c.non_modal == 530) why = "G53", col = c.non_modal_col;
