@@ -1147,8 +1147,8 @@ TEST(ParseIssue14, CutterCompErrorsRejectTheirLineOnly) {
   expect_error(head + "G3 X100 Y6 R3\n", "tool radius 5 mm not less than arc radius 3 mm with G41", 4, linuxcnc());
   expect_error("G0 X0 Y0\nG41 D1\nG1 X3 F100\n", "entry move is 3 mm long, not longer than the tool radius 5 mm", 4,
                linuxcnc());
-  expect_error("G0 X0 Y0\nG41 D1\nG2 X20 Y0 R10 F100\n", "the entry move of cutter compensation must be a straight line", 4,
-               linuxcnc());
+  // An arc as the entry move: LinuxCNC runs it (geometry compared with rs274: comp_arc_entry).
+  EXPECT_EQ(parse_text("G0 X0 Y0\nG41 D1\nG2 X20 Y0 R10 F100\n", linuxcnc()).first_error(), nullptr);
   expect_error(head + "G40\nG2 X120 Y20 R20\n", "the move that leaves cutter compensation must be a straight line", 4,
                linuxcnc());
   expect_error(head + "G42 D1\n", "already on: program G40 first", 1, linuxcnc());

@@ -423,6 +423,13 @@ std::vector<std::pair<std::string, std::string>> cutter_programs() {
       {"comp_xz_plane", h + "G18 G0 X-5 Y0 Z-5\nG41 D1\nG1 X0 Z0\nG1 X10 Z0\nG1 X10 Z-10\nG1 X20 Z-10\n"
                             "G2 X30 Z-10 R5\nG3 X40 Z-10 R5\nG1 X40 Z5\nG40 G1 X45 Z10\nG42 D2\nG1 X50 Z0\n"
                             "G1 X60 Z0\nG1 X60 Z10\nG40 G0 X70 Z20\nG17\nM2\n"},
+      // Issue 32: an arc as the entry move (LinuxCNC moves its centre along the end's radius):
+      // outside and inside the arc, G41 and G42, a convex and a concave corner after it, in G18 too.
+      {"comp_arc_entry", h + "G0 X-5 Y0 Z0\nG41 D1\nG2 X-3.2 Y0 R0.9\nG1 X20 Y0\nG40 G1 X25 Y-5\n"
+                             "G0 X-5 Y0\nG41 D1\nG3 X0 Y-5 R5\nG1 X10 Y-5\nG1 X10 Y5\nG40 G1 X25 Y-5\n"
+                             "G42 D1\nG3 X30 Y0 R5\nG1 X30 Y10\nG40 G1 X40 Y0\nG0 X-5 Y0\nG41 D1\nG3 X-2.2 Y0 R1.4\n"
+                             "G1 X20 Y0\nG40 G1 X25 Y-5\nG18 G0 X0 Z0\nG42 D2\nG2 X10 Z0 R5\nG1 X20 Z0\nG40 G0 X30 Z10\n"
+                             "G17\nM2\n"},
       // Inch program, incremental moves, a rapid entry.
       {"comp_inch_incremental", "G20 G90 G17 F10\nG10 L1 P1 R0.1\nT1 M6\nG0 X-1 Y-1 Z0\nG41\nG0 X0 Y0\nG91 G1 X2\n"
                                 "Y1\nG3 X-1 Y1 R1\nG1 X-1\nG90 G1 X0 Y0\nG40 G0 X-1 Y-1\nM2\n"},

@@ -227,12 +227,12 @@ bool Parser::Impl::compensate(const ModalState& ns, bool& plain_emit) {
 bool Parser::Impl::entry_move(const ModalState& ns, ResolvedBlock& b) {
   const double r = ns.comp_radius;
   const bool fanuc = opt.dialect == Dialect::kFanuc;
+  comp_next.plane = ns.plane;
+  if (is_arc(b.motion) && !fanuc) return entry_arc(ns, b);
   if (is_arc(b.motion))
     return fail(move_col(sc), std::string(b.motion == Motion::kArcCW ? "G2" : "G3") + " as the first move after " +
                                   side_name(ns.comp_side) + ": the entry move of cutter compensation must be a "
-                                  "straight line (G0 or G1) to the contour" +
-                                  (fanuc ? " (Fanuc alarm PS0034: no arc in the start-up block)" : ""));
-  comp_next.plane = ns.plane;
+                                  "straight line (G0 or G1) to the contour (Fanuc alarm PS0034: no arc in the start-up block)");
   const P2 s = comp_next.off_path ? comp_next.at : xy(b.start, ns.plane), e = xy(b.target, ns.plane);
   const double len = norm(e - s);
   if (len <= r && !fanuc)  // Fanuc's Type A start-up has no minimum length
@@ -246,6 +246,47 @@ bool Parser::Impl::entry_move(const ModalState& ns, ResolvedBlock& b) {
   m.end = e + left_normal(m.dir) * (r * ns.comp_side);
   m.path_start = m.end - m.dir * len;
   m.start_tangent = m.end_tangent = m.dir;
+  comp_next.pending = true;
+  comp_next.move = m;
+  comp_next.block = b;
+  comp_next.off_path = false;
+  return true;
+}
+
+// LinuxCNC's entry arc: from where the tool stands to the programmed end moved by the radius
+// along the end's radial direction u (out when the tool runs outside the arc, in when inside:
+// delta = +r or -r), about a centre moved along u too, c = c0 + t u, so that it is as far from
+// the start s as from the new end e + delta u (the end keeps the programmed arc's tangent):
+//   |c0 + t u - s|^2 = (R + delta - t)^2  =>  t = ((R + delta)^2 - |c0 - s|^2) / (2 (u.(c0 - s) + R + delta))
+// R = |e - c0|. rs274 draws exactly this arc (tests/rs274_diff_test.cpp, comp_arc_entry). Held, as
+// a line entry is: its end moves if the corner with the next move is concave.
+bool Parser::Impl::entry_arc(const ModalState& ns, ResolvedBlock& b) {
+  const char* g = b.motion == Motion::kArcCW ? "G2" : "G3";
+  if (b.turns != 1)
+    return fail(move_col(sc), std::string(g) + " P" + std::to_string(b.turns) + " (several turns) as the entry move of cutter compensation is not supported");
+  const P2 s = comp_next.off_path ? comp_next.at : xy(b.start, ns.plane), e = xy(b.target, ns.plane);
+  const P2 c0 = xy(b.centre, ns.plane);
+  const bool cw = b.motion == Motion::kArcCW;
+  const double big_r = norm(e - c0), delta = (ns.comp_side > 0) == cw ? ns.comp_radius : -ns.comp_radius;
+  const P2 u = unit(e - c0);
+  const double den = 2 * (dot(u, c0 - s) + big_r + delta);
+  const double t = std::fabs(den) > kEps ? ((big_r + delta) * (big_r + delta) - dot(c0 - s, c0 - s)) / den : 0;
+  const double radius = big_r + delta - t;
+  if (big_r <= kEps || std::fabs(den) <= kEps || radius <= kEps)
+    return fail(move_col(sc), std::string(g) + ": radius of cutter compensation entry arc is not greater than the tool radius "
+                              "(rs274's words): no arc joins the tool's position to the offset end");
+  OffsetMove m;
+  m.entry = m.arc = true;
+  m.cw = cw;
+  m.centre = c0 + u * t;
+  m.radius = m.end_radius = radius;
+  m.path_radius = m.path_end_radius = big_r;
+  m.start = m.path_start = s;
+  m.corner = e;
+  m.end = e + u * delta;
+  m.start_tangent = arc_tangent(m.centre, s, cw);
+  m.end_tangent = arc_tangent(c0, e, cw);
+  set_xy(b.centre, ns.plane, m.centre);
   comp_next.pending = true;
   comp_next.move = m;
   comp_next.block = b;

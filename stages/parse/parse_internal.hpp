@@ -383,6 +383,7 @@ struct Parser::Impl {
   void refresh_linuxcnc_modes();
   bool set_tool_number(const BlockCodes& c, ModalState& ns);
   void note_warning(std::uint32_t col, std::string message);
+  bool entry_arc(const ModalState& ns, ResolvedBlock& b);
   bool fanuc_system_assignment(std::string_view s, std::size_t p, const Assignment& a, std::uint32_t col);
 
   // -- resolve.cpp
