@@ -1795,3 +1795,22 @@ TEST(ParseAccept, M61AndG10WithoutRotation) {
   expect_error("G10 L20 P1 R0 X1\n", "R is not allowed in G10 L20", 12, o);
   expect_error("G10 L11 P1 Z0\n", "G10 L11 sets a tool entry measured in G59.3's coordinates", 5, o);
 }
+
+// Issue 32 item 2, Fanuc 0i-MF rigid tapping: M29 S before G84 (or G74) puts the tap under the
+// control's spindle, so no M3/M4 need come before it; the path is G84's (in at F, the spindle
+// reversed at the bottom, out at F). G80 (or a group 01 code) ends rigid mode. LinuxCNC has no M29.
+TEST(ParseAccept, FanucRigidTappingNeedsNoSpindleDirectionBeforeIt) {
+  const std::string text = "G21 G90 G17 G94\nG0 X0 Y0 Z10\nM29 S500\nG99 G84 X10 Y10 Z-10 R2 F625\nX20\nG80\n";
+  Parsed p = parse_text(text);
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  std::vector<double> z;
+  for (const ResolvedBlock& b : p.blocks)
+    if (b.line == 4 && b.motion == Motion::kLinear) z.push_back(b.target[kZ]);
+  EXPECT_EQ(z, (std::vector<double>{-10.0, 2.0})) << "in to the bottom and out to R at the feed";
+  expect_error("G21 G90 G17 G94\nG0 X0 Y0 Z10\nS500\nG99 G84 X10 Y10 Z-10 R2 F625\n",
+               "G84 (right-hand tapping) needs the spindle turning clockwise (M3)", 5);
+  expect_error("G21 G90 G17 G94\nM29 S500\nG80\nG84 X10 Y10 Z-10 R2 F625\n", "needs the spindle turning clockwise", 1);
+  ParseOptions o;
+  o.dialect = Dialect::kLinuxCnc;
+  expect_error("M29 S500\n", "M29 is not a supported M code", 1, o);
+}

@@ -177,6 +177,14 @@ void strokes(HoleWriter& h, const CycleGeometry& g, Spindle spindle) {
   }
 }
 
+// The spindle a cycle starts from: in Fanuc rigid tapping (M29) the control turns it as the tap
+// needs, forwards for G84 and backwards for G74, whatever M3/M4 said.
+Spindle tapping_spindle(const ModalState& ns) {
+  if (!ns.rigid_tap) return ns.spindle;
+  if (ns.cycle == 840) return Spindle::kCW;
+  return ns.cycle == 740 ? Spindle::kCCW : ns.spindle;
+}
+
 // The clear level of a cycle, and the order of R and the bottom: every cycle drills towards the
 // minus side of its axis from R, except G87 (back boring), which bores upwards from an R below
 // the part and returns to the initial level only (0i-MF manual: G87 cannot use the R level;
@@ -316,6 +324,7 @@ bool Parser::Impl::cycle_words(ModalState& ns, CycleGeometry& g, const std::stri
       return fail(s.w(rep).col, name + " " + rep + show(v) + ": the number of repeats must be a whole number 0..10000");
     g.repeats = static_cast<long>(v);
   }
+  if (ns.rigid_tap && (ns.cycle == 840 || ns.cycle == 740)) return true;  // M29: the control turns the spindle
   if (ns.cycle == 840 && ns.spindle != Spindle::kCW)
     return fail(col, "G84 (right-hand tapping) needs the spindle turning clockwise (M3) before the cycle");
   if (ns.cycle == 740 && ns.spindle != Spindle::kCCW)
@@ -353,7 +362,7 @@ void Parser::Impl::drill_holes(ResolvedBlock& b, ModalState& ns, CycleGeometry& 
       continue;
     }
     h.rapid_to(g.r);
-    strokes(h, g, ns.spindle);
+    strokes(h, g, tapping_spindle(ns));
   }
   b.motion = moves.empty() ? Motion::kNone : moves.back().motion;
   b.target = pos;

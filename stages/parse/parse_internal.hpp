@@ -87,6 +87,9 @@ struct ModalState {
   // Fanuc: the group 01 mode (G00..G03) a canned cycle began in; the cycle (group 09) does not
   // change it, so G80 brings it back (LinuxCNC's G80 is itself a motion mode: no move after it).
   Motion motion_before_cycle = Motion::kNone;
+  // Fanuc M29 S: rigid tapping; the next G84/G74 taps with the spindle driven by the control (no
+  // M3/M4 needed before it) until G80 or a group 01 code ends the cycle.
+  bool rigid_tap = false;
   bool cycle_to_r = false;        // G99: retract to R (else G98: to the initial level)
   double cycle_initial = 0;       // initial level along the drilling axis [mm, machine]
   Word cycle_r, cycle_z, cycle_q, cycle_p;  // sticky cycle words, as programmed

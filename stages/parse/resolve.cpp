@@ -103,7 +103,7 @@ std::string unsupported_g(int code, Dialect d) {
 }
 
 enum MGroup : int { kMStop = 4, kMSubprogram = 5, kMToolChange = 6, kMSpindle = 7, kMCoolant = 8, kMKins = 9,
-                    kMUnsupported = 99 };
+                    kMRigidTap = 10, kMUnsupported = 99 };
 
 int m_group(int code) {
   switch (code) {
@@ -113,6 +113,7 @@ int m_group(int code) {
     case 70: case 80: case 90: return kMCoolant;
     case 4280: case 4290: case 4300: return kMKins;
     case 980: case 990: return kMSubprogram;
+    case 290: return kMRigidTap;  // Fanuc M29: rigid tapping
     default: return kMUnsupported;
   }
 }
@@ -245,7 +246,7 @@ GCPIPE_STEP bool Parser::Impl::sort_m_codes(BlockCodes& c) {
     const int code = s.m[i].code;
     const int grp = m_group(code);
     if (grp == kMUnsupported || (grp == kMSubprogram && opt.dialect != Dialect::kFanuc) ||
-        (code == 610 && opt.dialect != Dialect::kLinuxCnc))
+        (code == 610 && opt.dialect != Dialect::kLinuxCnc) || (code == 290 && opt.dialect != Dialect::kFanuc))
       return fail(s.m[i].col, unsupported_m(code));
     if (grp == kMCoolant) {
       bool& f = code == 70 ? c.mist : code == 80 ? c.flood : c.coolant_off;
@@ -477,6 +478,8 @@ GCPIPE_STEP bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, 
   if (c.has(kGArcDistance)) ns.arc_incremental = c.group_code[kGArcDistance] == 911;
   if (c.has(kGCycleReturn)) ns.cycle_to_r = c.group_code[kGCycleReturn] == 990;
   const bool cancel = c.has(kGCycleCancel) && c.group_code[kGCycleCancel] == 800;
+  if (cancel || (c.motion_code >= 0 && !is_cycle(c.motion_code))) ns.rigid_tap = false;  // the 0i-MF's end of rigid mode
+  if (c.m_col[kMRigidTap]) ns.rigid_tap = true;
   if (cancel) {
     if (!c.has(kGMotion)) ns.motion = motion_after_g80(ns);  // before the cycle is forgotten
     ns.cycle = 0;
