@@ -361,6 +361,11 @@ std::vector<std::pair<std::string, std::string>> generated_programs() {
       {"comp_dynamic_diameter_zero_and_negative", "G21 G90 G17 F100\nG0 X-5 Y0 Z0\nG41.1 D0\nG1 X0 Y0\nG1 X10 Y0\n"
                                                   "G1 X10 Y10\nG40\nG1 X20 Y20\nG42.1 D-1\nG1 X30 Y20\nG1 X30 Y30\n"
                                                   "G40 G0 X40 Y40\nG41.1 D-2\nG1 X50 Y40\nG1 X50 Y50\nG40 G0 X60 Y60\nM2\n"},
+      // Issue 32: M70 saves the modal state, M72 restores it, M71 drops it, M73 has a call
+      // restore it on return (units, distance mode, F, work offset); #<_feed> in program units.
+      {"save_restore_modal_state", "G21 G90 G17 F200 S2500 M3\nG0 X0 Y0 Z0\nG10 L2 P2 X5\nM70\nG20 G91 F5\nG1 X1\n"
+                                   "G0 Y#<_feed>\nM72\nG1 X10 Y0\nG0 Z#<_feed>\no<s> sub\nM73\nG20 G91 G55\nG1 X1 Y1 F3\n"
+                                   "o<s> endsub\no<s> call\nG1 X20 Y5\nG55\nM70\nG54 G0 X1\nM72\nG0 X2\nM71\nG54 G0 X3\nM2\n"},
       // Issue 32: M61 Q sets the tool in the spindle (G43 then loads its length; lengths compared).
       // (Standalone rs274 applies M61 one line late: a G43 right after it still loads the old
       // tool's length, unlike the running control, so a line stands between them here.)
@@ -504,7 +509,7 @@ TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
     expect_same(text, file, name, name.rfind("tool_entries", 0) == 0);
     ++n;
   }
-  EXPECT_EQ(n, 30);
+  EXPECT_EQ(n, 31);
 }
 
 TEST(Rs274Diff, CutterCompensationMatchesLinuxCnc) {

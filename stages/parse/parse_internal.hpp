@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <deque>
 #include <map>
+#include <optional>
 #include <set>
 #include <numbers>
 #include <string>
@@ -128,6 +129,23 @@ struct ModalState {
   bool ended = false;
 };
 
+// The modal state LinuxCNC's M70/M73 save and M72 restores (its manual, "M70 Save Modal State"):
+// units, distance and arc-distance modes, plane, feed mode and F, spindle speed and direction,
+// coolant, path mode, cycle return level, work coordinate system; not the motion mode, not the tool.
+struct SavedModes {
+  Units units = Units::kMillimetre;
+  bool incremental = false, arc_incremental = true;
+  Plane plane = Plane::kXY;
+  FeedMode feed_mode = FeedMode::kUnitsPerMinute;
+  bool per_revolution = false;
+  double feed = 0, feed_per_rev = 0, spindle_speed = 0, path_tolerance = 0;
+  Spindle spindle = Spindle::kOff;
+  std::uint8_t coolant = 0;
+  PathMode path_mode = PathMode::kBlend;
+  bool cycle_to_r = false;
+  std::int32_t work_offset = 54;
+};
+
 // Everything scanned from one line.
 struct Scan {
   Word words[26];
@@ -148,7 +166,7 @@ struct Scan {
 
 // The G and M codes of one block sorted by modal group (step 1 of resolve).
 struct BlockCodes {
-  static constexpr int kGroups = 16;  // G groups 0..14, M groups 4..9: small, zeroed per line
+  static constexpr int kGroups = 16;  // G groups 0..14, M groups 4..11: small, zeroed per line
   std::uint32_t group_col[kGroups] = {};
   int group_code[kGroups] = {};
   int motion_code = -1;  // G0 G1 G2 G3 or a cycle
@@ -258,6 +276,7 @@ struct Frame {
   std::array<double, 30> saved_args{};                 // caller's #1..#30
   bool local_scope = false;  // an o-word call: its named parameters are its own (LinuxCNC)
   long repeats = 1;  // Fanuc M98 L: runs of the body still to go, this one included
+  std::optional<SavedModes> autorestore;  // LinuxCNC M73: restored when this call returns
   // A Fanuc M98 whose subprogram is not defined yet: the call waits, the lines after it too.
   std::string pending_call;
   long pending_repeats = 0;
@@ -278,6 +297,7 @@ struct Statement {
 
 struct Parser::Impl {
   using ModalState = parse_detail::ModalState;
+  using SavedModes = parse_detail::SavedModes;
   using Scan = parse_detail::Scan;
   using Word = parse_detail::Word;
   using BlockCodes = parse_detail::BlockCodes;
@@ -387,6 +407,9 @@ struct Parser::Impl {
   bool set_tool_number(const BlockCodes& c, ModalState& ns);
   void note_warning(std::uint32_t col, std::string message);
   bool entry_arc(const ModalState& ns, ResolvedBlock& b);
+  bool save_restore_modes(const BlockCodes& c, ModalState& ns);
+  void restore_modes(const SavedModes& m, ModalState& ns);
+  std::optional<SavedModes> saved_modes;  // LinuxCNC M70's state, until M71 invalidates it
   bool fanuc_system_assignment(std::string_view s, std::size_t p, const Assignment& a, std::uint32_t col);
 
   // -- resolve.cpp

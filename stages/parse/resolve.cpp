@@ -103,7 +103,7 @@ std::string unsupported_g(int code, Dialect d) {
 }
 
 enum MGroup : int { kMStop = 4, kMSubprogram = 5, kMToolChange = 6, kMSpindle = 7, kMCoolant = 8, kMKins = 9,
-                    kMRigidTap = 10, kMUnsupported = 99 };
+                    kMRigidTap = 10, kMState = 11, kMUnsupported = 99 };
 
 int m_group(int code) {
   switch (code) {
@@ -114,6 +114,7 @@ int m_group(int code) {
     case 4280: case 4290: case 4300: return kMKins;
     case 980: case 990: return kMSubprogram;
     case 290: return kMRigidTap;  // Fanuc M29: rigid tapping
+    case 700: case 710: case 720: case 730: return kMState;  // LinuxCNC M70..M73: save, invalidate, restore, autorestore
     default: return kMUnsupported;
   }
 }
@@ -153,6 +154,7 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
   // What the line states itself (not what it inherits), for a writer that says it again.
   b.frame.selects_work_offset = c.has(kGCoordSystem);
   b.frame.sets_tool_length = c.has(kGToolLength);
+  if (!save_restore_modes(c, ns)) return false;
   if (!check_block_number() || !apply_feed_speed_tool(c, ns, b) || !apply_tool_length(c, ns)) return false;
   if (!apply_modes(c, ns, b) || !apply_cutter_comp(c, ns) || !read_fanuc_call(c)) return false;
   const bool arc_mode = !c.g4 && !c.g275 && c.non_modal == 0 && ns.cycle == 0 &&
@@ -246,7 +248,8 @@ GCPIPE_STEP bool Parser::Impl::sort_m_codes(BlockCodes& c) {
     const int code = s.m[i].code;
     const int grp = m_group(code);
     if (grp == kMUnsupported || (grp == kMSubprogram && opt.dialect != Dialect::kFanuc) ||
-        (code == 610 && opt.dialect != Dialect::kLinuxCnc) || (code == 290 && opt.dialect != Dialect::kFanuc))
+        (code == 610 && opt.dialect != Dialect::kLinuxCnc) || (code == 290 && opt.dialect != Dialect::kFanuc) ||
+        (grp == kMState && opt.dialect != Dialect::kLinuxCnc))
       return fail(s.m[i].col, unsupported_m(code));
     if (grp == kMCoolant) {
       bool& f = code == 70 ? c.mist : code == 80 ? c.flood : c.coolant_off;
@@ -512,6 +515,49 @@ GCPIPE_STEP bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, 
 // LinuxCNC's M61 Q: the tool in the spindle is Q, nothing moves (its manual: "set current tool");
 // the selected tool stays. Like T, a tool not in the table is a warning until its geometry is used
 // (rs274 rejects the line: its table is the control's, the machine file's need not be).
+// LinuxCNC's M70 (save the modal state), M71 (invalidate it), M72 (restore it) and M73 (save it
+// for the subroutine call to restore when it returns), before the line's own modal words.
+bool Parser::Impl::save_restore_modes(const BlockCodes& c, ModalState& ns) {
+  if (!c.m_col[kMState]) return true;
+  const int code = c.m_code[kMState];
+  const SavedModes now{ns.units, ns.incremental, ns.arc_incremental, ns.plane, ns.feed_mode, ns.per_revolution,
+                       ns.feed, ns.feed_per_rev, ns.spindle_speed, ns.path_tolerance, ns.spindle, ns.coolant,
+                       ns.path_mode, ns.cycle_to_r, ns.work_offset};
+  if (code == 700) saved_modes = now;
+  if (code == 710) saved_modes.reset();
+  if (code == 730) {
+    if (frames.size() < 2) return fail(c.m_col[kMState], "M73 outside a subroutine: it saves the state for the call to restore on return");
+    frames.back().autorestore = now;
+  }
+  if (code == 720) {
+    if (!saved_modes) return fail(c.m_col[kMState], "M72 without a state saved by M70 (or after M71 invalidated it)");
+    restore_modes(*saved_modes, ns);
+  }
+  return true;
+}
+
+void Parser::Impl::restore_modes(const SavedModes& m, ModalState& ns) {
+  ns.units = m.units;
+  ns.incremental = m.incremental;
+  ns.arc_incremental = m.arc_incremental;
+  ns.plane = m.plane;
+  ns.feed_mode = m.feed_mode;
+  ns.per_revolution = m.per_revolution;
+  ns.feed = m.feed;
+  ns.feed_per_rev = m.feed_per_rev;
+  ns.spindle_speed = m.spindle_speed;
+  ns.path_tolerance = m.path_tolerance;
+  ns.spindle = m.spindle;
+  ns.coolant = m.coolant;
+  ns.path_mode = m.path_mode;
+  ns.cycle_to_r = m.cycle_to_r;
+  if (ns.work_offset != m.work_offset) {
+    ns.work_offset = m.work_offset;
+    ns.work_origin = machine.work_offsets[static_cast<std::size_t>(ns.work_offset - 54)];
+    update_origin(ns);
+  }
+}
+
 // The line's warning (one a line: the first is kept), said before its blocks if the line is accepted.
 void Parser::Impl::note_warning(std::uint32_t col, std::string message) {
   if (!warning.empty()) return;

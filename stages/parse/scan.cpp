@@ -457,6 +457,10 @@ void Parser::Impl::refresh_linuxcnc_modes() {
   flag("_mist", (st.coolant & kCoolantMist) != 0);
   flag("_flood", (st.coolant & kCoolantFlood) != 0);
   params.set_named("_rpm", st.spindle_speed);
+  // F in program units: per minute in G94 (inch/min in G20), per revolution in G95.
+  params.set_named("_feed", st.per_revolution ? st.feed_per_rev / (st.units == Units::kInch ? kInch : 1.0)
+                            : st.feed_mode == FeedMode::kInverseTime ? st.feed
+                                                                     : st.feed / (st.units == Units::kInch ? kInch : 1.0));
   params.set_named("_current_tool", st.tool_in_spindle);
   params.set_named("_selected_tool", st.tool);
   params.set_named("_call_level", static_cast<double>(frames.size() - 1));
