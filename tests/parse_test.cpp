@@ -1814,3 +1814,23 @@ TEST(ParseAccept, FanucRigidTappingNeedsNoSpindleDirectionBeforeIt) {
   o.dialect = Dialect::kLinuxCnc;
   expect_error("M29 S500\n", "M29 is not a supported M code", 1, o);
 }
+
+// Issue 32 item 2, LinuxCNC G33.1 (compared with rs274 in tests/rs274_diff_test.cpp): in at
+// F = K x S, the spindle reversed, out to where it began; what gcpipe does not run says why.
+TEST(ParseAccept, LinuxCncRigidTappingAndWhatItRefuses) {
+  ParseOptions o;
+  o.dialect = Dialect::kLinuxCnc;
+  Parsed p = parse_text("G21 G90\nM3 S400\nG0 X5 Y5 Z2\nG33.1 Z-10 K1.5\n", o);
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.blocks.size(), 5u);
+  EXPECT_DOUBLE_EQ(p.blocks[3].target[kZ], -10.0);
+  EXPECT_DOUBLE_EQ(p.blocks[3].feed, 600.0) << "1.5 mm per revolution at 400 rev/min";
+  EXPECT_EQ(p.blocks[3].spindle, Spindle::kCW);
+  EXPECT_DOUBLE_EQ(p.blocks[4].target[kZ], 2.0);
+  EXPECT_EQ(p.blocks[4].spindle, Spindle::kCCW) << "the tap comes out with the spindle reversed";
+  expect_error("M3 S400\nG33.1 Z-10\n", "G33.1 needs K", 1, o);
+  expect_error("M3 S400\nG33.1 X1 Z-10 K1\n", "gcpipe taps along Z only", 1, o);
+  expect_error("G33.1 Z-10 K1\n", "G33.1 needs the spindle turning", 1, o);
+  expect_error("M3 S400\nG33.1 Z-10 K1\nZ-12\n", "", 1, o);  // no motion mode after it: not a silent move
+  expect_error("M3 S400\nG33.1 Z-10 K1\n", "G33.1 (threading) is not supported", 1);
+}

@@ -146,7 +146,8 @@ Run run_rs274(const fs::path& program, const std::string& text, const fs::path& 
       add_length(r, z);
     }
     const bool offset = call == "SET_G5X_OFFSET" || call == "SET_G92_OFFSET";
-    if (call != "STRAIGHT_TRAVERSE" && call != "STRAIGHT_FEED" && call != "ARC_FEED" && !offset) continue;
+    if (call != "STRAIGHT_TRAVERSE" && call != "STRAIGHT_FEED" && call != "ARC_FEED" && call != "RIGID_TAP" && !offset)
+      continue;
     std::vector<double> v;
     std::stringstream ss(args);
     for (std::string tok; std::getline(ss, tok, ',');) v.push_back(std::stod(tok));
@@ -158,6 +159,13 @@ Run run_rs274(const fs::path& program, const std::string& text, const fs::path& 
       if (plane == "CANON_PLANE_XY") p = {v[0], v[1], v[5], v[6], v[8]};
       else if (plane == "CANON_PLANE_XZ") p = {v[1], v[5], v[0], v[6], v[8]};
       else p = {v[5], v[0], v[1], v[6], v[8]};
+    } else if (call == "RIGID_TAP") {  // (x, y, z): in to there, then back out to where it began
+      p = r.last;
+      for (int a = 0; a < 3; ++a) p[a] = v[static_cast<std::size_t>(a)] + g5x[a] + g92[a];
+      const Point back = r.last;
+      add_point(r, p);
+      add_point(r, back);
+      continue;
     } else {
       p = {v[0], v[1], v[2], v[3], v[5]};
     }
@@ -379,6 +387,9 @@ std::vector<std::pair<std::string, std::string>> generated_programs() {
       {"save_restore_modal_state", "G21 G90 G17 F200 S2500 M3\nG0 X0 Y0 Z0\nG10 L2 P2 X5\nM70\nG20 G91 F5\nG1 X1\n"
                                    "G0 Y#<_feed>\nM72\nG1 X10 Y0\nG0 Z#<_feed>\no<s> sub\nM73\nG20 G91 G55\nG1 X1 Y1 F3\n"
                                    "o<s> endsub\no<s> call\nG1 X20 Y5\nG55\nM70\nG54 G0 X1\nM72\nG0 X2\nM71\nG54 G0 X3\nM2\n"},
+      // Issue 32: G33.1 rigid tapping (in to Z and back out to where it began), G20 and G21.
+      {"rigid_tapping_g33_1", "G20 G90 G40\nM3 S200\nG0 X0 Y1 Z0.1\nG33.1 Z-0.75 K0.05\nS500\nG0 X3 Y1 Z0.1\n"
+                              "G33.1 Z-0.75 K0.05\nG21 G0 X10 Y5 Z2\nG33.1 Z-8 K1.25\nG0 Z10\nM5\nM2\n"},
       // Issue 32: M61 Q sets the tool in the spindle (G43 then loads its length; lengths compared).
       // (Standalone rs274 applies M61 one line late: a G43 right after it still loads the old
       // tool's length, unlike the running control, so a line stands between them here.)
@@ -522,7 +533,7 @@ TEST(Rs274Diff, GeneratedProgramsMatchLinuxCnc) {
     expect_same(text, file, name, name.rfind("tool_entries", 0) == 0);
     ++n;
   }
-  EXPECT_EQ(n, 31);
+  EXPECT_EQ(n, 32);
 }
 
 TEST(Rs274Diff, CutterCompensationMatchesLinuxCnc) {

@@ -370,3 +370,36 @@ void Parser::Impl::drill_holes(ResolvedBlock& b, ModalState& ns, CycleGeometry& 
 }
 
 }  // namespace gcpipe
+
+namespace gcpipe {
+
+using namespace parse_detail;
+
+// LinuxCNC's G33.1 Z K: rigid tapping along Z. In at K per spindle revolution (F = K x S), the
+// spindle reversed at the bottom, out again to where the tap started, the spindle as before
+// (LinuxCNC's manual, "G33.1 Rigid Tapping"; rs274 states it as RIGID_TAP to the bottom). The
+// spindle's overrun past both ends is the drive's, not modelled. A line after it with axis words
+// alone moves in no mode (as after G80): LinuxCNC would tap again, gcpipe rejects it rather than
+// move otherwise.
+bool Parser::Impl::rigid_tap(ResolvedBlock& b, ModalState& ns, const Axes& target, std::uint8_t mask) {
+  const std::uint32_t col = sc.g[0].col;
+  if (!sc.has('K') || !(sc.w('K').value > 0)) return fail(col, "G33.1 needs K: the thread pitch (distance per revolution), > 0");
+  if (!(mask & (1u << kZ))) return fail(col, "G33.1 needs Z: the depth of the hole");
+  if ((mask & ~(1u << kZ)) != 0)
+    return fail(col, "G33.1 with an axis other than Z: gcpipe taps along Z only (move over the hole with G0 first)");
+  if (ns.spindle == Spindle::kOff || !(ns.spindle_speed > 0))
+    return fail(col, "G33.1 needs the spindle turning (M3 or M4 with S) before the tap");
+  if (ns.comp_side != 0) return fail(col, "cannot use G33.1 with cutter radius compensation on: program G40 first");
+  const Axes start = ns.position;
+  const double feed = linear_value(sc.w('K'), ns.units) * ns.spindle_speed;  // [mm/min]
+  if (feed > kMaxFeed) return fail(sc.w('K').col, "G33.1 feed K x S = " + show(feed) + " mm/min is out of range");
+  const int reversed = static_cast<int>(ns.spindle == Spindle::kCW ? Spindle::kCCW : Spindle::kCW);
+  moves.push_back({Motion::kLinear, target, 0, -1, false, feed});
+  moves.push_back({Motion::kLinear, start, 0, reversed, false, feed});
+  b.motion = Motion::kLinear;
+  b.target = start;
+  ns.motion = Motion::kNone;
+  return true;
+}
+
+}  // namespace gcpipe

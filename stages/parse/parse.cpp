@@ -245,6 +245,7 @@ bool Parser::Impl::emit_moves() {
     for (int a = 0; a < kNumAxes; ++a)
       if (m.target[a] != from[a]) expanded.axis_words = static_cast<std::uint8_t>(expanded.axis_words | (1u << a));
     if (m.spindle >= 0) expanded.spindle = static_cast<Spindle>(m.spindle);
+    if (m.feed >= 0) expanded.feed = m.feed;
     if (m.stop) expanded.stop = ProgramStop::kStop;
     from = m.target;
     if (!emit(expanded)) return false;

@@ -172,6 +172,7 @@ struct BlockCodes {
   int motion_code = -1;  // G0 G1 G2 G3 or a cycle
   std::uint32_t motion_col = 0;
   bool g4 = false, g275 = false;
+  bool g331 = false;  // LinuxCNC G33.1 rigid tapping (its own block's move; see rigid_tap)
   int non_modal = 0;  // G10 G28 G30 G53 G92 G92.1 G92.2 G92.3 G52 (x10), 0 = none
   std::uint32_t non_modal_col = 0;
   int m_code[kGroups] = {};
@@ -188,6 +189,7 @@ struct Move {
   double dwell = 0;
   int spindle = -1;  // -1: the modal spindle; else a Spindle value for this move (G84 reversal)
   bool stop = false;  // a program stop after this move (G88: the operator retracts by hand)
+  double feed = -1;   // >= 0: this move's own feed [mm/min] (G33.1: K x S), else the modal F
 };
 
 // What an arc block needs to place its centre, shared by the two formats.
@@ -408,6 +410,7 @@ struct Parser::Impl {
   void note_warning(std::uint32_t col, std::string message);
   bool entry_arc(const ModalState& ns, ResolvedBlock& b);
   bool save_restore_modes(const BlockCodes& c, ModalState& ns);
+  bool rigid_tap(ResolvedBlock& b, ModalState& ns, const Axes& target, std::uint8_t mask);
   void restore_modes(const SavedModes& m, ModalState& ns);
   std::optional<SavedModes> saved_modes;  // LinuxCNC M70's state, until M71 invalidates it
   bool fanuc_system_assignment(std::string_view s, std::size_t p, const Assignment& a, std::uint32_t col);

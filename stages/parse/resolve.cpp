@@ -41,6 +41,7 @@ bool is_non_modal_action(int code) {
 int g_group(int code, Dialect d) {
   switch (code) {
     case 0: case 10: case 20: case 30: return kGMotion;
+    case 331: return d == Dialect::kLinuxCnc ? kGNonModal : kGUnsupported;
     case 40: case 2750: return kGNonModal;
     case 170: case 180: case 190: return kGPlane;
     case 900: case 910: return kGDistance;
@@ -177,6 +178,7 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
     b.target = target;
     return slot(sc, b, ns);
   }
+  if (c.g331) return rigid_tap(b, ns, target, mask);
   if (c.non_modal != 0) return non_modal(c, b, ns, mask);
   if (ns.cycle != 0 && mask != 0) return cycle(c, b, ns, mask);
   return move(c, b, ns, target, mask, vector_words, vector);
@@ -206,6 +208,7 @@ GCPIPE_STEP bool Parser::Impl::sort_g_codes(BlockCodes& c) {
                                     code_text('G', code) + (action && c.non_modal != 0 ? " in one block: keep one" : " appears twice in one block"));
       c.g4 = c.g4 || code == 40;
       c.g275 = c.g275 || code == 2750;
+      c.g331 = c.g331 || code == 331;
       if (action) {
         c.non_modal = code;
         c.non_modal_col = s.g[i].col;
@@ -231,6 +234,8 @@ GCPIPE_STEP bool Parser::Impl::sort_g_codes(BlockCodes& c) {
     c.motion_col = c.group_col[kGCycleCancel];
   }
   if (c.g4 && c.g275) return fail(s.g[0].col, "G4 and G275 in one block: keep one");
+  if (c.g331 && (c.g4 || c.g275 || c.non_modal != 0 || c.motion_code >= 0))
+    return fail(s.g[0].col, "G33.1 (rigid tapping) is a move of its own: keep no other motion, dwell or G10/G28/G53/G92 beside it");
   if ((c.g4 || c.g275) && c.non_modal != 0)
     return fail(c.non_modal_col, code_text('G', c.non_modal) + " and " + (c.g4 ? "G4" : "G275") + " in one block: keep one");
   if (c.g275 && c.motion_code >= 0)
@@ -698,10 +703,11 @@ GCPIPE_STEP bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalSt
     const bool g10_word = c.non_modal == 100 && (L == 'L' || L == 'P' || (L == 'R' && (g10_tool || g10_no_rotation)));
     const bool m98_word = c.m_code[kMSubprogram] == 980 && (L == 'P' || L == 'L');
     const bool m61_word = c.m_code[kMToolChange] == 610 && L == 'Q';
+    const bool g331_word = c.g331 && L == 'K';
     const bool look_word = (look == 50 || look == 80) ? L == 'P' : look == 51 ? (L == 'Q' || L == 'R') : false;
     const bool comp_word = L == 'D' && c.has(kGCutterComp) && c.group_code[kGCutterComp] != 400;
     if ((c.g275 && slot_word) || comp_word || (arc_mode && arc_word) || (L == 'P' && c.g4) || (path && (L == 'P' || L == 'Q')) ||
-        (cycle_block && cycle_word) || g10_word || m98_word || m61_word || look_word)
+        (cycle_block && cycle_word) || g10_word || m98_word || m61_word || g331_word || look_word)
       continue;
     std::string where = L == 'L' ? "canned cycles (repeats) and G10"
                         : L == 'D' ? "G41/G42 (tool number), G41.1/G42.1 (diameter) and the G275 slot cycle"
