@@ -77,9 +77,9 @@ fs::path linuxcnc_config(const fs::path& dir) {
   return write_file(dir / "lcnc.yaml", "machine: " + kSource + "/pipeline_configs/machines/mx330.yaml\nparse:\n  dialect: linuxcnc\n");
 }
 
-// n copies of seed 000's slot cut over one another.
-fs::path overlapping_slots(const fs::path& dir, int n) {
-  std::string p = "G17 G21 G40 G49 G54 G80 G90 G94\nT2 M6\nS4000 M3\nG1 F1200\n";
+// n copies of seed 000's slot cut over one another, at F`feed` (one takes at least 150 s at F1200).
+fs::path overlapping_slots(const fs::path& dir, int n, int feed = 1200) {
+  std::string p = "G17 G21 G40 G49 G54 G80 G90 G94\nT2 M6\nS4000 M3\nG1 F" + std::to_string(feed) + "\n";
   for (int i = 0; i < n; ++i) p += "G0 Z5\nG0 X0 Y14\nG0 Z0\nG275 X0 Y106 Z-10 R5 W28 K1.5 Q5 P1\n";
   return write_file(dir / ("slots" + std::to_string(n) + ".nc"), p + "G0 Z50\nM5\nM30\n");
 }
@@ -133,9 +133,11 @@ TEST(CliHostileInput, AliasBombConfigIsRefusedAtOnceWithSummary) {
   EXPECT_TRUE(contains(summary.at("failure").get<std::string>(), "bomb.yaml")) << summary.dump();
 }
 
+// At F3000 the 25 slots take at least 25 x 63 s, within compensate.max_machine_time (3600 s):
+// expanded, and the engagement report is what the bound on its blocks keeps short.
 TEST(CliHostileInput, OverlappingTrochoidCyclesSkipTheReportNamingTheKey) {
   const fs::path dir = tmpdir("slots");
-  const Bounded r = run_bounded({"batch", overlapping_slots(dir, 25).string(), "-o", (dir / "out").string(),
+  const Bounded r = run_bounded({"batch", overlapping_slots(dir, 25, 3000).string(), "-o", (dir / "out").string(),
                                  "--no-simulate"},
                                 120);
   ASSERT_FALSE(r.killed) << "minutes in the engagement report before the fix";
@@ -143,6 +145,27 @@ TEST(CliHostileInput, OverlappingTrochoidCyclesSkipTheReportNamingTheKey) {
   EXPECT_TRUE(contains(r.o.out, "more than trochoid.max_report_blocks (50000)")) << r.o.out;
   const auto summary = read_json(dir / "out" / "summary.json");
   EXPECT_TRUE(summary.at("trochoid").contains("engagement_not_analysed")) << summary.dump();
+}
+
+// At F1200 each of the 25 slots takes at least 156.6 s, 23 of them 3603 s: past
+// compensate.max_machine_time (3600 s), refused at
+// the cycle that crosses it, before it is expanded, and no later cycle is expanded either.
+TEST(CliHostileInput, TrochoidCyclesPastTheMachineTimeAreRefusedBeforeTheyAreExpanded) {
+  const fs::path dir = tmpdir("slots_time");
+  const Bounded r = run_bounded({"batch", overlapping_slots(dir, 25).string(), "-o", (dir / "out").string(),
+                                 "--no-simulate", "--quiet"},
+                                120);
+  ASSERT_FALSE(r.killed);
+  EXPECT_EQ(r.o.status, 1) << r.o.err;
+  EXPECT_TRUE(contains(r.o.err, "slots25.nc:96: G275 not expanded: the G275 cycles up to this line take at least"))
+      << "the 23rd cycle (line 96) crosses 3600 s\n" << r.o.err;
+  EXPECT_TRUE(contains(r.o.err, "more than compensate.max_machine_time (3600 s)")) << r.o.err;
+  const auto summary = read_json(dir / "out" / "summary.json");
+  EXPECT_TRUE(contains(summary.at("failure").get<std::string>(), "compensate.max_machine_time")) << summary.dump();
+  EXPECT_EQ(summary.at("trochoid").at("cycles_expanded").get<int>(), 22) << summary.dump();
+  EXPECT_EQ(summary.at("trochoid").at("cycles_rejected").get<int>(), 3) << summary.dump();
+  EXPECT_TRUE(contains(slurp(dir / "out" / "diagnostics.txt"), "slots25.nc:104: error: G275 not expanded"))
+      << "every later cycle is refused too";
 }
 
 TEST(CliHostileInput, ARunThatCannotStartLeavesSummaryWithItsFailure) {
@@ -158,6 +181,23 @@ TEST(CliHostileInput, ARunThatCannotStartLeavesSummaryWithItsFailure) {
                            bad.string(), "--quiet"});
   EXPECT_EQ(config.status, 1);
   EXPECT_TRUE(contains(read_json(out / "summary.json").at("failure").get<std::string>(), "parse.max_line_length"));
+}
+
+// A line within parse.max_line_length whose comment the writer carries into compensated.nc, past
+// that limit there (issue 32: "compensated.nc does not read back: line is 261 bytes long").
+TEST(CliHostileInput, LongLineOfTheWritersOwnOutputReadsBack) {
+  const fs::path dir = tmpdir("longline");
+  const std::string comment(240, 'X');
+  const fs::path p = write_file(dir / "long.nc", "G21 G90 G94 G17\nG0 X0 Y0 Z10\nG1 X10 F500 (" + comment + ")\nG1 Y10\nM30\n");
+  Outcome r = gcpipe({"batch", p.string(), "-o", (dir / "out").string(), "--quiet"});
+  EXPECT_EQ(r.status, 0) << r.err;
+  const std::string compensated = slurp(dir / "out" / "compensated.nc");
+  std::size_t longest = 0;
+  for (std::size_t pos = 0, end; pos < compensated.size(); pos = end + 1) {
+    end = std::min(compensated.find('\n', pos), compensated.size());
+    longest = std::max(longest, end - pos);
+  }
+  EXPECT_GT(longest, 256u) << "the case needs a written line past the input limit";
 }
 
 TEST(CliHostileInput, OutputToAFolderIsRefusedAndLeavesNoPart) {

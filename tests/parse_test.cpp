@@ -166,8 +166,8 @@ TEST(ParseModal, G64PIsThePathToleranceInForce) {
                             PathMode::kBlend, PathMode::kBlend};
   for (std::size_t i = 0; i < 6; ++i) EXPECT_EQ(p.blocks[i].path_mode, modes[i]) << i;
   EXPECT_EQ(parse_text("G61.1 G1 X1 F100\nG1 X2\n").blocks.back().path_mode, PathMode::kExactPath);
-  expect_error("G21 G64 P-0.01\n", "G64 P-0.01 is not a path tolerance of 0 to 1 mm", 9);
-  expect_error("G21 G64 P2\n", "G64 P2 is not a path tolerance", 9);
+  expect_error("G21 G64 P-0.01\n", "G64 P-0.01 is not a path tolerance of 0 to 25.4 mm", 9);
+  expect_error("G21 G64 P26\n", "G64 P26 is not a path tolerance", 9);
 }
 
 TEST(ParseModal, ToolLengthTcpSpindleCoolant) {
@@ -328,7 +328,7 @@ TEST(ParseErrors, EachClassNamesWordValueAndColumn) {
   expect_error("o<x> call\n", "no subroutine o<x> is defined in this file", 1);
   expect_error("G1 X0 Y0 F1\nG2 X10 Y0 R4\n", "cannot exist", 11);
   expect_error("G1 X0 Y0 F1\nG2 X10 Y0 I4 J0\n", "radius to end of arc differs", 11);
-  expect_error("G1 X0 Y0 F1\nG2 X10 Y0 K4\n", "K in a G2 block", 11);
+  expect_error("G1 X0 Y0 F1\nG2 X10 Y0 K4\n", "K4 in a G2 block in the XY (G17) plane: the centre is given by I and J", 11);
   expect_error("G0 X#<nope>\n", "used before it is set", 5);
   expect_error("G0 X1 G1 @\n", "unexpected '@'", 10);
   expect_error("G0 X1 /\n", "only allowed at the start", 7);
@@ -1147,15 +1147,15 @@ TEST(ParseIssue14, CutterCompErrorsRejectTheirLineOnly) {
   expect_error(head + "G3 X100 Y6 R3\n", "tool radius 5 mm not less than arc radius 3 mm with G41", 4, linuxcnc());
   expect_error("G0 X0 Y0\nG41 D1\nG1 X3 F100\n", "entry move is 3 mm long, not longer than the tool radius 5 mm", 4,
                linuxcnc());
-  expect_error("G0 X0 Y0\nG41 D1\nG2 X20 Y0 R10 F100\n", "the entry move of cutter compensation must be a straight line", 4,
-               linuxcnc());
+  // An arc as the entry move: LinuxCNC runs it (geometry compared with rs274: comp_arc_entry).
+  EXPECT_EQ(parse_text("G0 X0 Y0\nG41 D1\nG2 X20 Y0 R10 F100\n", linuxcnc()).first_error(), nullptr);
   expect_error(head + "G40\nG2 X120 Y20 R20\n", "the move that leaves cutter compensation must be a straight line", 4,
                linuxcnc());
   expect_error(head + "G42 D1\n", "already on: program G40 first", 1, linuxcnc());
   expect_error(head + "G18\n", "cannot use a plane change with cutter radius compensation on", 1, linuxcnc());
   expect_error(head + "G81 X1 Y1 Z-1 R1\n", "cannot use a canned cycle with cutter radius compensation on", 1, linuxcnc());
   expect_error(head + "T2 M6\n", "cannot use a tool change", 4, linuxcnc());
-  expect_error("G18 G41 D1\n", "outside the XY plane", 5, linuxcnc());
+  expect_error("G19 G41 D1\n", "LinuxCNC allows cutter radius compensation only in the XY and XZ planes", 5, linuxcnc());
   expect_error("G41 D7\n", "tool 7 is not in", 5, linuxcnc());
   expect_error("G41\n", "without a tool", 1, linuxcnc());
   expect_error("G41.1\n", "G41.1 needs D: the tool diameter", 1, linuxcnc());
@@ -1726,4 +1726,111 @@ TEST(ParseAccept, ToolNotInTheTableIsAWarningUntilItsGeometryIsUsed) {
   Parsed bad = parse_text("T5 M6 G2 X1\n");
   ASSERT_EQ(bad.diags.size(), 1u);
   EXPECT_EQ(bad.diags[0].severity, Severity::kError);
+}
+
+// Issue 32 item 2: LinuxCNC's predefined parameters (the modal ones are compared with rs274 in
+// tests/rs274_diff_test.cpp). #<_task> is 1 as in the running control, where rs274 alone reads 0:
+// a program that tests it to skip work in a preview does that work here, as the machine would.
+TEST(ParseAccept, LinuxCncTaskParameterReadsAsTheRunningControl) {
+  ParseOptions o;
+  o.dialect = Dialect::kLinuxCnc;
+  Parsed p = parse_text("G21 G90\nG0 X#<_task> Y#5599\nG0 Z[#5420 + 2]\n", o);
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.blocks.size(), 3u);
+  EXPECT_DOUBLE_EQ(p.blocks[1].target[kX], 1.0);
+  EXPECT_DOUBLE_EQ(p.blocks[1].target[kY], 1.0) << "#5599 is 1 until a program sets it";
+  EXPECT_DOUBLE_EQ(p.blocks[2].target[kZ], 3.0) << "#5420 is the X position";
+  // The loaded tool's data is not modelled: an error, never a silent 0.
+  expect_error("G0 X#5410\n", "parameter #5410 (LinuxCNC's data of the loaded tool) is not modelled", 5, o);
+  // Fanuc keeps its own system variables: #5599 is none of them.
+  expect_error("G0 X#5599\n", "system variable #5599 is not modelled", 5);
+}
+
+// Issue 32 item 2: K on a G17 arc, as Grbl ignores it and FreeCAD posts write it: an error by
+// default (LinuxCNC's rule), ignored with a warning on every line that has it when the leniency is on.
+TEST(ParseAccept, ArcNormalWordIsIgnoredOnlyWhenAskedAndEveryUseIsReported) {
+  const std::string text = "G21 G90 G17\nG1 X0 Y0 F100\nG2 X10 Y0 I5 J0 K0\nG3 X0 Y0 I-5 J0 K0.5\n";
+  expect_error(text, "K0 in a G2 block in the XY (G17) plane", 17);
+  ParseOptions lenient;
+  lenient.ignore_arc_normal_word = true;
+  Parsed p = parse_text(text, lenient);
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.diags.size(), 2u) << "one warning per line that has the word";
+  for (const Diagnostic& d : p.diags) {
+    EXPECT_EQ(d.severity, Severity::kWarning);
+    EXPECT_NE(d.message.find("ignored, as Grbl does (parse.ignore_arc_normal_word)"), std::string::npos) << d.message;
+  }
+  EXPECT_EQ(p.diags[0].line, 3u);
+  EXPECT_EQ(p.diags[1].message.substr(0, 4), "K0.5");
+  const Parsed plain = parse_text("G21 G90 G17\nG1 X0 Y0 F100\nG2 X10 Y0 I5 J0\nG3 X0 Y0 I-5 J0\n");
+  ASSERT_EQ(p.blocks.size(), plain.blocks.size());
+  for (std::size_t i = 0; i < p.blocks.size(); ++i)
+    for (int a = 0; a < kNumAxes; ++a) EXPECT_NEAR(p.blocks[i].target[a], plain.blocks[i].target[a], 1e-12);
+  EXPECT_NEAR(p.blocks[2].centre[kX], 5.0, 1e-12);
+}
+
+// Issue 32 item 2: LinuxCNC's M61 Q sets the tool in the spindle without a change (compared with
+// rs274 in tests/rs274_diff_test.cpp); a tool the table lacks is a warning, as T is; Fanuc has
+// no M61. G10 L2 R0 rotates by nothing and is accepted; any other R stays an error; G10 L11
+// names what it lacks.
+TEST(ParseAccept, M61AndG10WithoutRotation) {
+  ParseOptions o;
+  o.dialect = Dialect::kLinuxCnc;
+  Parsed p = parse_text("G21 G90\nT1 M6\nM61 Q2\nG43\nG0 Z1\nM61 Q7\n", o);
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.blocks.size(), 6u);
+  EXPECT_EQ(p.blocks[2].tool_in_spindle, 2);
+  EXPECT_FALSE(p.blocks[2].tool_change) << "M61 changes no tool";
+  EXPECT_DOUBLE_EQ(p.blocks[3].tool_length, test_machine().tools.at(2).length);
+  ASSERT_EQ(p.diags.size(), 1u);
+  EXPECT_EQ(p.diags[0].severity, Severity::kWarning);
+  EXPECT_EQ(p.diags[0].line, 6u);
+  expect_error("M61\n", "M61 needs Q", 1, o);
+  expect_error("M61 Q1.5\n", "Q is a tool number", 5, o);
+  expect_error("M61 Q2\n", "M61 is not a supported M code", 1);
+  Parsed r0 = parse_text("G21 G90\nG10 L2 P1 X5 R0\nG0 X1\n", o);
+  ASSERT_EQ(r0.first_error(), nullptr) << format(*r0.first_error());
+  EXPECT_DOUBLE_EQ(r0.blocks[2].target[kX], 6.0);
+  expect_error("G10 L2 P1 R5\n", "G10 with R5: a rotated coordinate system (LinuxCNC) is not supported (R0, no rotation, is)", 11, o);
+  expect_error("G10 L20 P1 R0 X1\n", "R is not allowed in G10 L20", 12, o);
+  expect_error("G10 L11 P1 Z0\n", "G10 L11 sets a tool entry measured in G59.3's coordinates", 5, o);
+}
+
+// Issue 32 item 2, Fanuc 0i-MF rigid tapping: M29 S before G84 (or G74) puts the tap under the
+// control's spindle, so no M3/M4 need come before it; the path is G84's (in at F, the spindle
+// reversed at the bottom, out at F). G80 (or a group 01 code) ends rigid mode. LinuxCNC has no M29.
+TEST(ParseAccept, FanucRigidTappingNeedsNoSpindleDirectionBeforeIt) {
+  const std::string text = "G21 G90 G17 G94\nG0 X0 Y0 Z10\nM29 S500\nG99 G84 X10 Y10 Z-10 R2 F625\nX20\nG80\n";
+  Parsed p = parse_text(text);
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  std::vector<double> z;
+  for (const ResolvedBlock& b : p.blocks)
+    if (b.line == 4 && b.motion == Motion::kLinear) z.push_back(b.target[kZ]);
+  EXPECT_EQ(z, (std::vector<double>{-10.0, 2.0})) << "in to the bottom and out to R at the feed";
+  expect_error("G21 G90 G17 G94\nG0 X0 Y0 Z10\nS500\nG99 G84 X10 Y10 Z-10 R2 F625\n",
+               "G84 (right-hand tapping) needs the spindle turning clockwise (M3)", 5);
+  expect_error("G21 G90 G17 G94\nM29 S500\nG80\nG84 X10 Y10 Z-10 R2 F625\n", "needs the spindle turning clockwise", 1);
+  ParseOptions o;
+  o.dialect = Dialect::kLinuxCnc;
+  expect_error("M29 S500\n", "M29 is not a supported M code", 1, o);
+}
+
+// Issue 32 item 2, LinuxCNC G33.1 (compared with rs274 in tests/rs274_diff_test.cpp): in at
+// F = K x S, the spindle reversed, out to where it began; what gcpipe does not run says why.
+TEST(ParseAccept, LinuxCncRigidTappingAndWhatItRefuses) {
+  ParseOptions o;
+  o.dialect = Dialect::kLinuxCnc;
+  Parsed p = parse_text("G21 G90\nM3 S400\nG0 X5 Y5 Z2\nG33.1 Z-10 K1.5\n", o);
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  ASSERT_EQ(p.blocks.size(), 5u);
+  EXPECT_DOUBLE_EQ(p.blocks[3].target[kZ], -10.0);
+  EXPECT_DOUBLE_EQ(p.blocks[3].feed, 600.0) << "1.5 mm per revolution at 400 rev/min";
+  EXPECT_EQ(p.blocks[3].spindle, Spindle::kCW);
+  EXPECT_DOUBLE_EQ(p.blocks[4].target[kZ], 2.0);
+  EXPECT_EQ(p.blocks[4].spindle, Spindle::kCCW) << "the tap comes out with the spindle reversed";
+  expect_error("M3 S400\nG33.1 Z-10\n", "G33.1 needs K", 1, o);
+  expect_error("M3 S400\nG33.1 X1 Z-10 K1\n", "gcpipe taps along Z only", 1, o);
+  expect_error("G33.1 Z-10 K1\n", "G33.1 needs the spindle turning", 1, o);
+  expect_error("M3 S400\nG33.1 Z-10 K1\nZ-12\n", "", 1, o);  // no motion mode after it: not a silent move
+  expect_error("M3 S400\nG33.1 Z-10 K1\n", "G33.1 (threading) is not supported", 1);
 }

@@ -894,3 +894,53 @@ TEST(TrochoidSample, PaperSlotProgramExpandsWritesAndReadsBack) {
     for (int a = 0; a < kNumAxes; ++a) ASSERT_NEAR(ends[i][a], expected[i][a], 1e-9) << "block " << i;
   std::printf("sample: %zu moving blocks, %zu bytes of G-code\n", expected.size(), text.size());
 }
+
+namespace {
+
+// Issue 32 item 3: a program whose cycles alone run past compensate.max_machine_time is refused
+// before they are expanded, on TrochoidExpander::feed_time_lower_bound. Judged here against the
+// expansion itself: the time of its feed moves at their feeds (length / F) is never below the
+// bound, and the bound leaves out only the rapids, the ramp's way back and nothing near the loops.
+double expanded_feed_seconds(const std::vector<ResolvedBlock>& blocks) {
+  double s = 0;
+  for (const ResolvedBlock& b : blocks) {
+    if (b.motion == Motion::kRapid) continue;
+    EXPECT_EQ(b.motion, Motion::kLinear) << "the default expansion writes G1 chords only";
+    const double len = std::sqrt(std::pow(b.target[kX] - b.start[kX], 2) + std::pow(b.target[kY] - b.start[kY], 2) +
+                                 std::pow(b.target[kZ] - b.start[kZ], 2));
+    s += 60.0 * len / b.feed;
+  }
+  return s;
+}
+
+TEST(TrochoidTime, LowerBoundNeverExceedsTheExpandedFeedTimeAndComesClose) {
+  struct Case {
+    const char* name;
+    ResolvedBlock in;
+    TrochoidEntry entry;
+  };
+  const std::vector<Case> cases = {
+      {"paper slot, helix", paper_slot(), TrochoidEntry::kHelix},
+      {"paper slot, two passes", cycle(0, 14, 0, 106, 28, 1.5, 20, 0, -10, 5), TrochoidEntry::kHelix},
+      {"ramp, three passes, conventional", cycle(3, 4, 60, -20, 15, 0.8, 10, 2, -13, 5, false), TrochoidEntry::kRamp},
+      {"plunge, short slot", cycle(0, 0, 4, 3, 14, 0.7, 10), TrochoidEntry::kPlunge},
+  };
+  for (const Case& c : cases) {
+    TrochoidOptions opt;
+    opt.entry = c.entry;
+    const double bound = TrochoidExpander(opt).feed_time_lower_bound(c.in);
+    const double expanded = expanded_feed_seconds(expand(c.in, opt).blocks);
+    EXPECT_LE(bound, expanded * (1 + 1e-12)) << c.name;
+    EXPECT_GE(bound, 0.97 * expanded) << c.name << ": " << bound << " s of " << expanded << " s";
+  }
+}
+
+TEST(TrochoidTime, NoBoundForBlocksThatAreNoValidCycle) {
+  TrochoidExpander x;
+  ResolvedBlock line = paper_slot();
+  line.motion = Motion::kLinear;
+  EXPECT_EQ(x.feed_time_lower_bound(line), 0.0);
+  EXPECT_EQ(x.feed_time_lower_bound(cycle(0, 14, 0, 106, 18, 1.5, 20)), 0.0) << "W < D is rejected";
+}
+
+}  // namespace

@@ -217,9 +217,13 @@ class CompensateStage final : public pipeline::Stage {
     simulated_ = s;
   }
 
-  // compensated.nc is parsed back strictly, in the writer's dialect.
+  // compensated.nc is parsed back strictly, in the writer's dialect. Its lines are the writer's,
+  // not the input's: a timed point carries its source line's comment, which can take a line the
+  // input limit let through past that limit, so the read-back takes lines up to the parser's
+  // largest limit (issue 32: "line is 261 bytes long" failed the batch).
   ParseOptions read_back_options() const {
     ParseOptions po = parse_options_;
+    po.max_line_length = kLargestLineLength;
     po.strict = true;
     po.dialect = write_options_.dialect;
     po.decimal_point_increments = false;

@@ -63,11 +63,20 @@ double cross(P2 a, P2 b) { return a.x * b.y - a.y * b.x; }
 double norm(P2 a) { return std::hypot(a.x, a.y); }
 P2 unit(P2 a) { return a * (1 / norm(a)); }
 P2 left_normal(P2 t) { return {-t.y, t.x}; }
-P2 xy(const Axes& a) { return {a[kX], a[kY]}; }
-void set_xy(Axes& a, P2 p) {
-  a[kX] = p.x;
-  a[kY] = p.y;
+// The compensation plane's two axes, (u, v) = (X, Y) in G17 and (Z, X) in G18 (LinuxCNC's order
+// for the XZ plane: its left side of a move along +X is -Z), and its normal.
+struct PlaneAxesUV {
+  int u, v, n;
+};
+PlaneAxesUV uv(Plane p) { return p == Plane::kZX ? PlaneAxesUV{kZ, kX, kY} : PlaneAxesUV{kX, kY, kZ}; }
+template <class Point>  // Axes or Vec3 (an arc's centre)
+P2 xy(const Point& a, Plane p) { return {a[uv(p).u], a[uv(p).v]}; }
+template <class Point>
+void set_xy(Point& a, Plane p, P2 q) {
+  a[uv(p).u] = q.x;
+  a[uv(p).v] = q.y;
 }
+std::uint8_t plane_bits(Plane p) { return static_cast<std::uint8_t>((1u << uv(p).u) | (1u << uv(p).v)); }
 
 bool is_arc(Motion m) { return m == Motion::kArcCW || m == Motion::kArcCCW; }
 
@@ -76,7 +85,7 @@ bool is_arc(Motion m) { return m == Motion::kArcCW || m == Motion::kArcCCW; }
 bool moves_in_xy(const ResolvedBlock& b) {
   if (is_arc(b.motion)) return true;
   if (b.motion != Motion::kRapid && b.motion != Motion::kLinear) return false;
-  return norm(xy(b.target) - xy(b.start)) > kEps;
+  return norm(xy(b.target, b.plane) - xy(b.start, b.plane)) > kEps;
 }
 
 // Unit tangent of an arc about `c` at `p`, in the arc's direction.
@@ -218,12 +227,13 @@ bool Parser::Impl::compensate(const ModalState& ns, bool& plain_emit) {
 bool Parser::Impl::entry_move(const ModalState& ns, ResolvedBlock& b) {
   const double r = ns.comp_radius;
   const bool fanuc = opt.dialect == Dialect::kFanuc;
+  comp_next.plane = ns.plane;
+  if (is_arc(b.motion) && !fanuc) return entry_arc(ns, b);
   if (is_arc(b.motion))
     return fail(move_col(sc), std::string(b.motion == Motion::kArcCW ? "G2" : "G3") + " as the first move after " +
                                   side_name(ns.comp_side) + ": the entry move of cutter compensation must be a "
-                                  "straight line (G0 or G1) to the contour" +
-                                  (fanuc ? " (Fanuc alarm PS0034: no arc in the start-up block)" : ""));
-  const P2 s = comp_next.off_path ? comp_next.at : xy(b.start), e = xy(b.target);
+                                  "straight line (G0 or G1) to the contour (Fanuc alarm PS0034: no arc in the start-up block)");
+  const P2 s = comp_next.off_path ? comp_next.at : xy(b.start, ns.plane), e = xy(b.target, ns.plane);
   const double len = norm(e - s);
   if (len <= r && !fanuc)  // Fanuc's Type A start-up has no minimum length
     return fail(move_col(sc), "cutter compensation entry move is " + show(len) + " mm long, not longer than the tool "
@@ -243,9 +253,50 @@ bool Parser::Impl::entry_move(const ModalState& ns, ResolvedBlock& b) {
   return true;
 }
 
+// LinuxCNC's entry arc: from where the tool stands to the programmed end moved by the radius
+// along the end's radial direction u (out when the tool runs outside the arc, in when inside:
+// delta = +r or -r), about a centre moved along u too, c = c0 + t u, so that it is as far from
+// the start s as from the new end e + delta u (the end keeps the programmed arc's tangent):
+//   |c0 + t u - s|^2 = (R + delta - t)^2  =>  t = ((R + delta)^2 - |c0 - s|^2) / (2 (u.(c0 - s) + R + delta))
+// R = |e - c0|. rs274 draws exactly this arc (tests/rs274_diff_test.cpp, comp_arc_entry). Held, as
+// a line entry is: its end moves if the corner with the next move is concave.
+bool Parser::Impl::entry_arc(const ModalState& ns, ResolvedBlock& b) {
+  const char* g = b.motion == Motion::kArcCW ? "G2" : "G3";
+  if (b.turns != 1)
+    return fail(move_col(sc), std::string(g) + " P" + std::to_string(b.turns) + " (several turns) as the entry move of cutter compensation is not supported");
+  const P2 s = comp_next.off_path ? comp_next.at : xy(b.start, ns.plane), e = xy(b.target, ns.plane);
+  const P2 c0 = xy(b.centre, ns.plane);
+  const bool cw = b.motion == Motion::kArcCW;
+  const double big_r = norm(e - c0), delta = (ns.comp_side > 0) == cw ? ns.comp_radius : -ns.comp_radius;
+  const P2 u = unit(e - c0);
+  const double den = 2 * (dot(u, c0 - s) + big_r + delta);
+  const double t = std::fabs(den) > kEps ? ((big_r + delta) * (big_r + delta) - dot(c0 - s, c0 - s)) / den : 0;
+  const double radius = big_r + delta - t;
+  if (big_r <= kEps || std::fabs(den) <= kEps || radius <= kEps)
+    return fail(move_col(sc), std::string(g) + ": radius of cutter compensation entry arc is not greater than the tool radius "
+                              "(rs274's words): no arc joins the tool's position to the offset end");
+  OffsetMove m;
+  m.entry = m.arc = true;
+  m.cw = cw;
+  m.centre = c0 + u * t;
+  m.radius = m.end_radius = radius;
+  m.path_radius = m.path_end_radius = big_r;
+  m.start = m.path_start = s;
+  m.corner = e;
+  m.end = e + u * delta;
+  m.start_tangent = arc_tangent(m.centre, s, cw);
+  m.end_tangent = arc_tangent(c0, e, cw);
+  set_xy(b.centre, ns.plane, m.centre);
+  comp_next.pending = true;
+  comp_next.move = m;
+  comp_next.block = b;
+  comp_next.off_path = false;
+  return true;
+}
+
 // A move's path offset by the radius to the compensation's side, before any corner moves it.
 bool Parser::Impl::offset_path(const ModalState& ns, const ResolvedBlock& b, OffsetMove& m) {
-  const P2 s = xy(b.start), e = xy(b.target);
+  const P2 s = xy(b.start, ns.plane), e = xy(b.target, ns.plane);
   const double r = ns.comp_radius;
   m.corner = e;
   if (!is_arc(b.motion)) {
@@ -263,7 +314,7 @@ bool Parser::Impl::offset_path(const ModalState& ns, const ResolvedBlock& b, Off
   m.arc = true;
   m.full_circle = norm(e - s) < kEps;
   m.cw = b.motion == Motion::kArcCW;
-  m.centre = {b.centre[kX], b.centre[kY]};
+  m.centre = xy(b.centre, ns.plane);
   // The tool runs outside the arc when it is left of a clockwise arc or right of a
   // counter-clockwise one, else inside, where the offset radius shrinks.
   const double grow = (ns.comp_side > 0) == m.cw ? r : -r;
@@ -331,13 +382,17 @@ bool Parser::Impl::next_move(const ModalState& ns, ResolvedBlock& b) {
     const bool rapid = b.motion == Motion::kRapid;
     a.motion = rapid ? Motion::kRapid : ns.comp_side > 0 ? Motion::kArcCW : Motion::kArcCCW;
     a.target = a.start;
-    set_xy(a.start, held_end);
-    set_xy(a.target, n.start);
-    a.plane = Plane::kXY;
-    a.centre = rapid ? Vec3{0, 0, 0} : Vec3{corner.x, corner.y, a.start[kZ]};
+    set_xy(a.start, ns.plane, held_end);
+    set_xy(a.target, ns.plane, n.start);
+    a.plane = ns.plane;
+    a.centre = Vec3{0, 0, 0};
+    if (!rapid) {
+      set_xy(a.centre, ns.plane, corner);
+      a.centre[uv(ns.plane).n] = a.start[uv(ns.plane).n];
+    }
     a.radius = rapid ? 0 : ns.comp_radius;
     a.turns = 1;
-    a.axis_words = static_cast<std::uint8_t>((1u << kX) | (1u << kY));
+    a.axis_words = plane_bits(ns.plane);
     comp_out.push_back(std::move(a));
   }
   comp_next.pending = true;
@@ -392,8 +447,8 @@ void Parser::Impl::corner_moves(const ResolvedBlock& b, const std::vector<P2>& p
     a.stop = ProgramStop::kNone;
     a.motion = b.motion == Motion::kRapid ? Motion::kRapid : Motion::kLinear;
     a.target = a.start;
-    set_xy(a.start, pts[i]);
-    set_xy(a.target, pts[i + 1]);
+    set_xy(a.start, Plane::kXY, pts[i]);
+    set_xy(a.target, Plane::kXY, pts[i + 1]);
     a.plane = Plane::kXY;
     a.centre = Vec3{0, 0, 0};
     a.radius = 0;
@@ -421,16 +476,16 @@ bool Parser::Impl::concave_corner(const ModalState& ns, OffsetMove& n) {
 void Parser::Impl::finish_pending(P2 end) {
   CutterComp& c = comp_next;
   ResolvedBlock& f = c.block;
-  set_xy(f.start, c.move.start);
-  set_xy(f.target, end);
+  set_xy(f.start, c.plane, c.move.start);
+  set_xy(f.target, c.plane, end);
   if (c.move.arc) f.radius = norm(c.move.start - c.move.centre);
-  f.axis_words = static_cast<std::uint8_t>(f.axis_words | (1u << kX) | (1u << kY));
+  f.axis_words = static_cast<std::uint8_t>(f.axis_words | plane_bits(c.plane));
   Axes at = f.target;
   comp_out.push_back(std::move(f));
   for (ResolvedBlock& h : c.held) {  // from where the one before left the tool (a flow-control
     h.start = at;                    // statement's block carries no position of its own)
     if (h.motion == Motion::kNone || h.motion == Motion::kDwell) h.target = at;
-    set_xy(h.target, end);
+    set_xy(h.target, c.plane, end);
     at = h.target;
     comp_out.push_back(std::move(h));
   }
@@ -446,8 +501,8 @@ bool Parser::Impl::leave_offset(ResolvedBlock& b, const ModalState& ns, bool& pl
   CutterComp& c = comp_next;
   if (!c.off_path) return true;
   if (!moves.empty() || (ns.comp_side == 0 && (b.motion == Motion::kRapid || b.motion == Motion::kLinear))) {
-    set_xy(b.start, c.at);  // an expansion's first move starts at block.start too
-    b.axis_words = static_cast<std::uint8_t>(b.axis_words | (1u << kX) | (1u << kY));
+    set_xy(b.start, c.plane, c.at);  // an expansion's first move starts at block.start too
+    b.axis_words = static_cast<std::uint8_t>(b.axis_words | plane_bits(c.plane));
     c.off_path = false;
     return true;
   }
@@ -456,8 +511,8 @@ bool Parser::Impl::leave_offset(ResolvedBlock& b, const ModalState& ns, bool& pl
                                   " as the move after G40: the move that leaves cutter compensation must be a "
                                   "straight line (G0 or G1)" +
                                   (opt.dialect == Dialect::kFanuc ? " (Fanuc alarm PS0034: no arc in the cancel block)" : ""));
-  set_xy(b.start, c.at);  // a Z move, a dwell, a block that moves nothing
-  set_xy(b.target, c.at);
+  set_xy(b.start, c.plane, c.at);  // a move off the plane, a dwell, a block that moves nothing
+  set_xy(b.target, c.plane, c.at);
   return true;
 }
 

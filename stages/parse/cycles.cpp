@@ -177,6 +177,14 @@ void strokes(HoleWriter& h, const CycleGeometry& g, Spindle spindle) {
   }
 }
 
+// The spindle a cycle starts from: in Fanuc rigid tapping (M29) the control turns it as the tap
+// needs, forwards for G84 and backwards for G74, whatever M3/M4 said.
+Spindle tapping_spindle(const ModalState& ns) {
+  if (!ns.rigid_tap) return ns.spindle;
+  if (ns.cycle == 840) return Spindle::kCW;
+  return ns.cycle == 740 ? Spindle::kCCW : ns.spindle;
+}
+
 // The clear level of a cycle, and the order of R and the bottom: every cycle drills towards the
 // minus side of its axis from R, except G87 (back boring), which bores upwards from an R below
 // the part and returns to the initial level only (0i-MF manual: G87 cannot use the R level;
@@ -316,6 +324,7 @@ bool Parser::Impl::cycle_words(ModalState& ns, CycleGeometry& g, const std::stri
       return fail(s.w(rep).col, name + " " + rep + show(v) + ": the number of repeats must be a whole number 0..10000");
     g.repeats = static_cast<long>(v);
   }
+  if (ns.rigid_tap && (ns.cycle == 840 || ns.cycle == 740)) return true;  // M29: the control turns the spindle
   if (ns.cycle == 840 && ns.spindle != Spindle::kCW)
     return fail(col, "G84 (right-hand tapping) needs the spindle turning clockwise (M3) before the cycle");
   if (ns.cycle == 740 && ns.spindle != Spindle::kCCW)
@@ -353,11 +362,44 @@ void Parser::Impl::drill_holes(ResolvedBlock& b, ModalState& ns, CycleGeometry& 
       continue;
     }
     h.rapid_to(g.r);
-    strokes(h, g, ns.spindle);
+    strokes(h, g, tapping_spindle(ns));
   }
   b.motion = moves.empty() ? Motion::kNone : moves.back().motion;
   b.target = pos;
   ns.position = pos;
+}
+
+}  // namespace gcpipe
+
+namespace gcpipe {
+
+using namespace parse_detail;
+
+// LinuxCNC's G33.1 Z K: rigid tapping along Z. In at K per spindle revolution (F = K x S), the
+// spindle reversed at the bottom, out again to where the tap started, the spindle as before
+// (LinuxCNC's manual, "G33.1 Rigid Tapping"; rs274 states it as RIGID_TAP to the bottom). The
+// spindle's overrun past both ends is the drive's, not modelled. A line after it with axis words
+// alone moves in no mode (as after G80): LinuxCNC would tap again, gcpipe rejects it rather than
+// move otherwise.
+bool Parser::Impl::rigid_tap(ResolvedBlock& b, ModalState& ns, const Axes& target, std::uint8_t mask) {
+  const std::uint32_t col = sc.g[0].col;
+  if (!sc.has('K') || !(sc.w('K').value > 0)) return fail(col, "G33.1 needs K: the thread pitch (distance per revolution), > 0");
+  if (!(mask & (1u << kZ))) return fail(col, "G33.1 needs Z: the depth of the hole");
+  if ((mask & ~(1u << kZ)) != 0)
+    return fail(col, "G33.1 with an axis other than Z: gcpipe taps along Z only (move over the hole with G0 first)");
+  if (ns.spindle == Spindle::kOff || !(ns.spindle_speed > 0))
+    return fail(col, "G33.1 needs the spindle turning (M3 or M4 with S) before the tap");
+  if (ns.comp_side != 0) return fail(col, "cannot use G33.1 with cutter radius compensation on: program G40 first");
+  const Axes start = ns.position;
+  const double feed = linear_value(sc.w('K'), ns.units) * ns.spindle_speed;  // [mm/min]
+  if (feed > kMaxFeed) return fail(sc.w('K').col, "G33.1 feed K x S = " + show(feed) + " mm/min is out of range");
+  const int reversed = static_cast<int>(ns.spindle == Spindle::kCW ? Spindle::kCCW : Spindle::kCW);
+  moves.push_back({Motion::kLinear, target, 0, -1, false, feed});
+  moves.push_back({Motion::kLinear, start, 0, reversed, false, feed});
+  b.motion = Motion::kLinear;
+  b.target = start;
+  ns.motion = Motion::kNone;
+  return true;
 }
 
 }  // namespace gcpipe

@@ -154,6 +154,11 @@ bool ExpressionReader::parameter(std::string_view s, std::size_t& p, double& out
   if (params_.vacancy() && n >= 1000 && (n < 5001 || n > 5005))
     return fail(at, "system variable #" + std::to_string(n) +
                         " is not modelled (gcpipe keeps #5001..#5005, the position): expand it in CAM");
+  // LinuxCNC's #5400..#5413 describe the loaded tool (number, offsets, diameter, angles): gcpipe's
+  // tool table has only length and diameter, so none is read rather than read as 0.
+  if (!params_.vacancy() && n >= 5400 && n <= 5413)
+    return fail(at, "parameter #" + std::to_string(n) +
+                        " (LinuxCNC's data of the loaded tool) is not modelled: use the tool's values in the program");
   params_.get_numbered(n, out);
   vacant_ = params_.vacant(n);
   return true;

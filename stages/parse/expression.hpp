@@ -12,7 +12,7 @@
 
 namespace gcpipe {
 
-/// Numbered (#1..#5399) and named (#<name>) parameters. Names are case-insensitive, spaces ignored.
+/// Numbered (#1..#5601) and named (#<name>) parameters. Names are case-insensitive, spaces ignored.
 ///
 /// Named parameters are scoped as in LinuxCNC: a name with a leading underscore (`#<_depth>`) is
 /// global; any other is local to the subroutine call that set it (the main program is a level of
@@ -24,7 +24,7 @@ namespace gcpipe {
 /// state and #0 reads as vacant; without it (LinuxCNC) a parameter never set reads 0, as rs274's.
 class ParameterStore {
  public:
-  static constexpr int kMaxNumbered = 5399;
+  static constexpr int kMaxNumbered = 5601;  // LinuxCNC's last, #5601 (the tool changer's fault reason)
   bool get_numbered(int n, double& v) const;  //!< false when out of range (#0 is in range with vacancy)
   bool get_named(const std::string& name, double& v) const;  //!< false when never set
   void set_numbered(int n, double v);

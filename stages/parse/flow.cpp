@@ -903,6 +903,7 @@ bool Parser::Impl::do_return(std::size_t level) {
   }
   for (int n = 0; n < 30; ++n) params.set_numbered(n + 1, f.saved_args[static_cast<std::size_t>(n)]);
   if (f.local_scope) params.leave_call();
+  if (f.autorestore) restore_modes(*f.autorestore, st);  // LinuxCNC M73: the caller's modes come back
   frames.pop_back();
   return true;
 }

@@ -109,13 +109,18 @@ bool Parser::Impl::arc(const Scan& s, ResolvedBlock& b, ModalState& ns, bool cw)
   }
   // The offset letter along the plane normal is not allowed (K in G17 etc.).
   const char normal_letter = pa.n == kZ ? 'K' : pa.n == kY ? 'J' : 'I';
-  if (s.has(normal_letter))
-    return fail(s.w(normal_letter).col, std::string(1, normal_letter) + " in a " + g.gname + " block in the " +
-                                            plane_name(ns.plane) + " plane: the centre is given by " + pa.ou + " and " + pa.ov);
+  if (s.has(normal_letter)) {
+    const std::string what = std::string(1, normal_letter) + show(s.w(normal_letter).value) + " in a " + g.gname +
+                             " block in the " + plane_name(ns.plane) + " plane";
+    if (!opt.ignore_arc_normal_word)
+      return fail(s.w(normal_letter).col, what + ": the centre is given by " + pa.ou + " and " + pa.ov +
+                                              " (Grbl ignores it: parse.ignore_arc_normal_word does too, each use reported)");
+    note_warning(s.w(normal_letter).col, what + " ignored, as Grbl does (parse.ignore_arc_normal_word)");
+  }
   double cu = 0, cv = 0;
+  // R with P: the centre from R, then P - 1 more full turns round it (rs274's reading).
   if (s.has('R')) {
     if (!radius_centre(g, cw, ns, cu, cv)) return false;
-    if (turns != 1) return fail(s.w('P').col, std::string(g.gname) + " with R and P: turns need the centre format (I/J/K)");
   } else if (!offset_centre(g, ns, cu, cv)) {
     return false;
   }
@@ -330,6 +335,9 @@ bool Parser::Impl::set_offsets(const BlockCodes& c, ResolvedBlock& b, ModalState
   if (fanuc ? (l == 10 || l == 12) : (l == 1 || l == 10)) return set_tool_entry(c, b, ns, mask);
   if (l == 20 && fanuc)
     return fail(s.w('L').col, "G10 L20 on Fanuc sets the extended work offsets G54.1 P1..P48, which this machine does not have");
+  if (l == 11 && !fanuc)
+    return fail(s.w('L').col, "G10 L11 sets a tool entry measured in G59.3's coordinates, and this machine file has no "
+                              "G59.3 origin: use G10 L10 (measured in the coordinates in force)");
   if (l != 2 && l != 20)
     return fail(s.w('L').col, "G10 L" + show(l) + " is not supported" +
                               (fanuc ? std::string(": wear offsets (L11, L13) are not modelled; tool geometry takes L10 (length) or L12 (radius)")

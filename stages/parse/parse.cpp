@@ -22,16 +22,17 @@ using namespace parse_detail;
 ParseOptions load_parse_options(const Config& c) {
   c.reject_unknown({"dialect", "decimal_point_rule", "block_delete", "strict", "max_line_length", "units",
                     "arc_centres", "max_buffered_lines", "max_loop_passes", "max_cycle_moves",
-                    "min_feed", "boring_shift"});
+                    "min_feed", "boring_shift", "ignore_arc_normal_word"});
   ParseOptions o;
   o.dialect = c.choice("dialect", "fanuc", {"fanuc", "linuxcnc"}) == "fanuc" ? Dialect::kFanuc
                                                                                : Dialect::kLinuxCnc;
   o.decimal_point_increments = c.boolean("decimal_point_rule", false);
   o.block_delete = c.boolean("block_delete", true);
   o.strict = c.boolean("strict", false);
-  o.max_line_length = static_cast<std::size_t>(c.integer("max_line_length", 256, 16, 65536));
+  o.max_line_length = static_cast<std::size_t>(c.integer("max_line_length", 256, 16, static_cast<std::int64_t>(kLargestLineLength)));
   o.initial_units = c.choice("units", "mm", {"mm", "inch"}) == "mm" ? Units::kMillimetre : Units::kInch;
   o.absolute_arc_centres = c.choice("arc_centres", "incremental", {"incremental", "absolute"}) == "absolute";
+  o.ignore_arc_normal_word = c.boolean("ignore_arc_normal_word", false);
   o.max_buffered_lines = static_cast<std::size_t>(c.integer("max_buffered_lines", 200000, 100, 10000000));
   o.max_loop_passes = static_cast<std::uint64_t>(c.integer("max_loop_passes", 100000, 1, 100000000));
   o.max_cycle_moves = static_cast<std::uint64_t>(c.integer("max_cycle_moves", 1000000, 1000, 100000000));
@@ -49,6 +50,7 @@ Parser::Impl::Impl(ParseOptions o, MachineConfig m, std::string f)
   st.cycle_to_r = opt.dialect == Dialect::kLinuxCnc;
   offsets = machine.work_offsets;
   if (opt.dialect == Dialect::kFanuc) params.enable_vacancy();  // Macro B: #0 and unset variables are vacant
+  else params.set_numbered(5599, 1);  // LinuxCNC: (DEBUG,) messages are shown until #5599 = 0
   st.work_origin = machine.work_offsets[0];
   st.origin = st.work_origin;
   for (int a = 0; a < kNumAxes; ++a) st.position[a] = machine.initial_position[a] + st.origin[a];
@@ -243,6 +245,7 @@ bool Parser::Impl::emit_moves() {
     for (int a = 0; a < kNumAxes; ++a)
       if (m.target[a] != from[a]) expanded.axis_words = static_cast<std::uint8_t>(expanded.axis_words | (1u << a));
     if (m.spindle >= 0) expanded.spindle = static_cast<Spindle>(m.spindle);
+    if (m.feed >= 0) expanded.feed = m.feed;
     if (m.stop) expanded.stop = ProgramStop::kStop;
     from = m.target;
     if (!emit(expanded)) return false;

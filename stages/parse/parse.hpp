@@ -23,6 +23,9 @@ namespace gcpipe {
 
 class Config;
 
+/// The largest parse.max_line_length a config may set [bytes].
+inline constexpr std::size_t kLargestLineLength = 65536;
+
 struct ParseOptions {
   Dialect dialect = Dialect::kFanuc;
   /// Fanuc's decimal-point rule: an axis value written without a point counts in the smallest
@@ -35,6 +38,10 @@ struct ParseOptions {
   /// I J K as absolute centres from the start (G90.1), as some Heidenhain/Mastercam posts write
   /// them; default incremental (G91.1). The program's own G90.1/G91.1 still switch.
   bool absolute_arc_centres = false;
+  /// Leniency (off by default): the offset word along an arc's plane normal (K in G17, J in G18,
+  /// I in G19), which Grbl ignores and FreeCAD posts write (`G2 X1 Y0 I.5 J0 K0`), is ignored
+  /// with a warning on each line instead of rejecting the line, as LinuxCNC does.
+  bool ignore_arc_normal_word = false;
   /// Flow control keeps lines to run again (loop bodies, lines after a call to a subroutine
   /// defined further down, subroutine bodies); more than this many is an error, not a memory
   /// blow-up.

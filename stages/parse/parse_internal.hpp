@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <deque>
 #include <map>
+#include <optional>
 #include <set>
 #include <numbers>
 #include <string>
@@ -87,6 +88,9 @@ struct ModalState {
   // Fanuc: the group 01 mode (G00..G03) a canned cycle began in; the cycle (group 09) does not
   // change it, so G80 brings it back (LinuxCNC's G80 is itself a motion mode: no move after it).
   Motion motion_before_cycle = Motion::kNone;
+  // Fanuc M29 S: rigid tapping; the next G84/G74 taps with the spindle driven by the control (no
+  // M3/M4 needed before it) until G80 or a group 01 code ends the cycle.
+  bool rigid_tap = false;
   bool cycle_to_r = false;        // G99: retract to R (else G98: to the initial level)
   double cycle_initial = 0;       // initial level along the drilling axis [mm, machine]
   Word cycle_r, cycle_z, cycle_q, cycle_p;  // sticky cycle words, as programmed
@@ -125,6 +129,23 @@ struct ModalState {
   bool ended = false;
 };
 
+// The modal state LinuxCNC's M70/M73 save and M72 restores (its manual, "M70 Save Modal State"):
+// units, distance and arc-distance modes, plane, feed mode and F, spindle speed and direction,
+// coolant, path mode, cycle return level, work coordinate system; not the motion mode, not the tool.
+struct SavedModes {
+  Units units = Units::kMillimetre;
+  bool incremental = false, arc_incremental = true;
+  Plane plane = Plane::kXY;
+  FeedMode feed_mode = FeedMode::kUnitsPerMinute;
+  bool per_revolution = false;
+  double feed = 0, feed_per_rev = 0, spindle_speed = 0, path_tolerance = 0;
+  Spindle spindle = Spindle::kOff;
+  std::uint8_t coolant = 0;
+  PathMode path_mode = PathMode::kBlend;
+  bool cycle_to_r = false;
+  std::int32_t work_offset = 54;
+};
+
 // Everything scanned from one line.
 struct Scan {
   Word words[26];
@@ -145,12 +166,13 @@ struct Scan {
 
 // The G and M codes of one block sorted by modal group (step 1 of resolve).
 struct BlockCodes {
-  static constexpr int kGroups = 16;  // G groups 0..14, M groups 4..9: small, zeroed per line
+  static constexpr int kGroups = 16;  // G groups 0..14, M groups 4..11: small, zeroed per line
   std::uint32_t group_col[kGroups] = {};
   int group_code[kGroups] = {};
   int motion_code = -1;  // G0 G1 G2 G3 or a cycle
   std::uint32_t motion_col = 0;
   bool g4 = false, g275 = false;
+  bool g331 = false;  // LinuxCNC G33.1 rigid tapping (its own block's move; see rigid_tap)
   int non_modal = 0;  // G10 G28 G30 G53 G92 G92.1 G92.2 G92.3 G52 (x10), 0 = none
   std::uint32_t non_modal_col = 0;
   int m_code[kGroups] = {};
@@ -167,6 +189,7 @@ struct Move {
   double dwell = 0;
   int spindle = -1;  // -1: the modal spindle; else a Spindle value for this move (G84 reversal)
   bool stop = false;  // a program stop after this move (G88: the operator retracts by hand)
+  double feed = -1;   // >= 0: this move's own feed [mm/min] (G33.1: K x S), else the modal F
 };
 
 // What an arc block needs to place its centre, shared by the two formats.
@@ -211,6 +234,9 @@ struct CutterComp {
   std::vector<ResolvedBlock> held;  // blocks after it that do not move in XY
   bool off_path = false;  // after G40 (or before an entry): the tool stands at `at`, not at the
   P2 at;                  // programmed XY, until the next move
+  // The plane compensation runs in, set at its entry (no plane change while it is on): XY, or in
+  // LinuxCNC ZX, whose points are (Z, X) as rs274 reads that plane.
+  Plane plane = Plane::kXY;
 };
 
 // A line kept for flow control: a subroutine body, or a loop's lines to run again.
@@ -252,6 +278,7 @@ struct Frame {
   std::array<double, 30> saved_args{};                 // caller's #1..#30
   bool local_scope = false;  // an o-word call: its named parameters are its own (LinuxCNC)
   long repeats = 1;  // Fanuc M98 L: runs of the body still to go, this one included
+  std::optional<SavedModes> autorestore;  // LinuxCNC M73: restored when this call returns
   // A Fanuc M98 whose subprogram is not defined yet: the call waits, the lines after it too.
   std::string pending_call;
   long pending_repeats = 0;
@@ -272,6 +299,7 @@ struct Statement {
 
 struct Parser::Impl {
   using ModalState = parse_detail::ModalState;
+  using SavedModes = parse_detail::SavedModes;
   using Scan = parse_detail::Scan;
   using Word = parse_detail::Word;
   using BlockCodes = parse_detail::BlockCodes;
@@ -377,6 +405,14 @@ struct Parser::Impl {
   bool read_expression_number(std::string_view s, std::size_t& p, char letter, Word& w);
   bool read_code(std::string_view s, std::size_t& p, char letter, int& code, std::uint32_t col);
   void refresh_system_parameters();
+  void refresh_linuxcnc_modes();
+  bool set_tool_number(const BlockCodes& c, ModalState& ns);
+  void note_warning(std::uint32_t col, std::string message);
+  bool entry_arc(const ModalState& ns, ResolvedBlock& b);
+  bool save_restore_modes(const BlockCodes& c, ModalState& ns);
+  bool rigid_tap(ResolvedBlock& b, ModalState& ns, const Axes& target, std::uint8_t mask);
+  void restore_modes(const SavedModes& m, ModalState& ns);
+  std::optional<SavedModes> saved_modes;  // LinuxCNC M70's state, until M71 invalidates it
   bool fanuc_system_assignment(std::string_view s, std::size_t p, const Assignment& a, std::uint32_t col);
 
   // -- resolve.cpp

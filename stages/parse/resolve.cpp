@@ -41,6 +41,7 @@ bool is_non_modal_action(int code) {
 int g_group(int code, Dialect d) {
   switch (code) {
     case 0: case 10: case 20: case 30: return kGMotion;
+    case 331: return d == Dialect::kLinuxCnc ? kGNonModal : kGUnsupported;
     case 40: case 2750: return kGNonModal;
     case 170: case 180: case 190: return kGPlane;
     case 900: case 910: return kGDistance;
@@ -103,16 +104,18 @@ std::string unsupported_g(int code, Dialect d) {
 }
 
 enum MGroup : int { kMStop = 4, kMSubprogram = 5, kMToolChange = 6, kMSpindle = 7, kMCoolant = 8, kMKins = 9,
-                    kMUnsupported = 99 };
+                    kMRigidTap = 10, kMState = 11, kMUnsupported = 99 };
 
 int m_group(int code) {
   switch (code) {
     case 0: case 10: case 20: case 300: return kMStop;
-    case 60: return kMToolChange;
+    case 60: case 610: return kMToolChange;  // M61 Q: the tool in the spindle, without a change (LinuxCNC)
     case 30: case 40: case 50: return kMSpindle;
     case 70: case 80: case 90: return kMCoolant;
     case 4280: case 4290: case 4300: return kMKins;
     case 980: case 990: return kMSubprogram;
+    case 290: return kMRigidTap;  // Fanuc M29: rigid tapping
+    case 700: case 710: case 720: case 730: return kMState;  // LinuxCNC M70..M73: save, invalidate, restore, autorestore
     default: return kMUnsupported;
   }
 }
@@ -152,6 +155,7 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
   // What the line states itself (not what it inherits), for a writer that says it again.
   b.frame.selects_work_offset = c.has(kGCoordSystem);
   b.frame.sets_tool_length = c.has(kGToolLength);
+  if (!save_restore_modes(c, ns)) return false;
   if (!check_block_number() || !apply_feed_speed_tool(c, ns, b) || !apply_tool_length(c, ns)) return false;
   if (!apply_modes(c, ns, b) || !apply_cutter_comp(c, ns) || !read_fanuc_call(c)) return false;
   const bool arc_mode = !c.g4 && !c.g275 && c.non_modal == 0 && ns.cycle == 0 &&
@@ -174,6 +178,7 @@ bool Parser::Impl::resolve(ResolvedBlock& b, ModalState& ns) {
     b.target = target;
     return slot(sc, b, ns);
   }
+  if (c.g331) return rigid_tap(b, ns, target, mask);
   if (c.non_modal != 0) return non_modal(c, b, ns, mask);
   if (ns.cycle != 0 && mask != 0) return cycle(c, b, ns, mask);
   return move(c, b, ns, target, mask, vector_words, vector);
@@ -203,6 +208,7 @@ GCPIPE_STEP bool Parser::Impl::sort_g_codes(BlockCodes& c) {
                                     code_text('G', code) + (action && c.non_modal != 0 ? " in one block: keep one" : " appears twice in one block"));
       c.g4 = c.g4 || code == 40;
       c.g275 = c.g275 || code == 2750;
+      c.g331 = c.g331 || code == 331;
       if (action) {
         c.non_modal = code;
         c.non_modal_col = s.g[i].col;
@@ -228,6 +234,8 @@ GCPIPE_STEP bool Parser::Impl::sort_g_codes(BlockCodes& c) {
     c.motion_col = c.group_col[kGCycleCancel];
   }
   if (c.g4 && c.g275) return fail(s.g[0].col, "G4 and G275 in one block: keep one");
+  if (c.g331 && (c.g4 || c.g275 || c.non_modal != 0 || c.motion_code >= 0))
+    return fail(s.g[0].col, "G33.1 (rigid tapping) is a move of its own: keep no other motion, dwell or G10/G28/G53/G92 beside it");
   if ((c.g4 || c.g275) && c.non_modal != 0)
     return fail(c.non_modal_col, code_text('G', c.non_modal) + " and " + (c.g4 ? "G4" : "G275") + " in one block: keep one");
   if (c.g275 && c.motion_code >= 0)
@@ -244,7 +252,9 @@ GCPIPE_STEP bool Parser::Impl::sort_m_codes(BlockCodes& c) {
   for (int i = 0; i < s.nm; ++i) {
     const int code = s.m[i].code;
     const int grp = m_group(code);
-    if (grp == kMUnsupported || (grp == kMSubprogram && opt.dialect != Dialect::kFanuc))
+    if (grp == kMUnsupported || (grp == kMSubprogram && opt.dialect != Dialect::kFanuc) ||
+        (code == 610 && opt.dialect != Dialect::kLinuxCnc) || (code == 290 && opt.dialect != Dialect::kFanuc) ||
+        (grp == kMState && opt.dialect != Dialect::kLinuxCnc))
       return fail(s.m[i].col, unsupported_m(code));
     if (grp == kMCoolant) {
       bool& f = code == 70 ? c.mist : code == 80 ? c.flood : c.coolant_off;
@@ -349,7 +359,8 @@ GCPIPE_STEP bool Parser::Impl::apply_feed_speed_tool(const BlockCodes& c, ModalS
     if (t != 0 && !machine.tools.empty() && machine.tools.count(t) == 0) warn_unknown_tool(t, w.col);
     ns.tool = t;
   }
-  b.tool_change = c.m_col[kMToolChange] != 0;
+  if (c.m_code[kMToolChange] == 610 && !set_tool_number(c, ns)) return false;
+  b.tool_change = c.m_col[kMToolChange] != 0 && c.m_code[kMToolChange] == 60;
   if (b.tool_change) ns.tool_in_spindle = ns.tool;
   if (c.m_col[kMSpindle]) {
     const int m = c.m_code[kMSpindle];
@@ -461,7 +472,8 @@ GCPIPE_STEP bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, 
     if (c.group_code[kGPathMode] == 640 && sc.has('P')) {
       const Word& p = sc.w('P');
       const double mm = p.value * (ns.units == Units::kInch ? kInch : 1.0);
-      if (p.value < 0 || mm > 1) return fail(p.col, "G64 P" + show(p.value) + " is not a path tolerance of 0 to 1 mm");
+      // LinuxCNC takes any P; one inch bounds it far beyond any tolerance a program means.
+      if (p.value < 0 || mm > kInch) return fail(p.col, "G64 P" + show(p.value) + " is not a path tolerance of 0 to 25.4 mm");
       ns.path_tolerance = mm;  // P0: none (LinuxCNC: best speed)
     }
   }
@@ -474,6 +486,8 @@ GCPIPE_STEP bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, 
   if (c.has(kGArcDistance)) ns.arc_incremental = c.group_code[kGArcDistance] == 911;
   if (c.has(kGCycleReturn)) ns.cycle_to_r = c.group_code[kGCycleReturn] == 990;
   const bool cancel = c.has(kGCycleCancel) && c.group_code[kGCycleCancel] == 800;
+  if (cancel || (c.motion_code >= 0 && !is_cycle(c.motion_code))) ns.rigid_tap = false;  // the 0i-MF's end of rigid mode
+  if (c.m_col[kMRigidTap]) ns.rigid_tap = true;
   if (cancel) {
     if (!c.has(kGMotion)) ns.motion = motion_after_g80(ns);  // before the cycle is forgotten
     ns.cycle = 0;
@@ -503,6 +517,72 @@ GCPIPE_STEP bool Parser::Impl::apply_modes(const BlockCodes& c, ModalState& ns, 
   return true;
 }
 
+// LinuxCNC's M61 Q: the tool in the spindle is Q, nothing moves (its manual: "set current tool");
+// the selected tool stays. Like T, a tool not in the table is a warning until its geometry is used
+// (rs274 rejects the line: its table is the control's, the machine file's need not be).
+// LinuxCNC's M70 (save the modal state), M71 (invalidate it), M72 (restore it) and M73 (save it
+// for the subroutine call to restore when it returns), before the line's own modal words.
+bool Parser::Impl::save_restore_modes(const BlockCodes& c, ModalState& ns) {
+  if (!c.m_col[kMState]) return true;
+  const int code = c.m_code[kMState];
+  const SavedModes now{ns.units, ns.incremental, ns.arc_incremental, ns.plane, ns.feed_mode, ns.per_revolution,
+                       ns.feed, ns.feed_per_rev, ns.spindle_speed, ns.path_tolerance, ns.spindle, ns.coolant,
+                       ns.path_mode, ns.cycle_to_r, ns.work_offset};
+  if (code == 700) saved_modes = now;
+  if (code == 710) saved_modes.reset();
+  if (code == 730) {
+    if (frames.size() < 2) return fail(c.m_col[kMState], "M73 outside a subroutine: it saves the state for the call to restore on return");
+    frames.back().autorestore = now;
+  }
+  if (code == 720) {
+    if (!saved_modes) return fail(c.m_col[kMState], "M72 without a state saved by M70 (or after M71 invalidated it)");
+    restore_modes(*saved_modes, ns);
+  }
+  return true;
+}
+
+void Parser::Impl::restore_modes(const SavedModes& m, ModalState& ns) {
+  ns.units = m.units;
+  ns.incremental = m.incremental;
+  ns.arc_incremental = m.arc_incremental;
+  ns.plane = m.plane;
+  ns.feed_mode = m.feed_mode;
+  ns.per_revolution = m.per_revolution;
+  ns.feed = m.feed;
+  ns.feed_per_rev = m.feed_per_rev;
+  ns.spindle_speed = m.spindle_speed;
+  ns.path_tolerance = m.path_tolerance;
+  ns.spindle = m.spindle;
+  ns.coolant = m.coolant;
+  ns.path_mode = m.path_mode;
+  ns.cycle_to_r = m.cycle_to_r;
+  if (ns.work_offset != m.work_offset) {
+    ns.work_offset = m.work_offset;
+    ns.work_origin = machine.work_offsets[static_cast<std::size_t>(ns.work_offset - 54)];
+    update_origin(ns);
+  }
+}
+
+// The line's warning (one a line: the first is kept), said before its blocks if the line is accepted.
+void Parser::Impl::note_warning(std::uint32_t col, std::string message) {
+  if (!warning.empty()) return;
+  warning = std::move(message);
+  warning_col = col;
+  warning_tool = 0;  // no tool to mark as warned about
+}
+
+bool Parser::Impl::set_tool_number(const BlockCodes& c, ModalState& ns) {
+  const std::uint32_t col = c.m_col[kMToolChange];
+  if (!sc.has('Q')) return fail(col, "M61 needs Q: the number of the tool in the spindle");
+  const Word& q = sc.w('Q');
+  if (q.value < 0 || q.value > 9999 || q.value != std::floor(q.value))
+    return fail(q.col, "M61 Q" + show(q.value) + ": Q is a tool number 0..9999");
+  const int t = static_cast<int>(q.value);
+  if (t != 0 && !machine.tools.empty() && machine.tools.count(t) == 0) warn_unknown_tool(t, q.col);
+  ns.tool_in_spindle = t;
+  return true;
+}
+
 // Step 5b: G40 / G41 / G42 / G41.1 / G42.1 (geometry in cutter.cpp), and what LinuxCNC does not
 // allow while compensation is on. M2/M30 end compensation, as in LinuxCNC.
 GCPIPE_STEP bool Parser::Impl::apply_cutter_comp(const BlockCodes& c, ModalState& ns) {
@@ -514,12 +594,20 @@ GCPIPE_STEP bool Parser::Impl::apply_cutter_comp(const BlockCodes& c, ModalState
     } else {
       if (st.comp_side != 0)
         return fail(col, code_text('G', code) + ": cutter radius compensation is already on: program G40 first");
-      if (ns.plane != Plane::kXY)
-        return fail(col, code_text('G', code) + " outside the XY plane: gcpipe compensates the cutter radius in G17 only");
+      // LinuxCNC compensates in XY and XZ (rs274: "Cutter radius compensation allowed only in XY,
+      // XZ planes"); the Fanuc dialect here in G17 only.
+      if (opt.dialect == Dialect::kLinuxCnc && ns.plane == Plane::kYZ)
+        return fail(col, code_text('G', code) + " in the YZ plane (G19): LinuxCNC allows cutter radius compensation only in the XY and XZ planes");
+      if (opt.dialect == Dialect::kFanuc && ns.plane != Plane::kXY)
+        return fail(col, code_text('G', code) + " outside the XY plane: gcpipe compensates the cutter radius in G17 only (Fanuc dialect)");
       if (ns.tcp || ns.tool_vector_mode)
         return fail(col, code_text('G', code) + " with tool centre point control (G43.4/G43.5/M428) on: not supported");
-      if (!comp_radius(c, ns, ns.comp_radius)) return false;
-      ns.comp_side = code == 410 || code == 411 ? 1 : -1;
+      double radius = 0;
+      if (!comp_radius(c, ns, radius)) return false;
+      // LinuxCNC's G41.1/G42.1 with a negative diameter compensate on the other side (rs274:
+      // G42.1 D-1 offsets to the left), and with D0 follow the programmed path.
+      ns.comp_side = (code == 410 || code == 411 ? 1 : -1) * (radius < 0 ? -1 : 1);
+      ns.comp_radius = std::fabs(radius);
     }
   }
   if ((st.comp_side != 0 || ns.comp_side != 0) && !check_under_comp(c, ns)) return false;
@@ -536,9 +624,7 @@ bool Parser::Impl::comp_radius(const BlockCodes& c, const ModalState& ns, double
   const std::string g = code_text('G', code);
   if (code == 411 || code == 421) {
     if (!sc.has('D')) return fail(col, g + " needs D: the tool diameter");
-    const double d = linear_value(sc.w('D'), ns.units);
-    if (d <= 0) return fail(sc.w('D').col, g + " D" + show(sc.w('D').value) + ": the tool diameter must be positive");
-    radius = d / 2;
+    radius = linear_value(sc.w('D'), ns.units) / 2;  // signed: see apply_cutter_comp
     return true;
   }
   int tool = ns.tool_in_spindle;
@@ -565,7 +651,7 @@ bool Parser::Impl::comp_radius(const BlockCodes& c, const ModalState& ns, double
 bool Parser::Impl::check_under_comp(const BlockCodes& c, const ModalState& ns) {
   const char* why = nullptr;
   std::uint32_t col = 1;
-  if (c.has(kGPlane) && c.group_code[kGPlane] != 170) why = "a plane change", col = c.group_col[kGPlane];
+  if (c.has(kGPlane) && c.group_code[kGPlane] != 10 * static_cast<int>(st.plane)) why = "a plane change", col = c.group_col[kGPlane];
   else if (ns.cycle != 0) why = "a canned cycle", col = c.motion_col ? c.motion_col : 1;
   else if (c.non_modal == 280 || c.non_modal == 300) why = "G28/G30", col = c.non_modal_col;
   else if (c.non_modal == 530) why = "G53", col = c.non_modal_col;
@@ -597,9 +683,14 @@ GCPIPE_STEP bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalSt
   // R of G10 is a tool radius (LinuxCNC L1/L10) or an offset value (Fanuc L10..L13); on work
   // offsets (L2/L20) it would rotate the coordinate system, which is not supported.
   const double g10_l = c.non_modal == 100 && s.has('L') ? s.w('L').value : 0;
-  const bool g10_tool = opt.dialect == Dialect::kFanuc ? g10_l >= 10 && g10_l <= 13 : g10_l == 1 || g10_l == 10;
-  if (c.non_modal == 100 && s.has('R') && !g10_tool)
-    return fail(s.w('R').col, "G10 with R: a rotated coordinate system (LinuxCNC) is not supported");
+  const bool g10_tool = opt.dialect == Dialect::kFanuc ? g10_l >= 10 && g10_l <= 13 : g10_l == 1 || g10_l == 10 || g10_l == 11;
+  // R0 on a LinuxCNC G10 L2 rotates by nothing: CAM and LinuxCNC's own tests write it.
+  const bool g10_no_rotation = opt.dialect == Dialect::kLinuxCnc && g10_l == 2 && s.has('R') && s.w('R').value == 0;
+  if (c.non_modal == 100 && s.has('R') && opt.dialect == Dialect::kLinuxCnc && g10_l == 20)
+    return fail(s.w('R').col, "R is not allowed in G10 L20 (LinuxCNC: it sets no rotation)");
+  if (c.non_modal == 100 && s.has('R') && !g10_tool && !g10_no_rotation)
+    return fail(s.w('R').col, "G10 with R" + show(s.w('R').value) +
+                                  ": a rotated coordinate system (LinuxCNC) is not supported (R0, no rotation, is)");
   const int look = c.has(kGLookAhead) ? c.group_code[kGLookAhead] : -1;
   const bool path = c.has(kGPathMode) && c.group_code[kGPathMode] == 640;
   for (char L : {'D', 'W', 'Q', 'K', 'I', 'J', 'R', 'P', 'L'}) {
@@ -609,17 +700,19 @@ GCPIPE_STEP bool Parser::Impl::check_word_use(const BlockCodes& c, const ModalSt
     const bool arc_word = L == 'I' || L == 'J' || L == 'K' || L == 'R' || L == 'P';
     const bool cycle_word = L == 'R' || L == 'Q' || L == 'P' || L == 'L' ||
                             (L == 'K' && opt.dialect == Dialect::kFanuc);  // Fanuc repeats: K
-    const bool g10_word = c.non_modal == 100 && (L == 'L' || L == 'P' || (L == 'R' && g10_tool));
+    const bool g10_word = c.non_modal == 100 && (L == 'L' || L == 'P' || (L == 'R' && (g10_tool || g10_no_rotation)));
     const bool m98_word = c.m_code[kMSubprogram] == 980 && (L == 'P' || L == 'L');
+    const bool m61_word = c.m_code[kMToolChange] == 610 && L == 'Q';
+    const bool g331_word = c.g331 && L == 'K';
     const bool look_word = (look == 50 || look == 80) ? L == 'P' : look == 51 ? (L == 'Q' || L == 'R') : false;
     const bool comp_word = L == 'D' && c.has(kGCutterComp) && c.group_code[kGCutterComp] != 400;
     if ((c.g275 && slot_word) || comp_word || (arc_mode && arc_word) || (L == 'P' && c.g4) || (path && (L == 'P' || L == 'Q')) ||
-        (cycle_block && cycle_word) || g10_word || m98_word || look_word)
+        (cycle_block && cycle_word) || g10_word || m98_word || m61_word || g331_word || look_word)
       continue;
     std::string where = L == 'L' ? "canned cycles (repeats) and G10"
                         : L == 'D' ? "G41/G42 (tool number), G41.1/G42.1 (diameter) and the G275 slot cycle"
                         : L == 'W' ? "the G275 slot cycle"
-                        : L == 'Q' ? "G73/G83 (peck), G64 and G275"
+                        : L == 'Q' ? (opt.dialect == Dialect::kLinuxCnc ? "G73/G83 (peck), G64, G275 and M61" : "G73/G83 (peck), G64 and G275")
                         : L == 'P' ? "G4 (dwell), G2/G3 (turns), canned cycles, G64 or G275"
                                    : "G2/G3 arcs, canned cycles (R) and G275 (K, R)";
     return fail(s.w(L).col, std::string("word ") + L + show(s.w(L).value) + " has no meaning here: it is used by " + where);

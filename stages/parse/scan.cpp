@@ -387,15 +387,84 @@ bool Parser::Impl::scan_polar(std::string_view s, std::size_t& p, std::uint32_t 
 }
 
 // LinuxCNC's read-only named parameters for the position (#<_x> ...), in program units and
-// coordinates, as real subroutines read them (helix_ac.ngc: `g0 x[#<_x> - #<r>]`).
+// coordinates, as real subroutines read them (helix_ac.ngc: `g0 x[#<_x> - #<r>]`), and #5420..
+// #5428, the same position as numbered parameters (B U V W: 0, the machine has no such axes).
 void Parser::Impl::refresh_system_parameters() {
   static const char* const names[kNumAxes] = {"_x", "_y", "_z", "_a", "_c"};
+  static const int linuxcnc_numbers[kNumAxes] = {5420, 5421, 5422, 5423, 5425};
   for (int a = 0; a < kNumAxes; ++a) {
     double v = st.position[a] - st.origin[a];
     if (a < kA && st.units == Units::kInch) v /= kInch;
     params.set_named(names[a], v);
     if (opt.dialect == Dialect::kFanuc) params.set_numbered(5001 + a, v);  // Macro B #5001..#5005
+    else params.set_numbered(linuxcnc_numbers[a], v);
   }
+  if (opt.dialect == Dialect::kLinuxCnc) {
+    // #5600/#5601: the tool changer's fault and its reason, which the control sets; a program's
+    // assignment does not stay (rs274 reads 0 after `#5600 = 3`).
+    params.set_numbered(5600, 0);
+    params.set_numbered(5601, 0);
+    refresh_linuxcnc_modes();
+  }
+}
+
+namespace {
+
+// LinuxCNC's code for a motion mode in #<_motion_mode>: the G number times ten, 800 for G80 (its
+// state before any motion), 810... for a canned cycle in force.
+double motion_mode_code(const parse_detail::ModalState& s) {
+  if (s.cycle != 0) return s.cycle;
+  switch (s.motion) {
+    case Motion::kRapid: return 0;
+    case Motion::kLinear: return 10;
+    case Motion::kArcCW: return 20;
+    case Motion::kArcCCW: return 30;
+    default: return 800;
+  }
+}
+
+// #<_coord_system>: 540 ... 590, then 591, 592, 593 for G59.1 ... G59.3 (work_offset 591...).
+double coord_system_code(std::int32_t work_offset) { return work_offset < 100 ? 10.0 * work_offset : work_offset; }
+
+}  // namespace
+
+// LinuxCNC's predefined named parameters of the modal state ("Predefined Named Parameters" in its
+// G-code overview), each checked against rs274 (tests/rs274_diff_test.cpp, predefined_parameters):
+// booleans read 1 or 0; #<_task> is 1, as in the running control (rs274 alone reads 0: programs
+// test it to skip work in a preview, and gcpipe follows the machine).
+void Parser::Impl::refresh_linuxcnc_modes() {
+  const auto flag = [this](const char* name, bool on) { params.set_named(name, on ? 1.0 : 0.0); };
+  params.set_named("_motion_mode", motion_mode_code(st));
+  params.set_named("_plane", 10.0 * static_cast<int>(st.plane));
+  // 410 left, 420 right, 400 off; G41.1/G42.1 read as G41/G42, a negative diameter as the other side (rs274).
+  params.set_named("_ccomp", st.comp_side == 0 ? 400 : st.comp_side > 0 ? 410 : 420);
+  flag("_metric", st.units == Units::kMillimetre);
+  flag("_imperial", st.units == Units::kInch);
+  flag("_absolute", !st.incremental);
+  flag("_incremental", st.incremental);
+  flag("_inverse_time", st.feed_mode == FeedMode::kInverseTime);
+  flag("_units_per_minute", st.feed_mode == FeedMode::kUnitsPerMinute && !st.per_revolution);
+  flag("_units_per_rev", st.per_revolution);
+  params.set_named("_coord_system", coord_system_code(st.work_offset));
+  flag("_tool_offset", st.tlo_active);
+  flag("_retract_r_plane", st.cycle_to_r);
+  flag("_retract_old_z", !st.cycle_to_r);
+  flag("_spindle_rpm_mode", true);   // G96 (constant surface speed) is not accepted
+  flag("_spindle_css_mode", false);
+  flag("_ijk_absolute_mode", !st.arc_incremental);
+  flag("_spindle_on", st.spindle != Spindle::kOff);
+  flag("_spindle_cw", st.spindle == Spindle::kCW);
+  flag("_mist", (st.coolant & kCoolantMist) != 0);
+  flag("_flood", (st.coolant & kCoolantFlood) != 0);
+  params.set_named("_rpm", st.spindle_speed);
+  // F in program units: per minute in G94 (inch/min in G20), per revolution in G95.
+  params.set_named("_feed", st.per_revolution ? st.feed_per_rev / (st.units == Units::kInch ? kInch : 1.0)
+                            : st.feed_mode == FeedMode::kInverseTime ? st.feed
+                                                                     : st.feed / (st.units == Units::kInch ? kInch : 1.0));
+  params.set_named("_current_tool", st.tool_in_spindle);
+  params.set_named("_selected_tool", st.tool);
+  params.set_named("_call_level", static_cast<double>(frames.size() - 1));
+  params.set_named("_task", 1.0);
 }
 
 }  // namespace gcpipe

@@ -379,6 +379,13 @@ class Emitter {
   std::size_t first_ = 0;
 };
 
+// Phase step of the G1 chords along the loops: chord error <= h^2/8 max|P''| (linear
+// interpolation of a vector function); |P''| <= R + |a''| and |a''| <= 1.5 V / 2pi < V.
+double chord_step(const SlotGeometry& g, double tol) { return std::sqrt(8.0 * tol / (g.loop_radius + g.speed)); }
+
+// Number of equal chords LoopWriter::piece cuts the phase span [a, b] into.
+int chord_count(double a, double b, double dphi) { return std::max(1, int(std::ceil((b - a) / dphi))); }
+
 struct Circle {
   double cx, cy, rho;
   bool ok;
@@ -398,11 +405,7 @@ Circle circumcircle(double ax, double ay, double bx, double by, double cx, doubl
 class LoopWriter {
  public:
   LoopWriter(const SlotGeometry& g, Emitter& em, double tol, bool arcs)
-      : g_(g), em_(em), tol_(tol), arcs_(arcs) {
-    // Chord error <= h^2/8 max|P''| (linear interpolation of a vector function); |P''| <=
-    // R + |a''| and |a''| <= 1.5 V / 2pi < V.
-    dphi_ = std::sqrt(8.0 * tol / (g.loop_radius + g.speed));
-  }
+      : g_(g), em_(em), tol_(tol), arcs_(arcs), dphi_(chord_step(g, tol)) {}
 
   void piece(double a, double b, double z, double feed, TrochoidPart part, bool pure_circle) {
     if (arcs_ && pure_circle) {
@@ -417,7 +420,7 @@ class LoopWriter {
       fit(a, b, z, feed, part, 0);
       return;
     }
-    const int n = std::max(1, int(std::ceil((b - a) / dphi_)));
+    const int n = chord_count(a, b, dphi_);
     for (int k = 1; k <= n; ++k) {
       double x, y;
       g_.point(k == n ? b : a + (b - a) * k / n, x, y);
@@ -617,29 +620,89 @@ void write_entry(Emitter& em, const SlotGeometry& g, const TrochoidSlot& s, Troc
   }
 }
 
-// The loops of one pass, piece by piece between the break points: the start circle at the entry
-// feed, the air stretches at the air feed, the rest at the programmed feed.
+// The feeds of a cycle's moves [mm/min]: programmed, entry and air (TrochoidOptions).
+struct CycleFeeds {
+  double feed, entry, air;
+};
+
+CycleFeeds cycle_feeds(const ResolvedBlock& in, const TrochoidOptions& o) {
+  return {in.feed, in.feed * o.entry_feed_factor, o.air_feed > 0 ? o.air_feed : in.feed * o.air_feed_factor};
+}
+
+// The part of the loops a piece between two break points belongs to, and its feed: the start
+// circle at the entry feed, the air stretches at the air feed, the rest at the programmed feed.
+// One rule for the expansion and for its time estimate, so that the two cannot disagree.
+std::pair<TrochoidPart, double> piece_part(const SlotGeometry& g, const std::vector<std::pair<double, double>>& air,
+                                           double mid, const CycleFeeds& f) {
+  std::pair<TrochoidPart, double> p{TrochoidPart::kLoops, f.feed};
+  if (mid < g.phi_accel) p = {TrochoidPart::kStartCircle, f.entry};  // finishes the entry: cuts the helix's last wedge or the plunge's ring
+  else if (mid > g.phi_end_circle) p.first = TrochoidPart::kEndCircle;
+  for (auto [lo, hi] : air)
+    if (mid > lo && mid < hi) p = {TrochoidPart::kAir, f.air};
+  return p;
+}
+
+// The loops of one pass, piece by piece between the break points.
 void write_loops(LoopWriter& lw, const SlotGeometry& g, const std::vector<double>& cuts,
-                 const std::vector<std::pair<double, double>>& air, double z, double feed, double entry_feed,
-                 double air_feed) {
+                 const std::vector<std::pair<double, double>>& air, double z, const CycleFeeds& feeds) {
   for (std::size_t i = 0; i + 1 < cuts.size(); ++i) {
     const double a = cuts[i], b = cuts[i + 1], mid = 0.5 * (a + b);
-    TrochoidPart part = TrochoidPart::kLoops;
-    double f = feed;
-    if (mid < g.phi_accel) {
-      part = TrochoidPart::kStartCircle;
-      f = entry_feed;  // finishes the entry: cuts the helix's last wedge or the plunge's ring
-    } else if (mid > g.phi_end_circle) {
-      part = TrochoidPart::kEndCircle;
-    }
-    for (auto [lo, hi] : air)
-      if (mid > lo && mid < hi) {
-        part = TrochoidPart::kAir;
-        f = air_feed;
-      }
+    const auto [part, f] = piece_part(g, air, mid, feeds);
     const bool pure = mid < g.phi_accel || mid > g.phi_end_circle;
     lw.piece(a, b, z, f, part, pure);
   }
+}
+
+// Length of the loop path from phase a to b along the chords LoopWriter::piece writes as G1 (an
+// arc fitted instead is at least as long as the chord it replaces, and so is the true curve).
+double chord_length(const SlotGeometry& g, double a, double b, double dphi) {
+  const int n = chord_count(a, b, dphi);
+  double len = 0, px, py;
+  g.point(a, px, py);
+  for (int k = 1; k <= n; ++k) {
+    double x, y;
+    g.point(k == n ? b : a + (b - a) * k / n, x, y);
+    len += std::hypot(x - px, y - py);
+    px = x;
+    py = y;
+  }
+  return len;
+}
+
+}  // namespace
+
+namespace {
+
+// Emitter::circle writes a circle of radius rho as chords of at most theta = sqrt(8 tol / rho);
+// a chord is 2 rho sin(theta/2) = rho theta (1 - theta^2/24 + ...) >= (1 - tol / (3 rho)) of its arc.
+double chord_factor(double rho, double tol) { return 1.0 - tol / (3.0 * rho); }
+
+// Length of write_entry's path from z_top down to z [mm], in closed form: the lead-in half circle
+// has the radius R/2 (its ends S and p0 are R apart, p0 on the wall at phase pi/2); the helix's
+// turns are circles of radius R, each dropping (z_top - z) / turns; the ramp drops at the entry
+// angle a, so its zig-zag is (z_top - z) / sin(a) long and its way back to S is left out. Circles
+// count as their chords (chord_factor), so the length is never more than the expansion's.
+double entry_length(const SlotGeometry& g, TrochoidEntry entry, double z_top, double z, double tan_a, double tol) {
+  const double R = g.loop_radius, lead_in = 0.5 * kPi * R * chord_factor(0.5 * R, tol), drop = z_top - z;
+  switch (entry) {
+    case TrochoidEntry::kHelix: {
+      const int turns = std::max(1, int(std::ceil(drop / (kTwoPi * R * tan_a) - 1e-9)));
+      return lead_in + turns * std::hypot(kTwoPi * R, drop / turns) * chord_factor(R, tol);
+    }
+    case TrochoidEntry::kRamp: return lead_in + drop / std::sin(std::atan(tan_a));
+    case TrochoidEntry::kPlunge: return lead_in + drop;
+  }
+  return lead_in;
+}
+
+// The height each pass's entry starts from, as expand() chooses it.
+double pass_top(const TrochoidSlot& s, const PassPlan& pp, int pass, double approach_clearance) {
+  if (pass == 1) return s.start[2];
+  return std::min(s.clearance, s.start[2] - (pass - 1) * pp.dz + approach_clearance);
+}
+
+double pass_floor(const TrochoidSlot& s, const PassPlan& pp, int pass) {
+  return pass == pp.passes ? s.bottom : s.start[2] - pass * pp.dz;
 }
 
 }  // namespace
@@ -659,9 +722,8 @@ TrochoidExpander::Status TrochoidExpander::expand(const ResolvedBlock& in,
   const double R = g.loop_radius;
   const SteadyEngagement se = cached_steady(R, g.speed * kTwoPi, g.tool_radius);
   const PassPlan pp = plan_passes(s);
-  const double feed = in.feed;
-  const double entry_feed = feed * opt_.entry_feed_factor;
-  const double air_feed = opt_.air_feed > 0 ? opt_.air_feed : feed * opt_.air_feed_factor;
+  const CycleFeeds feeds = cycle_feeds(in, opt_);
+  const double feed = feeds.feed, entry_feed = feeds.entry;
   const double tan_a = std::tan(opt_.entry_angle_deg * kPi / 180.0);
 
   std::vector<std::pair<double, double>> air;
@@ -674,16 +736,14 @@ TrochoidExpander::Status TrochoidExpander::expand(const ResolvedBlock& in,
   g.point(g.phase0, p0x, p0y);
   const double p0[2] = {p0x, p0y};
   for (int pass = 1; pass <= pp.passes; ++pass) {
-    const double z = pass == pp.passes ? s.bottom : s.start[2] - pass * pp.dz;
-    double z_top = s.start[2];
+    const double z = pass_floor(s, pp, pass), z_top = pass_top(s, pp, pass, opt_.approach_clearance);
     if (pass > 1) {
       em.rapid(em.pos()[kX], em.pos()[kY], s.clearance);
       em.rapid(sx, sy, s.clearance);
-      z_top = std::min(s.clearance, s.start[2] - (pass - 1) * pp.dz + opt_.approach_clearance);
       em.rapid(sx, sy, z_top);
     }
     write_entry(em, g, s, opt_.entry, z_top, z, entry_feed, tan_a, p0);
-    write_loops(lw, g, cuts, air, z, feed, entry_feed, air_feed);
+    write_loops(lw, g, cuts, air, z, feeds);
     // Lead-out: half circle of radius R/2 from the last loop point to E, tangent to the loop.
     const double qx = em.pos()[kX], qy = em.pos()[kY];
     const double end_xy[2] = {g.ex, g.ey};
@@ -696,6 +756,40 @@ TrochoidExpander::Status TrochoidExpander::expand(const ResolvedBlock& in,
   em.finish(fmt("G275 trochoidal slot W%g D%g K%g: R=%g mm, %d pass%s", s.width, s.tool_diameter,
                 s.step, R, pp.passes, pp.passes > 1 ? "es" : ""));
   return {Status::Code::kExpanded, {}};
+}
+
+
+namespace {
+
+// Minutes one pass of loops takes at their feeds, along the G1 chords expand() writes.
+double loop_minutes(const SlotGeometry& g, const CycleFeeds& feeds, const TrochoidOptions& o) {
+  const SteadyEngagement se = cached_steady(g.loop_radius, g.speed * kTwoPi, g.tool_radius);
+  std::vector<std::pair<double, double>> air;
+  const std::vector<double> cuts = loop_breaks(g, se, o.air_margin_deg * kPi / 180.0, air);
+  const double dphi = chord_step(g, o.chord_tolerance);
+  double minutes = 0;
+  for (std::size_t i = 0; i + 1 < cuts.size(); ++i)
+    minutes += chord_length(g, cuts[i], cuts[i + 1], dphi) / piece_part(g, air, 0.5 * (cuts[i] + cuts[i + 1]), feeds).second;
+  return minutes;
+}
+
+}  // namespace
+
+double TrochoidExpander::feed_time_lower_bound(const ResolvedBlock& in) const {
+  if (in.motion != Motion::kTrochoidSlot || !validate(in).empty()) return 0.0;
+  const SlotGeometry g = make_slot_geometry(in.slot, in.spindle == Spindle::kCCW);
+  const CycleFeeds feeds = cycle_feeds(in, opt_);
+  const double loops = loop_minutes(g, feeds, opt_);  // every pass runs the same loops at its own depth
+  const PassPlan pp = plan_passes(in.slot);
+  const double tan_a = std::tan(opt_.entry_angle_deg * kPi / 180.0), tol = opt_.chord_tolerance;
+  // The last loop point is E + R (cos phi u + sigma sin phi n): R from E, a half circle of radius R/2.
+  const double lead_out = 0.5 * kPi * g.loop_radius * chord_factor(0.5 * g.loop_radius, tol);
+  double minutes = 0;
+  for (int pass = 1; pass <= pp.passes; ++pass) {
+    const double z_top = pass_top(in.slot, pp, pass, opt_.approach_clearance), z = pass_floor(in.slot, pp, pass);
+    minutes += loops + entry_length(g, opt_.entry, z_top, z, tan_a, tol) / feeds.entry + lead_out / feeds.feed;
+  }
+  return 60.0 * minutes;
 }
 
 TrochoidExpander::Status TrochoidExpander::step(const ResolvedBlock& in, const std::string& file,

@@ -148,6 +148,12 @@ class TrochoidExpander {
   /// rest of the program starts where it expects. Nothing is cut.
   void skip(const ResolvedBlock& in, std::vector<ResolvedBlock>& out) const;
 
+  /// A lower bound of the machine time [s] of the cycle's expansion, from its geometry alone (no
+  /// block is made): the loops of every pass at the feeds expand() gives them, measured along
+  /// chords (never longer than the path); entry, lead-out, rapids and acceleration left out. 0
+  /// for a block that is no cycle or that validate() rejects. stages/trochoid/README.md §2.3.
+  double feed_time_lower_bound(const ResolvedBlock& in) const;
+
   /// Checks a cycle's geometry; empty string when it can be machined, else the reason.
   std::string validate(const ResolvedBlock& in) const;
 
