@@ -179,6 +179,10 @@ class RawWriter {
   /// `idle`: no program. `progressed` counts a step of a long computation (every publish and
   /// every sample taken count by themselves).
   void working(std::uint64_t program, const std::string& file);
+  /// The program's end (Stage::finish): a stall only once the stage reported a step.
+  void finishing();
+  /// Its report and figures: never a stall (the heartbeat still tells death and freezing).
+  void reporting();
   void holding();
   void idle();
   void progressed();

@@ -205,10 +205,10 @@ struct SinkReceipt {
 std::string why_lost(Reader<msg::GcodeChunk>& reader, SinkReceipt& r, const SinkOptions& o) {
   const std::string after = " after chunk " + std::to_string(r.next) + " of the program: the rest is lost";
   if (r.id != 0) {
+    if (const std::string trouble = reader.writer_trouble(r.writer); !trouble.empty()) return trouble + after;
     if (reader.matched_writers() == 0 || reader.writer_gone(r.writer))
       return "the writer of " + o.topic + " went away" + after + " (its stage stopped or died)";
-    const std::string trouble = reader.writer_trouble(r.writer);
-    return trouble.empty() ? "" : trouble + after;
+    return "";
   }
   for (const RawReader::LostProgram& lost : reader.programs_lost_upstream()) {
     if (o.program_id != 0 && lost.program_id != o.program_id) continue;

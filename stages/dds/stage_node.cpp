@@ -394,9 +394,10 @@ struct StageNode::Impl {
   void finish_stage(Program& prog, std::uint64_t id, bool upstream_stopped) {
     finished.insert(id);
     const bool complete = prog.error.empty() && !prog.stopped && !upstream_stopped;
+    writer->finishing();
     prog.stage->finish(complete, *prog.out);
-    writer->progressed();
     prog.out->finish_telemetry(info.telemetry);
+    writer->reporting();
     const std::string failure = prog.stage->failure();
     if (prog.error.empty() && !failure.empty()) fail(prog, id, failure);
     if (prog.out->failed && prog.error.empty()) fail(prog, id, "a publish on " + options.output_topic + " failed");
@@ -495,10 +496,13 @@ struct StageNode::Impl {
     bool any = end_programs_lost_before_their_first_sample();
     if (chunk_programs.empty() && intake.empty()) return any;
     const bool none_left = reader->matched_writers() == 0;
+    // The heartbeat's reason first: it names the stage and its pid. (A node that drained a
+    // backlog of its input after the writer died may find the lease run out too by then.)
     auto why_gone = [&](std::uint64_t writer) -> std::string {
+      if (std::string trouble = reader->writer_trouble(writer); !trouble.empty()) return trouble;
       if (none_left || reader->writer_gone(writer))
         return "the writer of " + options.input_topic + " went away mid-program (its stage stopped or died)";
-      return reader->writer_trouble(writer);
+      return "";
     };
     auto gone = [&](std::uint64_t writer) { return !why_gone(writer).empty(); };
     for (auto it = chunk_programs.begin(); it != chunk_programs.end();) {
