@@ -904,6 +904,42 @@ RawReader::~RawReader() {
   if (impl_->reader != nullptr) impl_->owner->subscriber->delete_datareader(impl_->reader);
 }
 
+struct HeartbeatWatcher::Impl {
+  Participant::Impl* owner = nullptr;
+  struct Edge {
+    std::string topic;
+    fdds::DataReader* reader = nullptr;
+    HeartbeatWatch watch;
+  };
+  std::vector<std::unique_ptr<Edge>> edges;
+};
+
+HeartbeatWatcher::HeartbeatWatcher(Participant& participant, const std::vector<std::string>& topics)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->owner = &participant.impl();
+  for (const std::string& topic : topics) {
+    auto edge = std::make_unique<Impl::Edge>();
+    edge->topic = topic;
+    if (fdds::Topic* beats = impl_->owner->heartbeat_topic(topic))
+      edge->reader = impl_->owner->subscriber->create_datareader(beats, heartbeat_reader_qos(), &edge->watch,
+                                                                 fdds::StatusMask::data_available());
+    if (edge->reader != nullptr) impl_->edges.push_back(std::move(edge));
+  }
+}
+
+HeartbeatWatcher::~HeartbeatWatcher() {
+  for (auto& edge : impl_->edges) impl_->owner->subscriber->delete_datareader(edge->reader);
+}
+
+std::vector<RawReader::LostProgram> HeartbeatWatcher::programs_lost() {
+  std::vector<RawReader::LostProgram> all;
+  for (auto& edge : impl_->edges) {
+    auto lost = edge->watch.lost(edge->topic, impl_->owner->options);
+    all.insert(all.end(), lost.begin(), lost.end());
+  }
+  return all;
+}
+
 std::string RawReader::writer_trouble(std::uint64_t writer) const {
   return impl_->watch.trouble_of(writer, topic_, impl_->owner->options);
 }

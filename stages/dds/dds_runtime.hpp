@@ -249,6 +249,24 @@ class RawReader {
   std::string topic_;
 };
 
+/// The heartbeats of several edges, without their data: a sink that knows its program
+/// (`--program-id`) watches every edge on its program's way, so that a stage that dies or stalls
+/// holding the program is named even when it is not the sink's own writer (a trochoid node killed
+/// with the program in hand: the write node after it never saw any of it).
+class HeartbeatWatcher {
+ public:
+  HeartbeatWatcher(Participant& participant, const std::vector<std::string>& topics);
+  ~HeartbeatWatcher();
+  HeartbeatWatcher(const HeartbeatWatcher&) = delete;
+  HeartbeatWatcher& operator=(const HeartbeatWatcher&) = delete;
+  /// RawReader::programs_lost_upstream over every watched edge.
+  std::vector<RawReader::LostProgram> programs_lost();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
 template <class T>
 class Writer : public RawWriter {
  public:

@@ -13,6 +13,7 @@
 #include <fstream>
 #include <iomanip>
 #include <map>
+#include <memory>
 #include <ostream>
 #include <random>
 #include <set>
@@ -23,6 +24,7 @@
 #include "dds_convert.hpp"
 #include "output_dir.hpp"
 #include "run_report.hpp"
+#include "stage.hpp"
 #include "gcpipe/line_reader.hpp"
 
 namespace gcpipe::dds {
@@ -198,12 +200,35 @@ struct SinkReceipt {
   int status = 0;  //!< when !complete: 1 idle, 130 stopped
 };
 
+// The edges a program crosses before it reaches `topic`, from the stage registry (a pipeline file
+// may leave some stages out: their edges are then silent, which costs nothing).
+std::vector<std::string> edges_before(const std::string& topic) {
+  std::vector<std::string> edges{kProgramTopicName};
+  const pipeline::StageInfo* stage = nullptr;
+  for (const pipeline::StageInfo& s : pipeline::registry())
+    if (topic == s.topic) stage = &s;
+  if (stage == nullptr) return edges;  // a renamed topic: the chain before it is not known
+  for (std::string up = stage->upstream; !up.empty(); up = pipeline::find_stage(up).upstream)
+    if (const char* t = pipeline::find_stage(up).topic; *t != '\0') edges.emplace_back(t);
+  return edges;
+}
+
 // Why the program cannot arrive whole any more, "" while it still can. Mid-program: its writer
 // left, or the edge's watchdog says the stage before died, froze or stalls. Before its first
 // chunk: the stage before held a program this sink waits for (a compensate node collects a whole
 // program before it sends any) and died, froze or stalls; `r.id` then becomes that program.
-std::string why_lost(Reader<msg::GcodeChunk>& reader, SinkReceipt& r, const SinkOptions& o) {
+std::string why_lost(Reader<msg::GcodeChunk>& reader, SinkReceipt& r, const SinkOptions& o,
+                     HeartbeatWatcher* way) {
   const std::string after = " after chunk " + std::to_string(r.next) + " of the program: the rest is lost";
+  // Earlier on the program's way (a sink that knows its program): a stage that held it and died.
+  if (way != nullptr) {
+    for (const RawReader::LostProgram& lost : way->programs_lost()) {
+      if (lost.program_id != o.program_id) continue;
+      if (r.id == 0) r.id = lost.program_id;
+      return lost.why + ", holding program " + std::to_string(lost.program_id) + " ('" + lost.file +
+             "'): the program is lost";
+    }
+  }
   if (r.id != 0) {
     if (const std::string trouble = reader.writer_trouble(r.writer); !trouble.empty()) return trouble + after;
     if (reader.matched_writers() == 0 || reader.writer_gone(r.writer))
@@ -224,6 +249,8 @@ std::string why_lost(Reader<msg::GcodeChunk>& reader, SinkReceipt& r, const Sink
 SinkReceipt receive_program(Participant& participant, Reader<msg::GcodeChunk>& reader, const SinkOptions& o,
                             std::ofstream& out, std::ostream& log) {
   SinkReceipt r;
+  std::unique_ptr<HeartbeatWatcher> way;
+  if (o.program_id != 0) way = std::make_unique<HeartbeatWatcher>(participant, edges_before(o.topic));
   ProgramFilter ours("gcpipe sink", o.program_id);
   msg::GcodeChunk& chunk = r.last;
   const double idle_timeout = participant.options().idle_timeout;
@@ -233,7 +260,7 @@ SinkReceipt receive_program(Participant& participant, Reader<msg::GcodeChunk>& r
   std::uint64_t writer = 0;
   for (;;) {
     std::string lost;
-    if (!take_or_idle(reader, chunk, idle_timeout, idle, &source_time, [&] { return why_lost(reader, r, o); }, &lost,
+    if (!take_or_idle(reader, chunk, idle_timeout, idle, &source_time, [&] { return why_lost(reader, r, o, way.get()); }, &lost,
                       &writer)) {
       if (idle)
         log << "gcpipe sink: nothing arrived on " << o.topic << " for " << idle_timeout << " s; giving up"
