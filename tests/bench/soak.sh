@@ -7,7 +7,11 @@
 # may hang. A benchmark, not a test: it prints one line per program and the counts, and exits 1
 # when a program arrived with other bytes than batch's, hung, or failed without naming a stage.
 #
-#   bash tests/bench/soak.sh [GCPIPE] [PROGRAMS] [KILL_PERCENT] [DOMAIN] [SEED]
+#   bash tests/bench/soak.sh [GCPIPE] [PROGRAMS] [KILL_PERCENT] [DOMAIN] [SEED] [SECONDS]
+#
+# SECONDS (default: none) ends the soak after the program running then, and says how many ran.
+# The soak also ends when two feeds in a row find no reader of the program topic: the pipeline
+# no longer matches new participants, and every later program would only wait out its timeouts.
 #
 # The pool: every samples/*.nc (0.3-3 KB; the G275 slots expand to 20,000 blocks) and two
 # seeded synthetic programs of 0.3 and 2 MB (`gcpipe synth`; their simulation leaves the X
@@ -21,6 +25,7 @@ programs="${2:-200}"
 kill_percent="${3:-20}"
 domain="${4:-153}"
 RANDOM="${5:-34}"
+time_limit="${6:-0}"
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 work="$(mktemp -d /tmp/gcpipe_soak.XXXXXX)"
 nodes=(parse trochoid write force compensate)
@@ -89,12 +94,12 @@ named_stage() {
     topic="$(grep -o 'the writer of gcpipe_[a-z]*' "$log" | head -n 1 | awk '{print $4}')"
     [ -n "$topic" ] && s="${stage_of_topic[$topic]:-}"
   fi
-  [ -z "$s" ] && s="$(grep -o -E 'gcpipe node [a-z]+|simulate: |compensate[a-z_.]*' "$log" | head -n 1 | awk '{print $NF}' | tr -d ': ')"
   echo "$s"
 }
 
 declare -A count=([identical]=0 [failed_named]=0 [as_batch_failed]=0 [failed_unnamed]=0 [wrong_bytes]=0 [hung]=0)
-kills=0
+kills=0 deaf=0 ran=0
+start=$SECONDS
 printf '%4s %-28s %-10s %-7s %s\n' "#" program killed result detail | tee "$work/soak.txt"
 for i in $(seq 1 "$programs"); do
   p="${pool[$((RANDOM % ${#pool[@]}))]}"
@@ -102,7 +107,7 @@ for i in $(seq 1 "$programs"); do
   id=$(( (RANDOM << 30) | (RANDOM << 15) | RANDOM | 1 ))
   run="$work/run$i"
   mkdir -p "$run"
-  dds=(--domain "$domain" --idle-timeout 90 --timeout 120 --program-id "$id")
+  dds=(--domain "$domain" --idle-timeout 60 --timeout 60 --program-id "$id")
   "$gcpipe" sink -o "$run/output.nc" "${dds[@]}" > /dev/null 2> "$run/sink_gcode.err" &
   sink_g=$!
   "$gcpipe" sink --in gcpipe_compensated -o "$run/compensated.nc" "${dds[@]}" > /dev/null 2> "$run/sink_comp.err" &
@@ -142,14 +147,29 @@ for i in $(seq 1 "$programs"); do
     [ $r = failed_named ] && detail+="$branch named $(named_stage "$log"); "
     [ $r = failed_unnamed ] || [ $r = wrong_bytes ] || [ $r = hung ] && detail+="$branch: $(tail -n 1 "$log"); "
   done
+  if grep -q "no reader of gcpipe_program within" "$run/feed.err"; then
+    deaf=$((deaf + 1))
+    detail+="feed: $(tail -n 1 "$run/feed.err"); "
+  else
+    deaf=0
+  fi
+  ran=$i
   printf '%4d %-28s %-10s %s %s\n' "$i" "$name" "$victim" "$result" "$detail" | tee -a "$work/soak.txt"
+  if [ $deaf -ge 2 ]; then
+    echo "soak: stopped after program $i: two feeds in a row matched no reader of gcpipe_program" | tee -a "$work/soak.txt"
+    break
+  fi
+  if [ "$time_limit" -gt 0 ] && [ $((SECONDS - start)) -ge "$time_limit" ]; then
+    echo "soak: stopped after program $i: the $time_limit s given are up" | tee -a "$work/soak.txt"
+    break
+  fi
   # The next program only once a killed stage is back (see the header).
   if [ "$victim" != "-" ] && [[ "$victim" != *gone* ]]; then
     for _ in $(seq 600); do [ "$(readies_of "$victim")" -gt "$before" ] && break; sleep 0.1; done
   fi
 done
 
-echo "soak: $programs programs ($((2 * programs)) files), $kills kills -9; files: identical to batch ${count[identical]}," \
+echo "soak: $ran programs ($((2 * ran)) files) of $programs asked, $kills kills -9, $((SECONDS - start)) s; files: identical to batch ${count[identical]}," \
      "failed as batch did ${count[as_batch_failed]}, failed loudly naming the stage ${count[failed_named]}," \
      "failed without naming it ${count[failed_unnamed]}, WRONG BYTES ${count[wrong_bytes]}, hung ${count[hung]}" \
   | tee -a "$work/soak.txt"
