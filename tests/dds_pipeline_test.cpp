@@ -35,6 +35,7 @@ extern char** environ;
 namespace {
 
 namespace fs = std::filesystem;
+using gcpipe_test::clean_dead_shared_memory;
 using gcpipe_test::Process;
 using gcpipe_test::slurp;
 using gcpipe_test::wait_for_log;
@@ -87,7 +88,7 @@ class DdsPipeline : public ::testing::Test {
   void TearDown() override {
     if (any_killed_) {
       // A SIGKILLed participant leaves its shared-memory segments behind.
-      [[maybe_unused]] int rc = std::system("fastdds shm clean > /dev/null 2>&1");
+      clean_dead_shared_memory();
     }
     if (!HasFailure()) fs::remove_all(dir_);
     else std::cerr << "logs kept in " << dir_ << "\n";
@@ -646,8 +647,6 @@ TEST_F(DdsPipeline, ForceNodePlansTheFeedsAsBatchModeDoes) {
 // not begun it: the write node then waited out its 60 s idle timeout, 58 s in one run).
 void DdsPipeline::middle_node_fault(int signal) {
   gcpipe_test::CpuHog hog(2);
-  std::set<std::string> shm_before;  // to remove what the killed node leaves, and only that
-  for (const auto& e : fs::directory_iterator("/dev/shm")) shm_before.insert(e.path().filename().string());
   // 16 MB at 0.5 MB/s: a pace the chain keeps under the hog, so that the write node has no
   // backlog of its input to work through before it can notice (it does, from its history, first).
   const fs::path input = generate_program(dir_, 400000);
@@ -690,15 +689,12 @@ void DdsPipeline::middle_node_fault(int signal) {
   EXPECT_EQ(parse.wait(45), 1) << slurp(parse.log);
   EXPECT_NE(slurp(parse.log).find("a reader went away"), std::string::npos) << slurp(parse.log);
   feed.wait(60);
-  // What the killed node left (its segment, port queues, semaphores): every process of this test
-  // has ended and DDS process tests run one at a time (RESOURCE_LOCK), so a Fast DDS file that
-  // appeared since the start is this test's. Not `fastdds shm clean` (TearDown's, after a
-  // timeout): it acts on every test's files.
-  std::error_code ec;
-  for (const auto& e : fs::directory_iterator("/dev/shm")) {
-    const std::string name = e.path().filename().string();
-    if (shm_before.count(name) == 0 && name.find("fastrtps_") != std::string::npos) fs::remove(e.path(), ec);
-  }
+  // What the killed node left (its segment, port queues, semaphores): `gcpipe dds clean` removes
+  // the Fast DDS files no live process maps. (Removing every file that appeared since the test
+  // began took the port queues of live processes of other pipelines on the host with them, when
+  // other engineers' tests or the soak ran beside it: their nodes then matched no new
+  // participant. `fastdds shm clean` may take a starting participant's port.)
+  clean_dead_shared_memory();
 }
 
 TEST_F(DdsPipeline, KilledMiddleNodeEndsTheProgramDownstreamWithTheReason) { middle_node_fault(SIGKILL); }
