@@ -4,6 +4,7 @@
 // exactly the bytes `gcpipe batch` writes, and exit with batch mode's status.
 #include <gtest/gtest.h>
 
+#include "cpu_hog.hpp"
 #include "dds_test_util.hpp"
 
 #include <nlohmann/json.hpp>
@@ -34,6 +35,7 @@ extern char** environ;
 namespace {
 
 namespace fs = std::filesystem;
+using gcpipe_test::clean_dead_shared_memory;
 using gcpipe_test::Process;
 using gcpipe_test::slurp;
 using gcpipe_test::wait_for_log;
@@ -86,7 +88,7 @@ class DdsPipeline : public ::testing::Test {
   void TearDown() override {
     if (any_killed_) {
       // A SIGKILLed participant leaves its shared-memory segments behind.
-      [[maybe_unused]] int rc = std::system("fastdds shm clean > /dev/null 2>&1");
+      clean_dead_shared_memory();
     }
     if (!HasFailure()) fs::remove_all(dir_);
     else std::cerr << "logs kept in " << dir_ << "\n";
@@ -193,8 +195,20 @@ class DdsPipeline : public ::testing::Test {
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
 
+  // Each process starts once the one before says it is up (its participant, reader and writer
+  // exist), as `gcpipe launch` starts them: started in one instant on a loaded machine, a pair of
+  // them now and then never matched (ShippedSamplesMatchBatchByteForByte once: "no reader of
+  // gcpipe_gcode within 60 s", its sink ready all along). A wait on what a process says, not on
+  // the machine's speed.
+  static void wait_until_up(const Process& node) {
+    EXPECT_TRUE(wait_for_log(node, ": up on domain")) << slurp(node.log);
+  }
+
   PipelineResult run_pipeline(const fs::path& input, const PipelineArgs& extra = {}) {
     const fs::path out = dir_ / "sink.nc";
+    // An earlier program's output must not pass for this one's when this sink writes nothing.
+    fs::remove(out);
+    fs::remove(out.string() + ".part");
     auto with = [](std::vector<std::string> a, const std::vector<std::string>& more) {
       a.insert(a.end(), more.begin(), more.end());
       return a;
@@ -202,10 +216,13 @@ class DdsPipeline : public ::testing::Test {
     Process sink("sink", dds_args({"sink", "-o", out.string()}), dir_);
     wait_until_ready(sink);
     Process write("write", dds_args(with({"node", "write", "--config", kConfig}, extra.write)), dir_);
+    wait_until_up(write);
     auto trochoid = std::make_unique<Process>(
         "trochoid", dds_args(with({"node", "trochoid", "--config", kConfig}, extra.trochoid)), dir_);
+    wait_until_up(*trochoid);
     auto parse = std::make_unique<Process>(
         "parse", dds_args(with({"node", "parse", "--config", kConfig}, extra.parse)), dir_);
+    wait_until_up(*parse);
     Process feed("feed", dds_args(with({"feed", input.string(), "--config", kConfig}, extra.feed)),
                  dir_);
     PipelineResult r;
@@ -246,6 +263,8 @@ class DdsPipeline : public ::testing::Test {
     EXPECT_EQ(pipe.output.size(), batch.output.size());
     EXPECT_TRUE(pipe.output == batch.output) << "sink output differs from batch for " << input;
   }
+
+  void middle_node_fault(int signal);
 
   fs::path dir_;
   std::string domain_;
@@ -618,53 +637,75 @@ TEST_F(DdsPipeline, ForceNodePlansTheFeedsAsBatchModeDoes) {
   EXPECT_NE(planned.find("F"), std::string::npos);
 }
 
-// kill -9 of the middle node while a program flows, with no supervisor: the node after it finds
-// its input's writer gone (the participant's discovery lease, Fast DDS's default 20 s) and ends the program
-// with an end marker that says so; the sink then stops with that reason, non-zero, and leaves no
-// file under the final name. Upstream, the parse node stops with the reason too.
-TEST_F(DdsPipeline, KilledMiddleNodeEndsTheProgramDownstreamWithTheReason) {
-  std::set<std::string> shm_before;  // to remove what the killed node leaves, and only that
-  for (const auto& e : fs::directory_iterator("/dev/shm")) shm_before.insert(e.path().filename().string());
+// The middle node killed (-9) or frozen (SIGSTOP) while a program flows, with no supervisor, on a
+// machine loaded by two busy loops: the node after it hears no heartbeat from it for
+// heartbeat_timeout (4 s) and ends the program with an end marker naming the stage; the sink then
+// stops with that reason, non-zero, and leaves no file under the final name. Upstream, the parse
+// node stops with the reason too (its reader's discovery lease, 8 s). The feed is paced and the
+// fault comes once output reached the sink, so the program is in flight at the fault however fast
+// or slow the machine is (killed 0.7 s after the feed's start, as before, a loaded machine had
+// not begun it: the write node then waited out its 60 s idle timeout, 58 s in one run).
+void DdsPipeline::middle_node_fault(int signal) {
+  gcpipe_test::CpuHog hog(2);
+  // 16 MB at 0.5 MB/s: a pace the chain keeps under the hog, so that the write node has no
+  // backlog of its input to work through before it can notice (it does, from its history, first).
   const fs::path input = generate_program(dir_, 400000);
   const fs::path out = dir_ / "sink.nc";
   Process sink("sink", dds_args({"sink", "-o", out.string()}), dir_);
   wait_until_ready(sink);
   Process write("write", dds_args({"node", "write", "--config", kConfig}), dir_);
+  wait_until_up(write);
   Process trochoid("trochoid", dds_args({"node", "trochoid", "--config", kConfig}), dir_);
+  wait_until_up(trochoid);
   Process parse("parse", dds_args({"node", "parse", "--config", kConfig}), dir_);
   ASSERT_TRUE(wait_for_log(parse, "ready")) << slurp(parse.log);
-  Process feed("feed", dds_args({"feed", input.string(), "--config", kConfig}), dir_);
-  std::this_thread::sleep_for(std::chrono::milliseconds(700));
-  ASSERT_EQ(kill(trochoid.pid, SIGKILL), 0);
+  Process feed("feed", dds_args({"feed", input.string(), "--config", kConfig, "--rate", "500000"}), dir_);
+  const fs::path part = out.string() + ".part";
+  for (int i = 0; i < 3000 && (!fs::exists(part) || fs::file_size(part) == 0); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  ASSERT_GT(fs::file_size(part), 0u) << "nothing reached the sink in 60 s\n" << slurp(write.log) << slurp(feed.log);
+  ASSERT_EQ(kill(trochoid.pid, signal), 0);
   const auto t0 = std::chrono::steady_clock::now();
   EXPECT_EQ(write.wait(45), 1) << slurp(write.log);
   EXPECT_EQ(sink.wait(45), 1) << slurp(sink.log);
   const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  // The 8 s discovery lease of dds_profiles.xml is the bound (issue 11: 10 s; measured 8.2 s).
-  // Checked against 15 s, which a loaded machine keeps and Fast DDS's default lease (20 s) breaks.
-  std::printf("write and sink gave up %.2f s after the kill\n", took);
-  EXPECT_LT(took, 15) << "downstream took too long to give up";
-  EXPECT_NE(slurp(write.log).find("the writer of gcpipe_toolpath went away mid-program"), std::string::npos)
-      << slurp(write.log);
+  // The heartbeat timeout (4 s) sets the bound; issue 34 asks 10 s. In 3 runs of 27 the write
+  // node never received the trochoid node's heartbeats at all, though their
+  // edge worked (Fast DDS 2.9 now and then never matches a pair of endpoints: stages/dds/README.md,
+  // Watchdog), and the discovery lease (8 s) named the dead writer instead: within the bound too.
+  const std::string named = "the trochoid stage (pid " + std::to_string(trochoid.pid) + ", writer of gcpipe_toolpath)";
+  const bool by_heartbeat = slurp(write.log).find(named + " sent no heartbeat") != std::string::npos;
+  const bool by_lease = slurp(write.log).find("the writer of gcpipe_toolpath went away mid-program") != std::string::npos;
+  std::printf("write and sink gave up %.2f s after the %s, told by the %s\n", took, strsignal(signal),
+              by_heartbeat ? "heartbeat (timeout 4 s)" : by_lease ? "discovery lease (8 s)" : "?");
+  EXPECT_LT(took, 10) << "downstream took too long to give up";
+  EXPECT_GT(took, 3.5) << "given up before the heartbeat timeout: not by the watchdog";
+  EXPECT_TRUE(by_heartbeat || by_lease) << slurp(write.log);
+  if (by_heartbeat) EXPECT_NE(slurp(write.log).find("it died or is frozen"), std::string::npos) << slurp(write.log);
   EXPECT_NE(slurp(sink.log).find("INCOMPLETE"), std::string::npos) << slurp(sink.log);
-  EXPECT_NE(slurp(sink.log).find("went away mid-program"), std::string::npos) << slurp(sink.log);
+  EXPECT_NE(slurp(sink.log).find(by_heartbeat ? named : "went away mid-program"), std::string::npos) << slurp(sink.log);
   EXPECT_FALSE(fs::exists(out));
+  if (signal == SIGSTOP) {
+    kill(trochoid.pid, SIGCONT);
+    kill(trochoid.pid, SIGKILL);
+  }
   trochoid.wait(5);
   // Upstream, the parse node finds its reader gone (blocked on its history, or at its next
   // write) and stops with the reason instead of waiting out its write timeout.
   EXPECT_EQ(parse.wait(45), 1) << slurp(parse.log);
-  EXPECT_NE(slurp(parse.log).find("a reader went away (0 of 1 left)"), std::string::npos) << slurp(parse.log);
+  EXPECT_NE(slurp(parse.log).find("a reader went away"), std::string::npos) << slurp(parse.log);
   feed.wait(60);
-  // What the killed node left (its segment, port queues, semaphores): every process of this test
-  // has ended and DDS process tests run one at a time (RESOURCE_LOCK), so a Fast DDS file that
-  // appeared since the start is this test's. Not `fastdds shm clean` (TearDown's, after a
-  // timeout): it acts on every test's files.
-  std::error_code ec;
-  for (const auto& e : fs::directory_iterator("/dev/shm")) {
-    const std::string name = e.path().filename().string();
-    if (shm_before.count(name) == 0 && name.find("fastrtps_") != std::string::npos) fs::remove(e.path(), ec);
-  }
+  // What the killed node left (its segment, port queues, semaphores): `gcpipe dds clean` removes
+  // the Fast DDS files no live process maps. (Removing every file that appeared since the test
+  // began took the port queues of live processes of other pipelines on the host with them, when
+  // other engineers' tests or the soak ran beside it: their nodes then matched no new
+  // participant. `fastdds shm clean` may take a starting participant's port.)
+  clean_dead_shared_memory();
 }
+
+TEST_F(DdsPipeline, KilledMiddleNodeEndsTheProgramDownstreamWithTheReason) { middle_node_fault(SIGKILL); }
+
+TEST_F(DdsPipeline, FrozenMiddleNodeIsNamedWithinTheHeartbeatTimeout) { middle_node_fault(SIGSTOP); }
 
 // One edge, two writers: a second trochoid node on the same domain (as when two pipelines share a
 // domain id) sends the same program on gcpipe_toolpath. The write node and the sink name that

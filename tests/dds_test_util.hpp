@@ -33,6 +33,13 @@ inline std::string slurp(const fs::path& p) {
   return s.str();
 }
 
+// Removes the Fast DDS shared-memory files that no live process maps (`gcpipe dds clean`): what
+// killed processes left. Never `fastdds shm clean`, which acts on every pipeline of the host and
+// may take the port of a participant that is starting (other engineers' tests run beside these).
+inline void clean_dead_shared_memory() {
+  [[maybe_unused]] const int rc = std::system((kExe + " dds clean > /dev/null 2>&1").c_str());
+}
+
 // One child process (gcpipe ARGS, or WRAPPER... gcpipe ARGS such as `ip netns exec NS`) with
 // stdout+stderr in a log file.
 struct Process {
@@ -83,7 +90,7 @@ struct Process {
   ~Process() {
     // Left running by a failed assertion: kill it, and clean the shared memory it leaves.
     if (pid > 0 && wait(0) == -1) {
-      [[maybe_unused]] const int rc = std::system("fastdds shm clean > /dev/null 2>&1");
+      clean_dead_shared_memory();
     }
   }
 };

@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "cli_helpers.hpp"
+#include "cpu_hog.hpp"
 
 namespace {
 
@@ -406,8 +407,8 @@ TEST(Launch, RestartsACrashedStageWhenTheFileSaysSoAndStopsOnSigint) {
 
 // A stage that dies with a program in flight is started again, but does not resume that program
 // (its input's history died with the process, and the feed had already gone): the pipeline says
-// so loudly instead. The program's sink ends INCOMPLETE naming the reason, within the discovery
-// lease; the restarted stage then serves the next program, with batch's bytes.
+// so loudly instead. The program's sink ends INCOMPLETE naming the dead stage, within the
+// heartbeat timeout; the restarted stage then serves the next program, with batch's bytes.
 TEST(Launch, ARestartedStageLosesTheProgramInFlightLoudlyAndServesTheNext) {
   const fs::path dir = tmpdir("launch_restart_mid_program");
   const fs::path log = dir / "launch.log";
@@ -446,7 +447,9 @@ TEST(Launch, ARestartedStageLosesTheProgramInFlightLoudlyAndServesTheNext) {
   double took = 0;
   EXPECT_EQ(wait_exit(sink1, 30, &took), 1) << slurp(dir / "sink1.err");
   std::printf("the sink gave up %.2f s after the kill\n", took);
-  EXPECT_NE(slurp(dir / "sink1.err").find("went away mid-program"), std::string::npos) << slurp(dir / "sink1.err");
+  // The heartbeat (4 s) names the dead stage before its discovery lease (8 s) runs out.
+  EXPECT_NE(slurp(dir / "sink1.err").find("the parse stage"), std::string::npos) << slurp(dir / "sink1.err");
+  EXPECT_NE(slurp(dir / "sink1.err").find("sent no heartbeat"), std::string::npos) << slurp(dir / "sink1.err");
   EXPECT_FALSE(fs::exists(dir / "first.nc"));
   EXPECT_NE(wait_exit(feed1, 30), 0) << slurp(dir / "feed1.err");  // its reader went away
   ASSERT_TRUE(wait_for(log, "parse: restarting (1 of 3)", 20)) << slurp(log);
@@ -464,6 +467,66 @@ TEST(Launch, ARestartedStageLosesTheProgramInFlightLoudlyAndServesTheNext) {
   kill(launch, SIGINT);
   EXPECT_EQ(wait_exit(launch, 30), 130) << slurp(log);
   EXPECT_TRUE(shm_of_domain(228).empty());
+}
+
+// Issue 34: a compensate node killed while it collected a program was never noticed (its sink
+// stayed "ready" past 120 s): it sends nothing before the program's end, so no sample of the
+// program was in flight on its edge to be lost. Its heartbeat says it holds the program; once the
+// heartbeat stops for heartbeat_timeout (4 s), its sink ends the program naming the stage, on a
+// machine loaded by two busy loops. The launcher restarts stages only after 60 s here: the sink
+// notices by itself, as without a supervisor.
+TEST(Launch, AKilledCompensateNodeIsNamedByItsSinkWithinTheHeartbeatTimeout) {
+  gcpipe_test::CpuHog hog(2);
+  const fs::path dir = tmpdir("launch_kill_compensate");
+  const fs::path log = dir / "launch.log";
+  const std::vector<std::string> dds = {"--domain", "217", "--idle-timeout", "120"};
+  auto with_dds = [&](std::vector<std::string> args) {
+    args.insert(args.end(), dds.begin(), dds.end());
+    return args;
+  };
+  const pid_t launch = spawn_gcpipe(
+      {"launch", pipeline_file(dir, 217, "  on_crash: restart\n  restart_delay: 60\n").string()}, dir / "out", log);
+  struct StopOnExit {
+    pid_t pid;
+    ~StopOnExit() {
+      if (kill(pid, SIGINT) == 0) wait_exit(pid, 30);
+    }
+  } stop_launch{launch};
+  ASSERT_TRUE(wait_for(log, "all 5 processes ready", 60)) << slurp(log);
+  const pid_t compensate = node_pid(log, "compensate");
+  ASSERT_GT(compensate, 0);
+  const pid_t sink = spawn_gcpipe(with_dds({"sink", "--in", "gcpipe_compensated", "-o", (dir / "comp.nc").string()}),
+                                  dir / "sink.out", dir / "sink.err");
+  ASSERT_TRUE(wait_for(dir / "sink.err", "gcpipe sink: ready", 30)) << slurp(dir / "sink.err");
+  const pid_t gcode_sink = spawn_gcpipe(with_dds({"sink", "-o", (dir / "out.nc").string()}), dir / "gsink.out", dir / "gsink.err");
+  ASSERT_TRUE(wait_for(dir / "gsink.err", "gcpipe sink: ready", 30)) << slurp(dir / "gsink.err");
+  // Killed once the force node has sent the whole program on the compensate node's input: the
+  // compensate node took its batches as they came (it only collects them) and now compensates,
+  // for seconds. (Killed at the first batch instead, it had now and then not taken it yet under
+  // the hog: then its heartbeat had not said it held the program, and the batches died with it
+  // unseen; nothing downstream can know of a program no stage after the force node ever took.)
+  const pid_t watch = spawn_gcpipe(with_dds({"monitor", "gcpipe_planned", "--period", "0.05"}), dir / "watch.out", dir / "watch.err");
+  ASSERT_TRUE(wait_for(dir / "watch.out", "matched", 30)) << slurp(dir / "watch.out") << slurp(dir / "watch.err");
+  const pid_t feed = spawn_gcpipe(with_dds({"feed", (kSource / "samples" / "trochoid_slot_seed000.nc").string()}),
+                                  dir / "feed.out", dir / "feed.err");
+  ASSERT_TRUE(wait_for(dir / "watch.out", "end of program", 120)) << slurp(dir / "watch.out") << slurp(dir / "watch.err");
+  ASSERT_FALSE(fs::exists(dir / "comp.nc")) << "compensated before the kill: the test proves nothing";
+  ASSERT_EQ(kill(compensate, SIGKILL), 0);
+  double took = 0;
+  EXPECT_EQ(wait_exit(sink, 60, &took), 1) << slurp(dir / "sink.err");
+  std::printf("the compensated program's sink gave up %.2f s after the kill (heartbeat timeout 4 s)\n", took);
+  EXPECT_LT(took, 10) << "the sink took too long to notice";
+  const std::string err = slurp(dir / "sink.err");
+  EXPECT_NE(err.find("the compensate stage (pid " + std::to_string(compensate) + ", writer of gcpipe_compensated) sent no heartbeat"),
+            std::string::npos) << err;
+  EXPECT_NE(err.find("the program is lost"), std::string::npos) << err;
+  EXPECT_NE(err.find("INCOMPLETE"), std::string::npos) << err;
+  EXPECT_FALSE(fs::exists(dir / "comp.nc"));
+  // The other branch of the tree is unaffected: output.nc arrives whole.
+  EXPECT_EQ(wait_exit(gcode_sink, 60), 0) << slurp(dir / "gsink.err");
+  wait_exit(feed, 60);
+  kill(watch, SIGTERM);
+  wait_exit(watch, 10);
 }
 
 TEST(Launch, PipelineFileErrorsNameTheKey) {
@@ -484,6 +547,12 @@ TEST(Launch, PipelineFileErrorsNameTheKey) {
   Outcome history = run_with("[parse]", "  monitor_history: -1\n");
   EXPECT_EQ(history.status, 1);
   EXPECT_NE(history.err.find("monitor_history"), std::string::npos) << history.err;
+  Outcome beat = run_with("[parse]", "  heartbeat_timeout: 0.5\n");  // under 1 s: eight beats would be 60 ms apart
+  EXPECT_EQ(beat.status, 1);
+  EXPECT_NE(beat.err.find("heartbeat_timeout"), std::string::npos) << beat.err;
+  Outcome stall = run_with("[parse]", "  stall_timeout: 0\n");
+  EXPECT_EQ(stall.status, 1);
+  EXPECT_NE(stall.err.find("stall_timeout"), std::string::npos) << stall.err;
   Outcome network = run_with("[parse]", "  network: no_such_file.xml\n");
   EXPECT_NE(network.err.find("network"), std::string::npos) << network.err;
   Outcome stranger = run_with("[parse, trochoid]", "groups: [parse+write]\n");

@@ -30,6 +30,10 @@ dds::DdsOptions dds_options(const DdsArgs& a) {
   o.match_timeout = o.write_timeout = o.ack_timeout = a.timeout;
   o.idle_timeout = a.idle_timeout;
   o.monitor_history = a.monitor_history;
+  o.heartbeat_timeout = a.heartbeat_timeout;
+  // Eight beats within the timeout: a silence that long is not a few beats late on a busy core.
+  o.heartbeat_period = a.heartbeat_timeout / 8;
+  o.stall_timeout = a.stall_timeout;
   o.replay = a.replay;
   o.partition = a.partition;
   if (!a.profiles.empty()) o.profiles = a.profiles;

@@ -118,6 +118,8 @@ struct DdsArgs {
   double timeout = 30;
   double idle_timeout = 0;
   double monitor_history = 5;  //!< [s] --monitor-history: what a late monitor still gets
+  double heartbeat_timeout = 4;  //!< [s] --heartbeat-timeout: an edge writer this long silent is dead or frozen
+  double stall_timeout = 10;     //!< [s] --stall-timeout: a stage this long working without progress is stalled
   std::string partition;       //!< --partition: DDS partition of every reader and writer
   bool replay = false;
 };

@@ -229,6 +229,14 @@ void add_dds_options(CLI::App& s, DdsArgs& a) {
                "a late monitor still gets what was published this long ago, within the last 256 batches "
                "of each topic; 0 = those 256 however old [s]")
       ->check(CLI::NonNegativeNumber);
+  // A writer beats eight times within the timeout (cmd_dds.cpp), so a few lost or late beats on a
+  // loaded machine are no alarm; 1 s at least.
+  s.add_option("--heartbeat-timeout", a.heartbeat_timeout,
+               "a reader takes the stage before for dead or frozen after this long without its heartbeat [s]")
+      ->check(CLI::Range(1.0, 3600.0));
+  s.add_option("--stall-timeout", a.stall_timeout,
+               "a reader takes the stage before for stalled after this long working without progress [s]")
+      ->check(CLI::Range(1.0, 1e6));
   s.add_option("--partition", a.partition,
                "DDS partition of every reader and writer (gcpipe stream gives each run its own; '*' sees them all)");
   s.add_flag("--replay", a.replay, "also take programs published before this process started");

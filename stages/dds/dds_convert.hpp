@@ -171,6 +171,8 @@ class BatchIntake {
   void erase(std::uint64_t id) { programs_.erase(id); }
   /// No program in flight.
   bool empty() const { return programs_.empty(); }
+  /// Program `id` is in flight.
+  bool holds(std::uint64_t id) const { return programs_.count(id) != 0; }
   /// Calls f(id, program) for every program in flight whose writer `gone(writer)` says left,
   /// then forgets those.
   template <class Gone, class F>

@@ -24,6 +24,7 @@
 #include <atomic>
 #include <charconv>
 #include <chrono>
+#include <condition_variable>
 #include <csignal>
 #include <cstdlib>
 #include <filesystem>
@@ -156,6 +157,83 @@ bool stop_requested() { return pipeline::stop_requested(); }
 
 // ---------------------------------------------------------------------------------------------
 
+namespace {
+
+// FNV-1a over the writer's 16-byte GUID: an id that tells the writers of one topic apart.
+std::uint64_t writer_id(const fdds::InstanceHandle_t& handle) {
+  std::uint64_t h = 1469598103934665603ull;
+  for (int i = 0; i < 16; ++i) h = (h ^ handle.value[i]) * 1099511628211ull;
+  return h == 0 ? 1 : h;
+}
+
+// What an edge writer's stage is doing (msg::Heartbeat::state).
+enum class Activity : std::uint8_t {
+  kIdle = 0,       // no program
+  kHolding = 1,    // a program in flight, waiting for input
+  kWorking = 2,    // handling an input sample: a stall when no progress for stall_timeout
+  kBlocked = 3,    // a write waits for a reader downstream (that reader's stall, if any)
+  kLeft = 4,       // the writer was deleted in good order
+  kFinishing = 5,  // the program's end (Stage::finish): judged once the stage reported a step
+  kReporting = 6,  // the program's report and figures: long steps that report nothing
+};
+
+// One edge writer's heartbeat: its sample and the state the stage thread updates.
+struct Pulse {
+  fdds::DataWriter* writer = nullptr;  // on EDGE_heartbeat
+  std::mutex mutex;                    // guards `sample` (the stage thread sets the file and name)
+  msg::Heartbeat sample;
+  std::atomic<std::uint64_t> program{0}, progress{0};
+  std::atomic<std::uint8_t> state{0};
+
+  void beat() {
+    std::lock_guard<std::mutex> lock(mutex);
+    sample.program_id(program.load());
+    sample.progress(progress.load());
+    sample.state(state.load());
+    writer->write(&sample);
+  }
+};
+
+// The thread that sends every edge writer's heartbeat of one participant. A thread of its own, so
+// that a stage busy in a long computation still beats; a frozen or killed process does not.
+class Pulses {
+ public:
+  ~Pulses() { stop(); }
+  void add(Pulse* p, double period) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    pulses_.insert(p);
+    if (!thread_.joinable()) thread_ = std::thread([this, period] { run(period); });
+  }
+  void remove(Pulse* p) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    pulses_.erase(p);
+  }
+  void stop() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stopping_ = true;
+    }
+    wake_.notify_all();
+    if (thread_.joinable()) thread_.join();
+  }
+
+ private:
+  void run(double period) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    while (!stopping_) {
+      for (Pulse* p : pulses_) p->beat();
+      wake_.wait_for(lock, std::chrono::duration<double>(period), [this] { return stopping_; });
+    }
+  }
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::set<Pulse*> pulses_;
+  std::thread thread_;
+  bool stopping_ = false;
+};
+
+}  // namespace
+
 // Participants dropped because their discovery lease ran out (their process died or froze), as
 // opposed to those that left in good order: a reader that went away with one of them died.
 class DroppedParticipants : public fdds::DomainParticipantListener {
@@ -181,6 +259,24 @@ struct Participant::Impl {
   // by the node, not here).
   std::string type_names[kMessageTypes];
   std::map<std::string, std::pair<MessageType, fdds::Topic*>> topics;
+  std::string heartbeat_type;
+  std::map<std::string, fdds::Topic*> heartbeat_topics;  // by edge
+  Pulses pulses;
+
+  // EDGE_heartbeat, the edge's watchdog topic (type msg::Heartbeat). Null when it cannot be
+  // created (a DDS Security identity made before heartbeats existed does not grant it): the
+  // edge then goes without, and its readers rely on the discovery lease as before.
+  fdds::Topic* heartbeat_topic(const std::string& edge) {
+    if (auto it = heartbeat_topics.find(edge); it != heartbeat_topics.end()) return it->second;
+    if (heartbeat_type.empty()) {
+      fdds::TypeSupport support(new msg::HeartbeatPubSubType());
+      if (!ok(support.register_type(participant))) return nullptr;
+      heartbeat_type = support.get_type_name();
+    }
+    fdds::Topic* created = participant->create_topic(edge + "_heartbeat", heartbeat_type, fdds::TOPIC_QOS_DEFAULT);
+    heartbeat_topics.emplace(edge, created);
+    return created;
+  }
 
   fdds::Topic* topic(MessageType type, const std::string& name) {
     check_topic_name(name);
@@ -378,6 +474,7 @@ Participant::~Participant() {
   // queue is then left behind, mapped by nobody (a feed whose parse node was killed mid-program,
   // Launch.ARestartedStage...). Such a queue of our own is removed here.
   const std::set<std::string> own = own_shm_ports();
+  impl_->pulses.stop();
   impl_->participant->delete_contained_entities();
   fdds::DomainParticipantFactory::get_instance()->delete_participant(impl_->participant);
   std::set<std::string> left;
@@ -424,6 +521,7 @@ struct RawWriter::Impl {
   LostReaders listener;
   int lost_before_first_sample = -1;  // -1: nothing published yet
   int dropped_before_first_sample = 0;  // participants dropped on this domain before it
+  std::unique_ptr<Pulse> pulse;  // the edge's heartbeat; null for a monitor copy, a report writer
   // A reader left since the first sample (for one-program writers). Checked while samples are
   // still to be written only: a reader that took the end marker and left is done, not lost.
   bool reader_left_mid_program() const {
@@ -456,10 +554,110 @@ RawWriter::RawWriter(Participant& participant, MessageType type, const std::stri
   if (impl_->writer == nullptr)
     throw std::runtime_error("cannot create a writer of " + topic + " from profile '" + profile + "' of '" +
                              impl_->owner->options.profiles.string() + "' " + creation_hint(*impl_->owner, "publish"));
+  if (!monitor && profile_name == nullptr) start_heartbeat();
+}
+
+namespace {
+
+// The heartbeat's QoS, set here rather than in the XML (whose default profiles are the edges'):
+// best effort, since a lost beat is made good by the next and a beat must never wait for a
+// reader (reliable, the beats of one writer in about one run of six never reached a node whose
+// edge from that writer worked: DdsPipeline.*MiddleNode*, 2026-11-28; the late-joining volatile
+// reader and keep-last 1 writer of Fast DDS 2.9's reliable protocol were not traced further);
+// keep-last 1, since only the newest beat matters; volatile, since an old beat says nothing of now.
+fdds::DataWriterQos heartbeat_writer_qos() {
+  fdds::DataWriterQos qos;
+  qos.reliability().kind = fdds::BEST_EFFORT_RELIABILITY_QOS;
+  qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
+  qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+  qos.history().depth = 1;
+  return qos;
+}
+
+// Keeps the last beats of every writer of the edge (one instance for all: the type has no key).
+fdds::DataReaderQos heartbeat_reader_qos() {
+  fdds::DataReaderQos qos;
+  qos.reliability().kind = fdds::BEST_EFFORT_RELIABILITY_QOS;
+  qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
+  qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+  qos.history().depth = 64;
+  return qos;
+}
+
+}  // namespace
+
+void RawWriter::start_heartbeat() {
+  Participant::Impl& owner = *impl_->owner;
+  fdds::Topic* topic = owner.heartbeat_topic(topic_);
+  fdds::DataWriter* w = topic ? owner.publisher->create_datawriter(topic, heartbeat_writer_qos()) : nullptr;
+  if (w == nullptr) {
+    say_line("gcpipe: no heartbeat on " + topic_ + "_heartbeat (its readers rely on the discovery lease): " +
+             creation_hint(owner, "publish"));
+    return;
+  }
+  auto pulse = std::make_unique<Pulse>();
+  pulse->writer = w;
+  pulse->sample.writer(id());
+  pulse->sample.stage("?");
+  pulse->sample.pid(static_cast<std::uint64_t>(::getpid()));
+  pulse->sample.period(owner.options.heartbeat_period);
+  impl_->pulse = std::move(pulse);
+  owner.pulses.add(impl_->pulse.get(), owner.options.heartbeat_period);
 }
 
 RawWriter::~RawWriter() {
+  if (Pulse* p = impl_->pulse.get()) {
+    // The last beat says the writer leaves in good order: its readers then know it did not die.
+    impl_->owner->pulses.remove(p);
+    p->state = static_cast<std::uint8_t>(Activity::kLeft);
+    p->beat();
+    impl_->owner->publisher->delete_datawriter(p->writer);
+  }
   if (impl_->writer != nullptr) impl_->owner->publisher->delete_datawriter(impl_->writer);
+}
+
+std::uint64_t RawWriter::id() const { return writer_id(impl_->writer->get_instance_handle()); }
+
+void RawWriter::set_stage_name(const std::string& stage) {
+  if (Pulse* p = impl_->pulse.get()) {
+    std::lock_guard<std::mutex> lock(p->mutex);
+    p->sample.stage(stage);
+  }
+}
+
+void RawWriter::working(std::uint64_t program, const std::string& file) {
+  Pulse* p = impl_->pulse.get();
+  if (p == nullptr) return;
+  if (p->program.load() != program) {
+    std::lock_guard<std::mutex> lock(p->mutex);
+    p->sample.file(file);
+  }
+  p->program = program;
+  p->state = static_cast<std::uint8_t>(Activity::kWorking);
+  ++p->progress;
+}
+
+void RawWriter::finishing() {
+  if (Pulse* p = impl_->pulse.get()) p->state = static_cast<std::uint8_t>(Activity::kFinishing);
+}
+
+void RawWriter::reporting() {
+  if (Pulse* p = impl_->pulse.get()) p->state = static_cast<std::uint8_t>(Activity::kReporting);
+}
+
+void RawWriter::holding() {
+  if (Pulse* p = impl_->pulse.get()) p->state = static_cast<std::uint8_t>(Activity::kHolding);
+}
+
+void RawWriter::idle() {
+  if (Pulse* p = impl_->pulse.get()) {
+    p->program = 0;
+    p->state = static_cast<std::uint8_t>(Activity::kIdle);
+  }
+}
+
+void RawWriter::progressed() {
+  if (Pulse* p = impl_->pulse.get()) ++p->progress;
 }
 
 int RawWriter::matched_readers() const {
@@ -509,9 +707,23 @@ bool RawWriter::publish(const void* sample) {
                                "does not take a program in flight): the rest of the program is not sent");
   };
   check_readers();
+  // Waiting for a reader downstream is not a stall of this stage: its heartbeat says blocked.
+  Pulse* pulse = impl_->pulse.get();
+  const std::uint8_t before = pulse ? pulse->state.load() : 0;
+  struct Restore {
+    Pulse* p;
+    std::uint8_t state;
+    ~Restore() {
+      if (p) {
+        p->state = state;
+        ++p->progress;
+      }
+    }
+  } restore{pulse, before};
   // write() blocks up to the profile's max_blocking_time, then returns false with the sample
   // not stored; a retry is therefore safe and cannot duplicate it.
   while (!impl_->writer->write(const_cast<void*>(sample))) {
+    if (pulse) pulse->state = static_cast<std::uint8_t>(Activity::kBlocked);
     if (blocked_writes_++ == 0)
       std::cerr << "gcpipe: " << topic_
                 << ": history full, a reader lags behind; retrying the write until it catches up"
@@ -544,13 +756,6 @@ bool RawWriter::reader_died_mid_program() const {
 
 namespace {
 
-// FNV-1a over the writer's 16-byte GUID: an id that tells the writers of one topic apart.
-std::uint64_t writer_id(const fdds::InstanceHandle_t& handle) {
-  std::uint64_t h = 1469598103934665603ull;
-  for (int i = 0; i < 16; ++i) h = (h ^ handle.value[i]) * 1099511628211ull;
-  return h == 0 ? 1 : h;
-}
-
 // Which writers left: Fast DDS 2.9's DataReader::get_matched_publications is not implemented, so
 // the matched-status callbacks are recorded instead (on Fast DDS's event thread).
 class GoneWriters : public fdds::DataReaderListener {
@@ -573,10 +778,105 @@ class GoneWriters : public fdds::DataReaderListener {
 
 }  // namespace
 
+namespace {
+
+// What the heartbeats of one edge's writers said last, kept by Fast DDS's receive thread as they
+// arrive (a reader busy in its stage does not delay their clock).
+class HeartbeatWatch : public fdds::DataReaderListener {
+ public:
+  struct Writer {
+    msg::Heartbeat last;
+    Clock::time_point heard, moved;  // last beat; last beat whose progress or state changed
+    bool reported = false;           // its program was handed out as lost
+    std::uint64_t finish_base = 0;   // progress when it began finishing the program
+  };
+
+  void on_data_available(fdds::DataReader* reader) override {
+    msg::Heartbeat beat;
+    fdds::SampleInfo info;
+    while (ok(reader->take_next_sample(&beat, &info))) {
+      if (!info.valid_data) continue;
+      const auto now = Clock::now();
+      std::lock_guard<std::mutex> lock(mutex_);
+      auto [it, fresh] = writers_.try_emplace(beat.writer());
+      Writer& w = it->second;
+      if (fresh || w.last.progress() != beat.progress() || w.last.state() != beat.state() ||
+          w.last.program_id() != beat.program_id()) {
+        w.moved = now;
+        if (w.last.program_id() != beat.program_id()) w.reported = false;
+        if (beat.state() == static_cast<std::uint8_t>(Activity::kFinishing) && (fresh || w.last.state() != beat.state()))
+          w.finish_base = beat.progress();
+      }
+      w.heard = now;
+      w.last = beat;
+    }
+  }
+
+  // Why `w` is taken for dead, frozen or stalled; "" when it is not.
+  std::string trouble(const Writer& w, const std::string& edge, const DdsOptions& o) const {
+    const auto& b = w.last;
+    if (b.state() == static_cast<std::uint8_t>(Activity::kLeft)) return "";
+    const double silent = std::chrono::duration<double>(Clock::now() - w.heard).count();
+    const std::string who = "the " + b.stage() + " stage (pid " + std::to_string(b.pid()) + ", writer of " + edge + ")";
+    std::ostringstream o_;
+    o_ << std::fixed << std::setprecision(1);
+    const char* doing = b.state() == static_cast<std::uint8_t>(Activity::kFinishing) ? "finishing" : "working on";
+    if (silent > o.heartbeat_timeout) {
+      o_ << who << " sent no heartbeat for " << silent << " s (bound " << o.heartbeat_timeout
+         << " s, pipeline.heartbeat_timeout): it died or is frozen";
+      return o_.str();
+    }
+    const double still = std::chrono::duration<double>(Clock::now() - w.moved).count();
+    // At the program's end only a stage that reports its steps (the compensation, window by
+    // window; the simulation's ticks) can be told stalled; one that does not (the trochoid
+    // stage's engagement analysis) is covered by its heartbeat alone.
+    const auto state = static_cast<Activity>(b.state());
+    const bool judged = state == Activity::kWorking || (state == Activity::kFinishing && b.progress() > w.finish_base);
+    if (judged && still > o.stall_timeout) {
+      o_ << who << " made no progress for " << still << " s while " << doing << " program " << b.program_id()
+         << " (bound " << o.stall_timeout << " s, pipeline.stall_timeout): it is stalled";
+      return o_.str();
+    }
+    return "";
+  }
+
+  std::string trouble_of(std::uint64_t writer, const std::string& edge, const DdsOptions& o) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto it = writers_.find(writer);
+    return it == writers_.end() ? "" : trouble(it->second, edge, o);
+  }
+
+  std::vector<RawReader::LostProgram> lost(const std::string& edge, const DdsOptions& o) {
+    std::vector<RawReader::LostProgram> out;
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (auto& [id, w] : writers_) {
+      if (w.reported || w.last.program_id() == 0) continue;
+      const auto state = static_cast<Activity>(w.last.state());
+      // A stage stopped in good order (SIGTERM) with a program in hand loses it as surely.
+      std::string why = state == Activity::kLeft
+                            ? "the " + w.last.stage() + " stage (pid " + std::to_string(w.last.pid()) + ", writer of " +
+                                  edge + ") stopped"
+                            : state == Activity::kIdle ? "" : trouble(w, edge, o);
+      if (why.empty()) continue;
+      w.reported = true;
+      out.push_back({id, w.last.program_id(), w.last.file(), std::move(why)});
+    }
+    return out;
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::map<std::uint64_t, Writer> writers_;
+};
+
+}  // namespace
+
 struct RawReader::Impl {
   Participant::Impl* owner = nullptr;
   fdds::DataReader* reader = nullptr;
   GoneWriters listener;
+  fdds::DataReader* heartbeats = nullptr;  // EDGE_heartbeat; null for a monitor's reader
+  HeartbeatWatch watch;
   std::vector<double> hop_latencies;  // [s] of the samples taken since the last report
 };
 
@@ -589,10 +889,63 @@ RawReader::RawReader(Participant& participant, MessageType type, const std::stri
   if (impl_->reader == nullptr)
     throw std::runtime_error("cannot create a reader of " + topic + " from profile '" + profile + "' of '" +
                              impl_->owner->options.profiles.string() + "' " + creation_hint(*impl_->owner, "subscribe"));
+  if (!monitor) {
+    fdds::Topic* beats = impl_->owner->heartbeat_topic(topic);
+    if (beats != nullptr)
+      impl_->heartbeats = impl_->owner->subscriber->create_datareader(beats, heartbeat_reader_qos(), &impl_->watch,
+                                                                      fdds::StatusMask::data_available());
+    if (impl_->heartbeats == nullptr)
+      say_line("gcpipe: cannot read " + topic + "_heartbeat (a dead writer is then noticed by the discovery lease only)");
+  }
 }
 
 RawReader::~RawReader() {
+  if (impl_->heartbeats != nullptr) impl_->owner->subscriber->delete_datareader(impl_->heartbeats);
   if (impl_->reader != nullptr) impl_->owner->subscriber->delete_datareader(impl_->reader);
+}
+
+struct HeartbeatWatcher::Impl {
+  Participant::Impl* owner = nullptr;
+  struct Edge {
+    std::string topic;
+    fdds::DataReader* reader = nullptr;
+    HeartbeatWatch watch;
+  };
+  std::vector<std::unique_ptr<Edge>> edges;
+};
+
+HeartbeatWatcher::HeartbeatWatcher(Participant& participant, const std::vector<std::string>& topics)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->owner = &participant.impl();
+  for (const std::string& topic : topics) {
+    auto edge = std::make_unique<Impl::Edge>();
+    edge->topic = topic;
+    if (fdds::Topic* beats = impl_->owner->heartbeat_topic(topic))
+      edge->reader = impl_->owner->subscriber->create_datareader(beats, heartbeat_reader_qos(), &edge->watch,
+                                                                 fdds::StatusMask::data_available());
+    if (edge->reader != nullptr) impl_->edges.push_back(std::move(edge));
+  }
+}
+
+HeartbeatWatcher::~HeartbeatWatcher() {
+  for (auto& edge : impl_->edges) impl_->owner->subscriber->delete_datareader(edge->reader);
+}
+
+std::vector<RawReader::LostProgram> HeartbeatWatcher::programs_lost() {
+  std::vector<RawReader::LostProgram> all;
+  for (auto& edge : impl_->edges) {
+    auto lost = edge->watch.lost(edge->topic, impl_->owner->options);
+    all.insert(all.end(), lost.begin(), lost.end());
+  }
+  return all;
+}
+
+std::string RawReader::writer_trouble(std::uint64_t writer) const {
+  return impl_->watch.trouble_of(writer, topic_, impl_->owner->options);
+}
+
+std::vector<RawReader::LostProgram> RawReader::programs_lost_upstream() {
+  return impl_->watch.lost(topic_, impl_->owner->options);
 }
 
 bool RawReader::take(void* sample, double timeout_s, double* source_time, std::uint64_t* writer) {

@@ -97,6 +97,14 @@ struct DdsOptions {
   /// sample this long (DDS lifespan), within its profile's depth (gcpipe_monitor_writer: 256
   /// batches). 0 = no time limit: the depth alone (the last 256 batches, however old).
   double monitor_history = 5;
+  /// The watchdog on every edge (stages/dds/README.md, "Watchdog"): each edge writer sends a
+  /// heartbeat every `heartbeat_period` [s] from a thread of its own; a reader that hears none
+  /// from a writer for `heartbeat_timeout` [s] takes it for dead or frozen, and one whose stage
+  /// works without progress for `stall_timeout` [s] for stalled. Neither rests on the discovery
+  /// lease. pipeline.heartbeat_timeout / pipeline.stall_timeout in a pipeline file.
+  double heartbeat_period = 0.5;
+  double heartbeat_timeout = 4;
+  double stall_timeout = 10;
 };
 
 /// pipeline_configs/dds_profiles.xml beside the default pipeline config; GCPIPE_DDS_PROFILES
@@ -165,12 +173,30 @@ class RawWriter {
   const std::string& topic() const { return topic_; }
   /// How often write() returned false (history full, a reader behind) and was retried.
   std::uint64_t blocked_writes() const { return blocked_writes_; }
+  /// What the stage behind this writer is doing, for the edge's heartbeat (an edge writer only;
+  /// a monitor copy has none). `working`: it took input of `program` and handles it (a stall is
+  /// no progress in this state); `holding`: a program is in flight but it waits for input;
+  /// `idle`: no program. `progressed` counts a step of a long computation (every publish and
+  /// every sample taken count by themselves).
+  void working(std::uint64_t program, const std::string& file);
+  /// The program's end (Stage::finish): a stall only once the stage reported a step.
+  void finishing();
+  /// Its report and figures: never a stall (the heartbeat still tells death and freezing).
+  void reporting();
+  void holding();
+  void idle();
+  void progressed();
+  /// The stage named in the heartbeat (default: the topic's writer, "?").
+  void set_stage_name(const std::string& stage);
+  /// This writer's id as its readers' take() names it.
+  std::uint64_t id() const;
   /// Readers this writer waits for and must keep (default: the participant's `subscribers`;
   /// the stages of one process each have their own, `gcpipe node` groups).
   void set_subscribers(int count) { subscribers_ = count; }
   int subscribers() const { return subscribers_; }
 
  private:
+  void start_heartbeat();
   struct Impl;
   std::unique_ptr<Impl> impl_;
   std::string topic_;
@@ -199,6 +225,18 @@ class RawReader {
   /// matched (a restarted stage), so a program in flight from this one will never be completed.
   bool writer_gone(std::uint64_t writer) const;
   const std::string& topic() const { return topic_; }
+  /// What the edge's heartbeats say of writer `writer` (as take() names it): "" while it beats
+  /// and, when working, progresses, or when it sent no heartbeat at all; else why it is taken for
+  /// dead, frozen or stalled, naming its stage and pid.
+  std::string writer_trouble(std::uint64_t writer) const;
+  /// A program a writer of this edge had in flight (working on or holding) when its heartbeat
+  /// lapsed or it stalled: it will never send the rest, maybe not even a first sample.
+  struct LostProgram {
+    std::uint64_t writer = 0, program_id = 0;
+    std::string file, why;
+  };
+  /// Each such program once (later calls leave out what an earlier call returned).
+  std::vector<LostProgram> programs_lost_upstream();
   /// The hop latency of the samples taken since the last call: reception minus source timestamp,
   /// the way across DDS from the writer's write() to this reader's history (not the time a
   /// sample then waits for this process), as "hop latency from TOPIC: p50 … ms, p99 … ms, max …
@@ -209,6 +247,24 @@ class RawReader {
   struct Impl;
   std::unique_ptr<Impl> impl_;
   std::string topic_;
+};
+
+/// The heartbeats of several edges, without their data: a sink that knows its program
+/// (`--program-id`) watches every edge on its program's way, so that a stage that dies or stalls
+/// holding the program is named even when it is not the sink's own writer (a trochoid node killed
+/// with the program in hand: the write node after it never saw any of it).
+class HeartbeatWatcher {
+ public:
+  HeartbeatWatcher(Participant& participant, const std::vector<std::string>& topics);
+  ~HeartbeatWatcher();
+  HeartbeatWatcher(const HeartbeatWatcher&) = delete;
+  HeartbeatWatcher& operator=(const HeartbeatWatcher&) = delete;
+  /// RawReader::programs_lost_upstream over every watched edge.
+  std::vector<RawReader::LostProgram> programs_lost();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 template <class T>

@@ -9,9 +9,11 @@
 #include <thread>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <fstream>
 #include <iomanip>
 #include <map>
+#include <memory>
 #include <ostream>
 #include <random>
 #include <set>
@@ -22,6 +24,7 @@
 #include "dds_convert.hpp"
 #include "output_dir.hpp"
 #include "run_report.hpp"
+#include "stage.hpp"
 #include "gcpipe/line_reader.hpp"
 
 namespace gcpipe::dds {
@@ -50,18 +53,21 @@ double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-// Takes the next sample; false after idle_timeout without one (0 = never) or on a stop request.
+// Takes the next sample; false after idle_timeout without one (0 = never), on a stop request, or
+// when `why_lost` (polled while nothing arrives) says what was awaited will never come, into `lost`.
 template <class T>
-bool take_or_idle(Reader<T>& reader, T& sample, double idle_timeout, bool& idle,
-                  double* source_time, bool* writer_lost = nullptr, std::uint64_t* writer = nullptr) {
+bool take_or_idle(Reader<T>& reader, T& sample, double idle_timeout, bool& idle, double* source_time,
+                  const std::function<std::string()>& why_lost = {}, std::string* lost = nullptr,
+                  std::uint64_t* writer = nullptr) {
   const auto t0 = Clock::now();
   idle = false;
   while (!stop_requested()) {
     if (reader.take(sample, 0.1, source_time, writer)) return true;
-    // Mid-program and nothing left to take: a writer that went away sends nothing more.
-    if (writer_lost != nullptr && reader.matched_writers() == 0) {
-      *writer_lost = true;
-      return false;
+    if (why_lost) {
+      if (std::string why = why_lost(); !why.empty()) {
+        *lost = std::move(why);
+        return false;
+      }
     }
     if (idle_timeout > 0 && seconds_since(t0) > idle_timeout) {
       idle = true;
@@ -120,6 +126,11 @@ int run_feed(Participant& participant, const FeedOptions& o, std::ostream& log) 
   const auto t0 = Clock::now();
 
   const std::uint64_t id = o.program_id != 0 ? o.program_id : random_program_id();
+  // The heartbeat says the program is in flight here (the parse node ends it if the feed dies
+  // first); holding, not working: a paced feed waits between chunks by design.
+  writer.set_stage_name("feed");
+  writer.working(id, name);
+  writer.holding();
   LineReader reader(fd, o.max_line_length);
   msg::ProgramChunk chunk;
   chunk.program_id(id);
@@ -165,6 +176,7 @@ int run_feed(Participant& participant, const FeedOptions& o, std::ostream& log) 
       << " lines, " << reader.bytes_read() << " bytes in " << chunks << " chunks, "
       << std::fixed << std::setprecision(3) << seconds_since(t0)
       << " s; writes retried on a full history: " << writer.blocked_writes() << "\n";
+  writer.idle();  // delivered: the program is no longer in this process's hands
   if (!acked) {
     log << "gcpipe feed: not every chunk was acknowledged by the readers of " << o.topic
         << "\n";
@@ -188,11 +200,57 @@ struct SinkReceipt {
   int status = 0;  //!< when !complete: 1 idle, 130 stopped
 };
 
+// The edges a program crosses before it reaches `topic`, from the stage registry (a pipeline file
+// may leave some stages out: their edges are then silent, which costs nothing).
+std::vector<std::string> edges_before(const std::string& topic) {
+  std::vector<std::string> edges{kProgramTopicName};
+  const pipeline::StageInfo* stage = nullptr;
+  for (const pipeline::StageInfo& s : pipeline::registry())
+    if (topic == s.topic) stage = &s;
+  if (stage == nullptr) return edges;  // a renamed topic: the chain before it is not known
+  for (std::string up = stage->upstream; !up.empty(); up = pipeline::find_stage(up).upstream)
+    if (const char* t = pipeline::find_stage(up).topic; *t != '\0') edges.emplace_back(t);
+  return edges;
+}
+
+// Why the program cannot arrive whole any more, "" while it still can. Mid-program: its writer
+// left, or the edge's watchdog says the stage before died, froze or stalls. Before its first
+// chunk: the stage before held a program this sink waits for (a compensate node collects a whole
+// program before it sends any) and died, froze or stalls; `r.id` then becomes that program.
+std::string why_lost(Reader<msg::GcodeChunk>& reader, SinkReceipt& r, const SinkOptions& o,
+                     HeartbeatWatcher* way) {
+  const std::string after = " after chunk " + std::to_string(r.next) + " of the program: the rest is lost";
+  // Earlier on the program's way (a sink that knows its program): a stage that held it and died.
+  if (way != nullptr) {
+    for (const RawReader::LostProgram& lost : way->programs_lost()) {
+      if (lost.program_id != o.program_id) continue;
+      if (r.id == 0) r.id = lost.program_id;
+      return lost.why + ", holding program " + std::to_string(lost.program_id) + " ('" + lost.file +
+             "'): the program is lost";
+    }
+  }
+  if (r.id != 0) {
+    if (const std::string trouble = reader.writer_trouble(r.writer); !trouble.empty()) return trouble + after;
+    if (reader.matched_writers() == 0 || reader.writer_gone(r.writer))
+      return "the writer of " + o.topic + " went away" + after + " (its stage stopped or died)";
+    return "";
+  }
+  for (const RawReader::LostProgram& lost : reader.programs_lost_upstream()) {
+    if (o.program_id != 0 && lost.program_id != o.program_id) continue;
+    r.id = lost.program_id;
+    return lost.why + ", holding program " + std::to_string(lost.program_id) + " ('" + lost.file +
+           "') before it sent any of it: the program is lost";
+  }
+  return "";
+}
+
 // Takes the chunks of the first program published after the sink started (replays of older
 // programs are skipped and said so) until its end marker, checking the sequence numbers.
 SinkReceipt receive_program(Participant& participant, Reader<msg::GcodeChunk>& reader, const SinkOptions& o,
                             std::ofstream& out, std::ostream& log) {
   SinkReceipt r;
+  std::unique_ptr<HeartbeatWatcher> way;
+  if (o.program_id != 0) way = std::make_unique<HeartbeatWatcher>(participant, edges_before(o.topic));
   ProgramFilter ours("gcpipe sink", o.program_id);
   msg::GcodeChunk& chunk = r.last;
   const double idle_timeout = participant.options().idle_timeout;
@@ -201,15 +259,14 @@ SinkReceipt receive_program(Participant& participant, Reader<msg::GcodeChunk>& r
   double source_time = 0;
   std::uint64_t writer = 0;
   for (;;) {
-    bool lost = false;
-    if (!take_or_idle(reader, chunk, idle_timeout, idle, &source_time, r.id != 0 ? &lost : nullptr, &writer)) {
+    std::string lost;
+    if (!take_or_idle(reader, chunk, idle_timeout, idle, &source_time, [&] { return why_lost(reader, r, o, way.get()); }, &lost,
+                      &writer)) {
       if (idle)
         log << "gcpipe sink: nothing arrived on " << o.topic << " for " << idle_timeout << " s; giving up"
             << (ours.refused_any() ? " (only another pipeline's programs did: see above)" : "") << "\n";
-      if (lost)
-        log << "gcpipe sink: the writer of " << o.topic << " went away after chunk " << r.next
-            << " of the program (its stage stopped or died): the rest is lost\n";
-      r.status = idle || lost ? 1 : 130;
+      if (!lost.empty()) log << "gcpipe sink: " << lost << "\n";
+      r.status = idle || !lost.empty() ? 1 : 130;
       return r;
     }
     // Another pipeline's program on a shared domain: never written.

@@ -132,7 +132,8 @@ LaunchPlan load_launch_plan(const std::filesystem::path& file) {
   root.reject_unknown({"pipeline", "nodes", "groups"});
   const Config p = root.section("pipeline");
   p.reject_unknown({"name", "domain", "config", "profiles", "network", "identity", "on_crash", "max_restarts", "restart_delay",
-                    "ready_timeout", "stop_timeout", "timeout", "monitor_history"});
+                    "ready_timeout", "stop_timeout", "timeout", "monitor_history", "heartbeat_timeout",
+                    "stall_timeout"});
   LaunchPlan plan;
   plan.name = p.string("name", file.stem().string());
   plan.domain = static_cast<int>(p.integer("domain", 0, 0, 232));
@@ -148,6 +149,8 @@ LaunchPlan load_launch_plan(const std::filesystem::path& file) {
   plan.stop_timeout = p.number("stop_timeout", 5, "s", 0.1, 600);
   plan.timeout = p.number("timeout", 30, "s", 0.1, 1e6);
   plan.monitor_history = p.number("monitor_history", 5, "s", 0, 1e6);
+  plan.heartbeat_timeout = p.number("heartbeat_timeout", 4, "s", 1, 3600);
+  plan.stall_timeout = p.number("stall_timeout", 10, "s", 1, 1e6);
   plan.nodes = root.strings("nodes", stages_with_nodes());
   std::set<std::string> seen;
   for (const auto& n : plan.nodes)
@@ -162,6 +165,8 @@ std::vector<std::string> plan_dds_args(const LaunchPlan& plan) {
   if (!plan.network.empty()) a.insert(a.end(), {"--network", plan.network.string()});
   if (!plan.identity.empty()) a.insert(a.end(), {"--identity", plan.identity.string()});
   a.insert(a.end(), {"--monitor-history", std::to_string(plan.monitor_history)});
+  a.insert(a.end(), {"--heartbeat-timeout", std::to_string(plan.heartbeat_timeout)});
+  a.insert(a.end(), {"--stall-timeout", std::to_string(plan.stall_timeout)});
   return a;
 }
 

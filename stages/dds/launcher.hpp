@@ -44,6 +44,8 @@ struct LaunchPlan {
   double timeout = 30;              //!< [s] the nodes' --timeout: longest wait for readers, a blocked
                                     //!< write, acknowledgements (then the node stops, loudly)
   double monitor_history = 5;       //!< [s] what a late monitor still gets (--monitor-history)
+  double heartbeat_timeout = 4;     //!< [s] an edge writer this long silent is dead or frozen (--heartbeat-timeout)
+  double stall_timeout = 10;        //!< [s] a stage this long working without progress is stalled (--stall-timeout)
   std::vector<std::string> nodes;   //!< registered stages with a DDS node, in chain order
   /// Stages run together in one process (`groups: [parse+trochoid+write]`), each group in
   /// chain order; a stage of no group runs in a process of its own.

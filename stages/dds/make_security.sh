@@ -131,6 +131,6 @@ EOF
 make_ca
 write_governance
 identity node "gcpipe_*" "gcpipe_*"
-identity feeder "gcpipe_program gcpipe_program_monitor" ""
+identity feeder "gcpipe_program gcpipe_program_monitor gcpipe_program_heartbeat" ""
 identity monitor "" "gcpipe_*_monitor"
 echo "CA: $ca_cert (its key $ca_key stays here); governance: domain $domain"

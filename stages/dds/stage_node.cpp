@@ -108,6 +108,7 @@ struct Outbox final : pipeline::Emitter {
     batch.end_of_program(end);
     batch.item_count(end ? telemetry_items : 0);
     telemetry->publish(&batch);
+    writer.progressed();  // the simulation's ticks, the IK's points: the stage works
     items.clear();
   }
   /// The telemetry's end batch (a stage emits one kind only).
@@ -208,6 +209,7 @@ struct StageNode::Impl {
     reader = std::make_unique<RawReader>(p, wire_type(info.input), options.input_topic);
     writer = std::make_unique<RawWriter>(p, wire_type(info.output), options.output_topic);
     if (options.subscribers >= 0) writer->set_subscribers(options.subscribers);
+    writer->set_stage_name(options.stage);
     monitor_writer = std::make_unique<RawWriter>(p, wire_type(info.output), monitor_topic(options.output_topic), true);
     if (info.telemetry != pipeline::Telemetry::kNone) {
       telemetry_writer = std::make_unique<RawWriter>(p, telemetry_type(info.telemetry), monitor_topic(info.telemetry_topic), true);
@@ -237,6 +239,9 @@ struct StageNode::Impl {
     c.strict = strict;
     c.stages = {options.stage};
     c.pipeline_stages = options.pipeline_stages;
+    // A long step (the compensation's learning, window by window) counts as progress for the
+    // watchdog: the heartbeat then says the stage works, not that it stalled.
+    c.progress = [w = writer.get()](const char*, std::uint64_t, std::uint64_t) { w->progressed(); };
     prog.stage = info.make(c);
     prog.out = std::make_unique<Outbox>(info.output, options.batch_bytes, *writer, monitor_writer.get(), telemetry_writer.get());
     prog.out->file = file;
@@ -262,6 +267,7 @@ struct StageNode::Impl {
     std::uint64_t writer = 0;
     if (!reader->take(&chunk, timeout, &source_time, &writer)) return false;
     const std::uint64_t id = chunk.program_id();
+    this->writer->working(id, chunk.file());
     if (refused(id, chunk.file())) return true;
     if (skipped.count(id) != 0) {
       if (chunk.end_of_program()) skipped.erase(id);
@@ -333,6 +339,7 @@ struct StageNode::Impl {
     std::uint64_t writer = 0;
     if (!reader->take(&batch, timeout, &source_time, &writer)) return false;
     const std::uint64_t id = batch.program_id();
+    this->writer->working(id, batch.file());
     if (refused(id, batch.file())) return true;
     Program* found = intake.admit(batch, participant.published_before_start(source_time), writer, [&] {
       return make_program(batch.file(), options.strict || config_strict || batch.strict());
@@ -382,10 +389,15 @@ struct StageNode::Impl {
 
   // ---- end of program ----
 
+  std::set<std::uint64_t> finished;  // programs this node ended
+
   void finish_stage(Program& prog, std::uint64_t id, bool upstream_stopped) {
+    finished.insert(id);
     const bool complete = prog.error.empty() && !prog.stopped && !upstream_stopped;
+    writer->finishing();
     prog.stage->finish(complete, *prog.out);
     prog.out->finish_telemetry(info.telemetry);
+    writer->reporting();
     const std::string failure = prog.stage->failure();
     if (prog.error.empty() && !failure.empty()) fail(prog, id, failure);
     if (prog.out->failed && prog.error.empty()) fail(prog, id, "a publish on " + options.output_topic + " failed");
@@ -466,35 +478,76 @@ struct StageNode::Impl {
 
   bool ended = false;
 
+  // Between input samples: a program in flight waits for its input, else there is none.
+  void say_what_it_does_now() {
+    if (chunk_programs.empty() && intake.empty()) writer->idle();
+    else writer->holding();
+  }
+
   // The writer of our input went away while programs were in flight (its stage stopped or died;
   // everything it had sent is in our history, and take() found nothing more). Each such program
   // is ended now with an end marker that carries the reason, so every stage downstream and the
   // sink stop at once with it, instead of waiting for batches that will never come.
   // A program's writer is gone when it was unmatched (even if another writer, a restarted stage,
   // is matched now), or when no writer is matched at all.
+  // The watchdog (the input edge's heartbeats) says the same sooner and whatever the discovery
+  // lease does: a writer that stopped beating or stalls is gone too, and the reason names it.
   bool end_orphaned_programs() {
-    if (chunk_programs.empty() && intake.empty()) return false;
+    bool any = end_programs_lost_before_their_first_sample();
+    if (chunk_programs.empty() && intake.empty()) return any;
     const bool none_left = reader->matched_writers() == 0;
-    auto gone = [&](std::uint64_t writer) { return none_left || reader->writer_gone(writer); };
-    const std::string why = "the writer of " + options.input_topic + " went away mid-program (its stage stopped or died)";
-    bool any = false;
+    // The heartbeat's reason first: it names the stage and its pid. (A node that drained a
+    // backlog of its input after the writer died may find the lease run out too by then.)
+    auto why_gone = [&](std::uint64_t writer) -> std::string {
+      if (std::string trouble = reader->writer_trouble(writer); !trouble.empty()) return trouble;
+      if (none_left || reader->writer_gone(writer))
+        return "the writer of " + options.input_topic + " went away mid-program (its stage stopped or died)";
+      return "";
+    };
+    auto gone = [&](std::uint64_t writer) { return !why_gone(writer).empty(); };
     for (auto it = chunk_programs.begin(); it != chunk_programs.end();) {
       if (!gone(it->second.writer)) {
         ++it;
         continue;
       }
       auto& [id, prog] = *it;
-      fail(prog, id, why + " after chunk " + std::to_string(prog.next_chunk) + " of the program: the rest is lost");
+      fail(prog, id, why_gone(prog.writer) + " after chunk " + std::to_string(prog.next_chunk) +
+                         " of the program: the rest is lost");
       finish_blocks(prog, id, parse_summary_of(*prog.stage), false, 0);
       any = true;
       it = chunk_programs.erase(it);
     }
     intake.drain_if(gone, [&](std::uint64_t id, Program& prog) {
-      fail(prog, id, why + " after batch " + std::to_string(prog.next_batch) + " of the program: the rest is lost");
-      if (info.output == Port::kBlocks) finish_blocks(prog, id, ParseSummary{}, false, 0);
-      else finish_text(prog, id, msg::BlockBatch{});
+      fail(prog, id, why_gone(prog.writer) + " after batch " + std::to_string(prog.next_batch) +
+                         " of the program: the rest is lost");
+      finish_lost(prog, id);
       any = true;
     });
+    return any;
+  }
+
+  void finish_lost(Program& prog, std::uint64_t id) {
+    if (info.output == Port::kBlocks) finish_blocks(prog, id, ParseSummary{}, false, 0);
+    else finish_text(prog, id, msg::BlockBatch{});
+  }
+
+  // A program the stage before held when it died or stalled, of which nothing reached this node
+  // (a compensate node collects a whole program before it sends anything): ended here too, with
+  // the reason, so that the stages after and the sink do not wait for it for ever.
+  bool end_programs_lost_before_their_first_sample() {
+    bool any = false;
+    for (const RawReader::LostProgram& lost : reader->programs_lost_upstream()) {
+      const std::uint64_t id = lost.program_id;
+      if (chunk_programs.count(id) != 0 || intake.holds(id)) continue;  // ended above, with its count
+      if (finished.count(id) != 0) continue;  // its end marker came before the writer's idle beat
+      if (options.program_id != 0 && id != options.program_id) continue;  // another pipeline's
+      Program prog = make_program(lost.file, options.strict || config_strict);
+      prog.file = lost.file;
+      prog.out->id = id;
+      fail(prog, id, lost.why + ", holding program " + std::to_string(id) + " before it sent any of it: the program is lost");
+      finish_lost(prog, id);
+      any = true;
+    }
     return any;
   }
 };
@@ -514,7 +567,9 @@ int StageNode::run() {
       m.options.stage, m.participant, *m.writer, m.options.forever,
       [&m](double timeout) {
         const bool took = m.info.input == Port::kProgram ? m.take_chunk(timeout) : m.take_batch(timeout);
-        if (!took) return m.end_orphaned_programs() ? Taken::kProgramEnd : Taken::kNothing;
+        const bool orphans_ended = !took && m.end_orphaned_programs();
+        m.say_what_it_does_now();
+        if (!took) return orphans_ended ? Taken::kProgramEnd : Taken::kNothing;
         return m.ended ? Taken::kProgramEnd : Taken::kHandled;
       },
       m.status);
