@@ -177,4 +177,12 @@ Axes apply_inverse(const ChainInverse& inv, const simulate::JointSeries& x, std:
   });
 }
 
+simulate::Evaluation feedforward_run(const simulate::Model& model, const simulate::Nominal& nom,
+                                     std::span<const ResolvedBlock> program, const Axes& start) {
+  const ChainInverse inv = design_chain_inverse(model);
+  return simulate::run_commands(model, nom, program, start, nom.reference.size(), [&](std::size_t n) {
+    return apply_inverse(inv, nom.reference, static_cast<std::int64_t>(n));
+  });
+}
+
 }  // namespace gcpipe::compensate

@@ -7,6 +7,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "simulate.hpp"
@@ -45,5 +46,12 @@ using AxesF = std::array<float, kNumAxes>;
 Axes apply_inverse(const ChainInverse& inv, const std::vector<Axes>& x, std::int64_t n);
 Axes apply_inverse(const ChainInverse& inv, const std::vector<AxesF>& x, std::int64_t n);
 Axes apply_inverse(const ChainInverse& inv, const simulate::JointSeries& x, std::int64_t n);
+
+/// The configured control running the original with the drives' model inverse as feed-forward
+/// and no learning: the command u = L r (r the reference, the look-ahead control's own plan) on
+/// the reference clock, measured as every run is. The fair baseline of the learning: the same
+/// clock, the same model, only the learning left out.
+simulate::Evaluation feedforward_run(const simulate::Model& model, const simulate::Nominal& nom,
+                                     std::span<const ResolvedBlock> program, const Axes& start);
 
 }  // namespace gcpipe::compensate

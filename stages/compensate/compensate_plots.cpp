@@ -188,7 +188,7 @@ bool plot_ballbar(const std::filesystem::path& png, const Nominal& nominal, cons
 }
 
 void plot_contour_error(const std::filesystem::path& png, const Evaluation& before, const Evaluation* after,
-                        const std::string& title) {
+                        const std::string& title, const Evaluation* feedforward) {
   plot::Figure fig;
   fig.title(title);
   fig.xlabel("time [s]");
@@ -200,6 +200,10 @@ void plot_contour_error(const std::filesystem::path& png, const Evaluation& befo
   };
   fig.line(before.series.t, um(before.series.contour), kBefore, 2,
            fmt("uncompensated: max %.2f um, RMS %.2f um", before.contour.max * 1e3, before.contour.rms * 1e3));
+  if (feedforward)
+    fig.line(feedforward->series.t, um(feedforward->series.contour), plot::palette(2), 2,
+             fmt("model-inverse feed-forward, no learning: max %.2f um, RMS %.2f um", feedforward->contour.max * 1e3,
+                 feedforward->contour.rms * 1e3));
   if (after)
     fig.line(after->series.t, um(after->series.contour), kAfter, 2,
              fmt("compensated: max %.2f um, RMS %.2f um", after->contour.max * 1e3, after->contour.rms * 1e3));

@@ -26,7 +26,7 @@ bool plot_ballbar(const std::filesystem::path& png, const Nominal& nominal, cons
 
 /// Contour error over time, before and after [um].
 void plot_contour_error(const std::filesystem::path& png, const Evaluation& before, const Evaluation* after,
-                        const std::string& title);
+                        const std::string& title, const Evaluation* feedforward = nullptr);
 
 /// Per-axis following error (command - actual) over time, before above and after below
 /// [um for X Y Z, mdeg for A C].

@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "chain_inverse.hpp"
 #include "compensate_program.hpp"
 #include "error_budget.hpp"
 #include "force_product.hpp"
@@ -126,6 +127,7 @@ class CompensateStage final : public pipeline::Stage {
     if (too_many_) return fail("the program has more than compensate.max_blocks = " + std::to_string(options_.max_blocks) + " blocks");
     if (!simulated_) simulate_here();
     if (!simulated_->run.before) return fail("not simulated: " + simulated_->run.note);
+    measure_feedforward();
     // compensated.nc goes out and is read back window by window as the learning commits its
     // nodes: on a long program neither the text (tens of MB) nor the nodes are held whole.
     std::optional<ReadBack> back;
@@ -153,6 +155,7 @@ class CompensateStage final : public pipeline::Stage {
     o.result = compensation_.result ? &*compensation_.result : nullptr;
     o.written_nodes = written_nodes_;
     o.slowed = slowed_ ? &*slowed_ : nullptr;
+    o.feedforward = feedforward_ ? &*feedforward_ : nullptr;
     o.skipped = failure_;
     compensate::report_simulation(r, o);
     report_error_budget(r);
@@ -196,6 +199,15 @@ class CompensateStage final : public pipeline::Stage {
     return po;
   }
 
+  // The control with the drives' model inverse as feed-forward and no learning: the learning's
+  // fair baseline (same clock, same model).
+  void measure_feedforward() {
+    const simulate::Nominal& nom = *simulated_->run.nominal;
+    if (nom.reference.empty()) return;
+    if (progress_) progress_("simulating the original with the model-inverse feed-forward", 0, 0);
+    feedforward_ = compensate::feedforward_run(model_, nom, simulated_->run.program, simulated_->run.start);
+  }
+
   // The original slowed to the compensated program's cycle time: what a sceptic compares with.
   void measure_slowed_baseline() {
     if (!options_.slowed_baseline || !compensation_.result || compensation_.result->points == 0) return;
@@ -219,6 +231,7 @@ class CompensateStage final : public pipeline::Stage {
   compensate::ProgramCompensation compensation_;
   std::optional<simulate::Evaluation> after_;
   std::optional<simulate::SlowedBaseline> slowed_;
+  std::optional<simulate::Evaluation> feedforward_;
   std::uint64_t written_nodes_ = 0;
   std::string failure_;
 };

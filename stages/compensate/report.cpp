@@ -46,6 +46,14 @@ Json axis_stats_json(const AxisStats& a) {
 
 double ratio(double before, double after) { return after > 0 ? before / after : 0.0; }
 
+// The configured control's cycle for the original [s]: seed 002's control runs the interpolator's
+// ticks; the look-ahead control its plan with the in-position waits (the "before" run's ticks).
+double control_cycle(const ReportInput& in) {
+  const double T = in.model->interp.period;
+  if (in.model->interp.control == interpolate::Control::kLookahead) return static_cast<double>(in.before->stats.ticks) * T;
+  return static_cast<double>(in.nominal->raw.size()) * T;
+}
+
 const char* smoothing_name(interpolate::Smoothing s) {
   return s == interpolate::Smoothing::kExponential ? "exponential" : s == interpolate::Smoothing::kLinear ? "linear" : "none";
 }
@@ -120,13 +128,23 @@ nlohmann::ordered_json report_json(const ReportInput& in) {
   j["compensated"] = in.result && in.result->compensated && in.after;
   j["note"] = in.result ? in.result->note : std::string();
   const double T = in.model->interp.period;
-  j["cycle_time_before_s"] = static_cast<double>(in.nominal->raw.size()) * T;
+  j["control"] = in.model->interp.control == interpolate::Control::kLookahead ? "lookahead" : "after_interpolation";
+  j["cycle_time_before_s"] = control_cycle(in);
   // The original as a look-ahead control runs it to compensate.path_tolerance: the reference.
   if (!in.nominal->reference.empty())
     j["cycle_time_planned_s"] = static_cast<double>(in.nominal->reference.size()) * T;
   if (in.result && in.result->points > 0 && in.after)
     j["cycle_time_after_s"] = static_cast<double>(in.result->end_tick) * T;
   j["contour_error_before"] = contour_json(*in.before);
+  if (in.feedforward) j["contour_error_feedforward"] = contour_json(*in.feedforward);
+  if (in.after && in.feedforward)
+    j["max_contour_error_reduction_over_feedforward"] = ratio(in.feedforward->contour.max, in.after->contour.max);
+  if (in.after && in.result && in.result->points > 0)
+    j["cycle_time_ratio"] = static_cast<double>(in.result->end_tick) * T / control_cycle(in);
+  if (in.model->interp.control == interpolate::Control::kLookahead)
+    j["in_position"] = {{"checks", in.nominal->in_position_checks},
+                        {"wait_s", static_cast<double>(in.nominal->in_position_ticks) * T},
+                        {"waits_cut_at_2s", in.nominal->in_position_capped}};
   if (in.after) {
     j["contour_error_after"] = contour_json(*in.after);
     j["max_contour_error_reduction"] = ratio(in.before->contour.max, in.after->contour.max);
@@ -210,6 +228,17 @@ void contour_lines(const ReportInput& in, std::string& s) {
                   a.max * 1e3, static_cast<unsigned long long>(a.line_at_max), a.t_at_max, a.rms * 1e3, ratio(b.max, a.max));
     s += buf;
   }
+  if (in.feedforward) {
+    const ErrorStats& f = in.feedforward->contour;
+    std::snprintf(buf, sizeof buf, "  feed-forward (model inverse, no learning): max %.2f um (line %llu), RMS %.2f um", f.max * 1e3,
+                  static_cast<unsigned long long>(f.line_at_max), f.rms * 1e3);
+    s += buf;
+    if (in.after) {
+      std::snprintf(buf, sizeof buf, "; after is %.1fx below it", ratio(f.max, in.after->contour.max));
+      s += buf;
+    }
+    s += "\n";
+  }
 }
 
 // The compensation's note, the slowed-original baseline, the rapids, the cycle times.
@@ -230,12 +259,22 @@ void outcome_lines(const ReportInput& in, std::string& s) {
     s += buf;
   }
   s += "\n";
-  if (in.result && in.result->points > 0) {
+  const bool lookahead = in.model->interp.control == interpolate::Control::kLookahead;
+  if (in.result && in.result->points > 0 && lookahead) {
+    const double after = static_cast<double>(in.result->end_tick) * in.model->interp.period;
+    std::snprintf(buf, sizeof buf,
+                  "  compensated program runs %.3f s, %.3fx the look-ahead control's %.3f s for the original (%llu "
+                  "in-position checks waited %.3f s)\n",
+                  after, after / control_cycle(in), control_cycle(in),
+                  static_cast<unsigned long long>(in.nominal->in_position_checks),
+                  static_cast<double>(in.nominal->in_position_ticks) * in.model->interp.period);
+    s += buf;
+  } else if (in.result && in.result->points > 0) {
     std::snprintf(buf, sizeof buf,
                   "  compensated program runs %.3f s (original %.3f s as the control runs it, %.3f s planned to "
                   "compensate.path_tolerance)\n",
                   static_cast<double>(in.result->end_tick) * in.model->interp.period,
-                  static_cast<double>(in.nominal->raw.size()) * in.model->interp.period,
+                  control_cycle(in),
                   static_cast<double>(in.nominal->reference.size()) * in.model->interp.period);
     s += buf;
   }

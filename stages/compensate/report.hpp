@@ -20,6 +20,8 @@ struct ReportInput {
   const Evaluation* before = nullptr;    //!< the original program, simulated
   const simulate::SlowedBaseline* slowed = nullptr;  //!< the original slowed to the compensated
                                                      //!< cycle time (null when not compensated)
+  const Evaluation* feedforward = nullptr;  //!< the original on the control with the drives' model
+                                            //!< inverse as feed-forward, no learning (or null)
   const Evaluation* after = nullptr;     //!< the written compensated program, re-parsed and
                                          //!< simulated (null when not compensated)
   const Result* result = nullptr;

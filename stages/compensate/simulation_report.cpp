@@ -42,7 +42,8 @@ void recommend_kffp(const Model& model, const Nominal& nominal, ReportInput& rin
       rin.segment_kffp.push_back({g, {seg_omega[g], servo::best_kffp(model.drives, model.interp.smoothing, T, seg_omega[g], 2.0, 1.0)}});
 }
 
-void draw(pipeline::ReportContext& r, const Nominal& nominal, const Evaluation& before, const Evaluation* after) {
+void draw(pipeline::ReportContext& r, const Nominal& nominal, const Evaluation& before, const Evaluation* after,
+          const Evaluation* feedforward) {
   if (r.dir.empty()) return;
   if (r.progress) r.progress("drawing the error figures", 0, 0);
   const std::filesystem::path plots = r.dir / "plots";
@@ -50,7 +51,8 @@ void draw(pipeline::ReportContext& r, const Nominal& nominal, const Evaluation& 
   plot_toolpath(plots / "toolpath.png", before, after, base + ": tool path");
   r.files->push_back("plots/toolpath.png");
   if (plot_ballbar(plots / "ballbar.png", nominal, before, after, base)) r.files->push_back("plots/ballbar.png");
-  plot_contour_error(plots / "contour_error.png", before, after, base + ": contour error, before and after compensation");
+  plot_contour_error(plots / "contour_error.png", before, after, base + ": contour error, before and after compensation",
+                     feedforward);
   r.files->push_back("plots/contour_error.png");
   plot_following_error(plots / "following_error.png", before, after, base);
   r.files->push_back("plots/following_error.png");
@@ -72,6 +74,7 @@ void report_simulation(pipeline::ReportContext& r, const SimulationOutcome& o) {
   rin.after = o.after;
   rin.result = o.result;
   rin.slowed = o.slowed;
+  rin.feedforward = o.feedforward;
   recommend_kffp(*o.model, nominal, rin);
   (*r.json)["simulation"] = report_json(rin);
   char buf[256];
@@ -85,7 +88,7 @@ void report_simulation(pipeline::ReportContext& r, const SimulationOutcome& o) {
                   static_cast<unsigned long long>(o.written_nodes));
     *r.text += buf;
   }
-  draw(r, nominal, *o.run->before, o.after);
+  draw(r, nominal, *o.run->before, o.after, o.feedforward);
 }
 
 }  // namespace gcpipe::compensate

@@ -14,6 +14,7 @@ struct SimulationOutcome {
   const Evaluation* after = nullptr;             //!< the compensated program's, or null
   const Result* result = nullptr;                //!< the compensation, or null
   const simulate::SlowedBaseline* slowed = nullptr;  //!< the sceptic's baseline, or null
+  const Evaluation* feedforward = nullptr;       //!< the model-inverse feed-forward run, or null
   std::uint64_t written_nodes = 0;               //!< motion blocks of compensated.nc
   std::string skipped;                           //!< why nothing was simulated
 };
