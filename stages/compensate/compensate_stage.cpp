@@ -109,7 +109,14 @@ class CompensateStage final : public pipeline::Stage {
         machine_(c.config->machine),
         progress_(c.progress),
         collect_(std::find(c.stages.begin(), c.stages.end(), "simulate") == c.stages.end()),
-        blocks_(options_.max_blocks) {}
+        blocks_(options_.max_blocks) {
+    // The look-ahead control has no acc/dec after interpolation: it runs the velocity steps of
+    // the timed points' chain as they are, so points 4 ms apart would make a velocity step every
+    // 4 ms (accelerations of v/T at the steps, which the learning's limits then see). A point
+    // every interpolation period is the command itself.
+    if (model_.interp.control == interpolate::Control::kLookahead && !c.config->root.section("compensate").has("node_period"))
+      options_.node_period = model_.interp.period;
+  }
 
   bool block(const ResolvedBlock& b, Emitter&) override {
     if (collect_ && blocks_.size() < options_.max_blocks) blocks_.push_back(b);
