@@ -78,8 +78,13 @@ void report_simulation(pipeline::ReportContext& r, const SimulationOutcome& o) {
   recommend_kffp(*o.model, nominal, rin);
   (*r.json)["simulation"] = report_json(rin);
   char buf[256];
-  std::snprintf(buf, sizeof buf, "  simulate: %.3f s of machine time at %.4g s\n",
-                static_cast<double>(nominal.raw.size() - 1) * o.model->interp.period, o.model->interp.period);
+  // The machine's time: the interpolator's run under seed 002's control, the plan with its
+  // in-position waits under the look-ahead control (its run is the "before").
+  const bool lookahead = o.model->interp.control == interpolate::Control::kLookahead;
+  const double machine_time = lookahead ? static_cast<double>(o.run->before->stats.ticks - 1) * o.model->interp.period
+                                        : static_cast<double>(nominal.raw.size() - 1) * o.model->interp.period;
+  std::snprintf(buf, sizeof buf, "  simulate: %.3f s of machine time at %.4g s (%s control)\n", machine_time,
+                o.model->interp.period, lookahead ? "look-ahead" : "seed 002's acc/dec-after-interpolation");
   *r.text += buf;
   *r.text += report_text(rin);
   if (o.after != nullptr) {

@@ -45,8 +45,9 @@ class DriveRun {
     servo::ServoSample s;
     while (sim_.flush(s)) emit(s);
   }
-  /// The newest actual position handed on.
+  /// The newest actual position handed on, and its tick.
   const Axes& actual() const { return last_.actual; }
+  std::uint64_t actual_tick() const { return n_ - 1; }
 
  private:
   void emit(const servo::ServoSample& s) {
@@ -85,10 +86,13 @@ InPositionWaits add_in_position_waits(const Model& model, Nominal& nom, const Ax
     keep(r, nom.progress[n]);
     // The last tick of a stretch where the plan stands still (an exact stop, a dwell, the end):
     // the next motion waits until every axis is in position.
+    // The drives hand a tick on a few ticks after its command (their feed-forward reads ahead):
+    // the check reads the actual position of this tick or a later one, never an earlier one.
     if (stands_still(prev, r) && (n + 1 == E || !stands_still(r, next))) {
       ++w.checks;
       std::uint64_t held = 0;
-      while (!in_position(drives.actual(), r, model.interp.in_position) && held < cap) {
+      const std::uint64_t tick = reference.size() - 1;
+      while ((drives.actual_tick() < tick || !in_position(drives.actual(), r, model.interp.in_position)) && held < cap) {
         drives.push(r);
         keep(r, nom.progress[n]);
         ++held;

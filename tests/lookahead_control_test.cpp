@@ -1,0 +1,183 @@
+// The look-ahead control (interpolate.control: lookahead, stages/interpolate/README.md "Control
+// models"): exact stops with an in-position check at every rapid's end and at G61 blocks, feed
+// corners blended within the path tolerance without stopping, commands within the axes' limits,
+// and the compensation on the control's own clock. The judges are the programmed geometry, worked
+// in this file, and the drives' simulated actual positions (not the planner's own figures).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "chain_inverse.hpp"
+#include "compensate.hpp"
+#include "compensate_program.hpp"
+#include "gcpipe/config.hpp"
+#include "gcpipe/pipeline_config.hpp"
+#include "parse.hpp"
+#include "write.hpp"
+
+namespace gcpipe::compensate {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<ResolvedBlock> parse_text(const std::string& text, const PipelineConfig& pc) {
+  Parser parser(ParseOptions{}, pc.machine, "test.nc");
+  std::vector<ResolvedBlock> out;
+  std::istringstream in(text);
+  std::string line;
+  LineOutput got;
+  while (std::getline(in, line)) {
+    parser.feed(line, got);
+    out.insert(out.end(), got.blocks.begin(), got.blocks.end());
+    if (got.error() != nullptr) ADD_FAILURE() << format(*got.error());
+  }
+  return out;
+}
+
+PipelineConfig default_config() {
+  return load_pipeline_config(fs::path(GCPIPE_SOURCE_DIR) / "pipeline_configs" / "default.yaml");
+}
+
+// Two rapids meeting at X20 Y0 and ending at X20 Y10, then feed moves with a 90 degree corner at
+// X40 Y10 (`corner`: G64 or G61 for the block that ends there).
+std::string program_text(const std::string& corner) {
+  return "G21 G17 G90 G94\nG0 X0. Y0. Z0.\nG0 X20.\nG0 Y10.\n" + corner + " G1 X40. F3000.\nG64 G1 Y30.\nG1 X20.\nM30\n";
+}
+
+struct ControlRun {
+  PipelineConfig pc = default_config();
+  Model model = load_model(pc);
+  std::vector<ResolvedBlock> program;
+  simulate::SimulationRun run;
+  std::vector<Tick> ticks;
+  explicit ControlRun(const std::string& corner) {
+    program = parse_text(program_text(corner), pc);
+    run = simulate::simulate_program(model, program, run_bounds(CompensateOptions{}), [&](const Tick& t) { ticks.push_back(t); });
+  }
+};
+
+double point_segment(double px, double py, double ax, double ay, double bx, double by) {
+  const double dx = bx - ax, dy = by - ay;
+  const double s = std::clamp(((px - ax) * dx + (py - ay) * dy) / (dx * dx + dy * dy), 0.0, 1.0);
+  return std::hypot(px - ax - s * dx, py - ay - s * dy);
+}
+
+// The ticks at which the control's command stands at (x, y) (within 1e-9 mm): the last of them.
+std::size_t last_tick_at(const std::vector<Tick>& ticks, double x, double y, std::size_t& count) {
+  count = 0;
+  std::size_t last = 0;
+  for (std::size_t n = 0; n < ticks.size(); ++n)
+    if (std::abs(ticks[n].command[kX] - x) < 1e-9 && std::abs(ticks[n].command[kY] - y) < 1e-9) last = n, ++count;
+  return last;
+}
+
+// Some tick of the stretch where the command stands still (its last tick `last`, `count` long)
+// has every axis's actual within `width` of the command: the in-position check passed there.
+bool in_position_before_moving_on(const std::vector<Tick>& ticks, std::size_t last, std::size_t count, double width) {
+  for (std::size_t n = last + 1 - count; n <= last; ++n) {
+    bool all = true;
+    for (std::size_t i = 0; i < kNumAxes; ++i) all = all && std::abs(ticks[n].actual[i] - ticks[n].command[i]) <= width;
+    if (all) return true;
+  }
+  return false;
+}
+
+TEST(LookaheadControl, TheDefaultMachineRunsIt) {
+  const Model model = load_model(default_config());
+  EXPECT_EQ(model.interp.control, interpolate::Control::kLookahead);
+  EXPECT_EQ(model.interp.smoothing, interpolate::Smoothing::kNone);
+}
+
+// At the end of each rapid the command stands still, and the next motion starts only once every
+// axis's simulated actual position is within interpolate.in_position of it.
+TEST(LookaheadControl, EveryRapidEndsWithAStopInPosition) {
+  const ControlRun r("G64");
+  ASSERT_TRUE(r.run.before) << r.run.note;
+  const double width = r.model.interp.in_position;
+  for (const auto& [x, y] : {std::pair{20.0, 0.0}, std::pair{20.0, 10.0}}) {
+    std::size_t count = 0;
+    const std::size_t n = last_tick_at(r.ticks, x, y, count);
+    EXPECT_GE(count, 4u) << "the plan does not stand still at X" << x << " Y" << y;
+    EXPECT_TRUE(in_position_before_moving_on(r.ticks, n, count, width))
+        << "the motion after X" << x << " Y" << y << " starts before every axis is in position";
+  }
+}
+
+// A feed corner in G64 without P is blended within interpolate.path_tolerance (the programmed
+// geometry judges) and passed without stopping; in G61 it is an exact stop in position.
+TEST(LookaheadControl, FeedCornersBlendWithinTheToleranceAndStopInG61) {
+  const ControlRun blend("G64"), stop("G61");
+  ASSERT_TRUE(blend.run.before && stop.run.before);
+  const double tol = blend.model.interp.path_tolerance, T = blend.model.interp.period;
+  double worst = 0, slowest_near_corner = 1e9;
+  for (std::size_t n = 1; n < blend.ticks.size(); ++n) {
+    const Axes& c = blend.ticks[n].command;
+    if (c[kY] < 10 - 1e-9 || c[kX] < 20 - 1e-9) continue;  // on the feed moves
+    const double d = std::min({point_segment(c[kX], c[kY], 20, 10, 40, 10), point_segment(c[kX], c[kY], 40, 10, 40, 30),
+                               point_segment(c[kX], c[kY], 40, 30, 20, 30)});
+    worst = std::max(worst, d);
+    if (std::hypot(c[kX] - 40, c[kY] - 10) < 0.5) {
+      const Axes& p = blend.ticks[n - 1].command;
+      slowest_near_corner = std::min(slowest_near_corner, std::hypot(c[kX] - p[kX], c[kY] - p[kY]) / T);
+    }
+  }
+  EXPECT_LE(worst, tol * 1.05) << "the blend leaves the programmed corner by more than the tolerance";
+  EXPECT_GT(worst, 1e-4) << "the G64 corner was not blended";
+  EXPECT_GT(slowest_near_corner, 1.0) << "mm/s: the G64 corner was stopped at";
+  std::size_t count = 0;
+  const std::size_t n = last_tick_at(stop.ticks, 40, 10, count);
+  EXPECT_GE(count, 4u) << "the G61 corner is not an exact stop";
+  EXPECT_TRUE(in_position_before_moving_on(stop.ticks, n, count, stop.model.interp.in_position));
+}
+
+// The commands the drives get stay within every axis's velocity and acceleration limit (measured
+// on the ticks: first and second differences).
+TEST(LookaheadControl, CommandsStayWithinTheAxisLimits) {
+  const ControlRun r("G64");
+  ASSERT_TRUE(r.run.before);
+  const double T = r.model.interp.period;
+  for (std::size_t n = 2; n < r.ticks.size(); ++n)
+    for (std::size_t i = 0; i < kNumAxes; ++i) {
+      const double v = std::abs(r.ticks[n].command[i] - r.ticks[n - 1].command[i]) / T;
+      const double a = std::abs(r.ticks[n].command[i] - 2 * r.ticks[n - 1].command[i] + r.ticks[n - 2].command[i]) / (T * T);
+      ASSERT_LE(v, r.model.kin.max_velocity[i] * (1 + 1e-6)) << "axis " << kAxisLetters[i] << " tick " << n;
+      ASSERT_LE(a, r.model.kin.max_acceleration[i] * (1 + 1e-6)) << "axis " << kAxisLetters[i] << " tick " << n;
+    }
+}
+
+TEST(LookaheadControl, ConfigRejectsAnAccDecAfterInterpolationWithIt) {
+  const fs::path p = fs::temp_directory_path() / "gcpipe_lookahead_smoothing.yaml";
+  {
+    std::ofstream f(p);
+    f << "period: 0.001\ncontrol: lookahead\nsmoothing: exponential\n";
+  }
+  EXPECT_THROW(interpolate::load_interpolate_options(Config::load_file(p)), ConfigError);
+  fs::remove(p);
+}
+
+// The compensated program keeps the control's timing (issue 31 item 3: at most 1.02 times its
+// cycle), and the model-inverse feed-forward, run on the control's clock, is measured beside it.
+TEST(LookaheadControl, TheCompensationKeepsTheControlsCycle) {
+  ControlRun r("G64");
+  ASSERT_TRUE(r.run.before);
+  CompensateOptions opt;
+  opt.node_period = r.model.interp.period;
+  opt.slowed_baseline = false;
+  const ProgramCompensation pc = compensate_program(r.model, opt, WriteOptions{}, r.run, {});
+  ASSERT_TRUE(pc.result && pc.result->compensated) << pc.note;
+  const double T = r.model.interp.period;
+  const double control = static_cast<double>(r.run.before->stats.ticks) * T;
+  const double compensated = static_cast<double>(pc.result->end_tick) * T;
+  EXPECT_LE(compensated, 1.02 * control);
+  EXPECT_GE(compensated, 0.98 * control);
+  const Evaluation ff = feedforward_run(r.model, *r.run.nominal, r.program, r.run.start);
+  EXPECT_NEAR(static_cast<double>(ff.stats.ticks) * T, control, 0.01 * control);
+  EXPECT_GT(ff.contour.max, 0.0);
+}
+
+}  // namespace
+}  // namespace gcpipe::compensate
