@@ -74,6 +74,17 @@ Eigen::VectorXd gaussian(std::size_t length, std::size_t centre, double sigma) {
   return q / q.sum();
 }
 
+// The target Gaussian (`sigma` ticks) at the taps, tap j reading `lead - stride j` ticks from its
+// centre, with unit sum.
+Eigen::VectorXd sampled_target(Index taps, Index stride, std::size_t lead, double sigma) {
+  Eigen::VectorXd f(taps);
+  for (Index j = 0; j < taps; ++j) {
+    const double z = (static_cast<double>(stride * j) - static_cast<double>(lead)) / sigma;
+    f[j] = std::exp(-0.5 * z * z);
+  }
+  return f / f.sum();
+}
+
 // Least squares for taps f (every `stride` ticks): min |g * f - q|^2 + w |D2 f|^2 subject to
 // sum f = 1 / sum g and sum (stride j) f_j = (lead - mean delay of g) / sum g, so that a held
 // error and a ramp come back exactly (the Gaussian has unit sum and its centre at `lead`).
@@ -103,7 +114,14 @@ AxisInverse design_axis(const std::vector<double>& step, std::size_t onset, std:
   Eigen::VectorXd rhs(K + 2);
   rhs.head(K) = A.transpose() * q;
   rhs.tail(2) << 1.0 / dc, (static_cast<double>(centre) - g_delay) / dc;
-  const Eigen::VectorXd x = kkt.fullPivLu().solve(rhs);
+  Eigen::VectorXd x = kkt.fullPivLu().solve(rhs);
+  // A chain that is the identity (an ideal axis without acc/dec after interpolation, as under the
+  // look-ahead control): its response to the comb of taps is a comb, which no taps fit to the
+  // smooth target; the least squares then spread the DC constraint over every tap (a 300 ms
+  // average: the feed-forward lagged Z by tens of um at every corner). Its inverse is the target
+  // itself: the Gaussian sampled at the taps, scaled to unit sum (symmetric about the lead, so
+  // the first-moment condition holds too).
+  if (g.cwiseAbs().maxCoeff() > 0.99 * std::abs(dc)) x.head(K) = sampled_target(K, s, lead, sigma) / dc;
   AxisInverse f;
   f.taps.assign(x.data(), x.data() + K);
   f.lead = static_cast<std::ptrdiff_t>(lead);
@@ -177,12 +195,24 @@ Axes apply_inverse(const ChainInverse& inv, const simulate::JointSeries& x, std:
   });
 }
 
-simulate::Evaluation feedforward_run(const simulate::Model& model, const simulate::Nominal& nom,
-                                     std::span<const ResolvedBlock> program, const Axes& start) {
+FeedforwardRun feedforward_run(const simulate::Model& model, const simulate::Nominal& nom,
+                               std::span<const ResolvedBlock> program, const Axes& start) {
   const ChainInverse inv = design_chain_inverse(model);
-  return simulate::run_commands(model, nom, program, start, nom.reference.size(), [&](std::size_t n) {
-    return apply_inverse(inv, nom.reference, static_cast<std::int64_t>(n));
+  const double T = model.interp.period;
+  const auto per_second = static_cast<std::size_t>(std::llround(1.0 / T));
+  FeedforwardRun r;
+  r.over_limit.assign(nom.reference.size() / per_second + 1, 0.0);
+  Axes u1 = start, u2 = start;
+  r.eval = simulate::run_commands(model, nom, program, start, nom.reference.size(), [&](std::size_t n) {
+    const Axes u = apply_inverse(inv, nom.reference, static_cast<std::int64_t>(n));
+    double& over = r.over_limit[n / per_second];
+    for (std::size_t i = 0; i < kNumAxes && n >= 2; ++i)
+      if (model.kin.max_acceleration[i] > 0)
+        over = std::max(over, std::abs(u[i] - 2 * u1[i] + u2[i]) / (T * T) / model.kin.max_acceleration[i]);
+    u2 = u1, u1 = u;
+    return u;
   });
+  return r;
 }
 
 }  // namespace gcpipe::compensate

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "chain_inverse.hpp"
+#include "local_slowdown.hpp"
 #include "compensate_program.hpp"
 #include "error_budget.hpp"
 #include "force_product.hpp"
@@ -135,14 +136,16 @@ class CompensateStage final : public pipeline::Stage {
     if (!simulated_) simulate_here();
     if (!simulated_->run.before) return fail("not simulated: " + simulated_->run.note);
     measure_feedforward();
+    slow_where_needed();
+    const simulate::SimulationRun& run = slowdown_.run ? *slowdown_.run : simulated_->run;
     // compensated.nc goes out and is read back window by window as the learning commits its
     // nodes: on a long program neither the text (tens of MB) nor the nodes are held whole.
     std::optional<ReadBack> back;
     bool go = true;
     compensation_ = compensate::compensate_program(
-        model_, options_, write_options_, simulated_->run, progress_,
+        model_, options_, write_options_, run, progress_,
         [&](std::string& piece, const std::vector<std::uint32_t>& point_blocks) {
-          if (!back) back.emplace(read_back_options(), machine_, model_, simulated_->run);
+          if (!back) back.emplace(read_back_options(), machine_, model_, run);
           back->feed(piece, point_blocks);
           go = out.text(piece) && go;
         });
@@ -162,7 +165,8 @@ class CompensateStage final : public pipeline::Stage {
     o.result = compensation_.result ? &*compensation_.result : nullptr;
     o.written_nodes = written_nodes_;
     o.slowed = slowed_ ? &*slowed_ : nullptr;
-    o.feedforward = feedforward_ ? &*feedforward_ : nullptr;
+    o.feedforward = feedforward_ ? &feedforward_->eval : nullptr;
+    o.slowdown = &slowdown_;
     o.skipped = failure_;
     compensate::report_simulation(r, o);
     report_error_budget(r);
@@ -215,6 +219,16 @@ class CompensateStage final : public pipeline::Stage {
     feedforward_ = compensate::feedforward_run(model_, nom, simulated_->run.program, simulated_->run.start);
   }
 
+  // Under the look-ahead control the compensation keeps the control's clock except where the
+  // drives' limits forbid the pre-compensation at its speed: there the plan is slowed locally.
+  void slow_where_needed() {
+    if (!feedforward_ || !options_.enabled || model_.interp.control != interpolate::Control::kLookahead) return;
+    if (progress_) progress_("slowing the plan where the drives cannot follow it", 0, 0);
+    slowdown_ = compensate::slow_where_drives_cannot_follow(model_, simulated_->run, *feedforward_,
+                                                            compensate::run_bounds(options_).plan,
+                                                            options_.max_machine_time);
+  }
+
   // The original slowed to the compensated program's cycle time: what a sceptic compares with.
   void measure_slowed_baseline() {
     if (!options_.slowed_baseline || !compensation_.result || compensation_.result->points == 0) return;
@@ -238,7 +252,8 @@ class CompensateStage final : public pipeline::Stage {
   compensate::ProgramCompensation compensation_;
   std::optional<simulate::Evaluation> after_;
   std::optional<simulate::SlowedBaseline> slowed_;
-  std::optional<simulate::Evaluation> feedforward_;
+  std::optional<compensate::FeedforwardRun> feedforward_;
+  compensate::LocalSlowdown slowdown_;
   std::uint64_t written_nodes_ = 0;
   std::string failure_;
 };

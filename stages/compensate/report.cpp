@@ -46,6 +46,20 @@ Json axis_stats_json(const AxisStats& a) {
 
 double ratio(double before, double after) { return after > 0 ? before / after : 0.0; }
 
+// Where the compensation's plan is slower than the control's, and what it costs.
+Json slowdown_json(const ReportInput& in, double T) {
+  const LocalSlowdown& s = *in.slowdown;
+  Json list = Json::array();
+  for (const SlowStretch& x : s.stretches)
+    list.push_back({{"first_line", x.first_line}, {"last_line", x.last_line}, {"t_begin_s", x.t_begin}, {"t_end_s", x.t_end},
+                    {"speed_factor", x.factor}});
+  const double planned = static_cast<double>(s.run->nominal->reference.size()) * T;
+  return {{"stretches", list},
+          {"cycle_time_added_s", planned - static_cast<double>(in.before->stats.ticks) * T},
+          {"rounds", s.rounds},
+          {"feedforward_acceleration_over_limit", s.worst_over_limit}};
+}
+
 // The configured control's cycle for the original [s]: seed 002's control runs the interpolator's
 // ticks; the look-ahead control its plan with the in-position waits (the "before" run's ticks).
 double control_cycle(const ReportInput& in) {
@@ -141,6 +155,7 @@ nlohmann::ordered_json report_json(const ReportInput& in) {
     j["max_contour_error_reduction_over_feedforward"] = ratio(in.feedforward->contour.max, in.after->contour.max);
   if (in.after && in.result && in.result->points > 0)
     j["cycle_time_ratio"] = static_cast<double>(in.result->end_tick) * T / control_cycle(in);
+  if (in.slowdown != nullptr && in.slowdown->run) j["slowed_for_drive_limits"] = slowdown_json(in, T);
   if (in.model->interp.control == interpolate::Control::kLookahead)
     j["in_position"] = {{"checks", in.nominal->in_position_checks},
                         {"wait_s", static_cast<double>(in.nominal->in_position_ticks) * T},
@@ -241,6 +256,28 @@ void contour_lines(const ReportInput& in, std::string& s) {
   }
 }
 
+// Where the drives' limits made the compensation slow the plan: the first stretches, the time.
+void slowdown_lines(const ReportInput& in, std::string& s) {
+  if (in.slowdown == nullptr || !in.slowdown->run) return;
+  const LocalSlowdown& sd = *in.slowdown;
+  const double T = in.model->interp.period;
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                "  slowed where the drives' limits forbid the pre-compensation at the control's speed: %zu stretches, "
+                "+%.3f s%s\n",
+                sd.stretches.size(),
+                static_cast<double>(sd.run->nominal->reference.size()) * T - static_cast<double>(in.before->stats.ticks) * T,
+                sd.worst_over_limit > 1.0 ? " (the model inverse still asks more than an axis has in places)" : "");
+  s += buf;
+  for (std::size_t k = 0; k < sd.stretches.size() && k < 5; ++k) {
+    const SlowStretch& x = sd.stretches[k];
+    std::snprintf(buf, sizeof buf, "    lines %llu-%llu (t %.2f-%.2f s): speed x%.2f\n", static_cast<unsigned long long>(x.first_line),
+                  static_cast<unsigned long long>(x.last_line), x.t_begin, x.t_end, x.factor);
+    s += buf;
+  }
+  if (sd.stretches.size() > 5) s += "    ... (report.json simulation.slowed_for_drive_limits has them all)\n";
+}
+
 // The compensation's note, the slowed-original baseline, the rapids, the cycle times.
 void outcome_lines(const ReportInput& in, std::string& s) {
   char buf[400];
@@ -269,6 +306,7 @@ void outcome_lines(const ReportInput& in, std::string& s) {
                   static_cast<unsigned long long>(in.nominal->in_position_checks),
                   static_cast<double>(in.nominal->in_position_ticks) * in.model->interp.period);
     s += buf;
+    slowdown_lines(in, s);
   } else if (in.result && in.result->points > 0) {
     std::snprintf(buf, sizeof buf,
                   "  compensated program runs %.3f s (original %.3f s as the control runs it, %.3f s planned to "

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "compensate.hpp"
+#include "local_slowdown.hpp"
 #include "circle.hpp"
 #include "servo.hpp"
 
@@ -22,6 +23,7 @@ struct ReportInput {
                                                      //!< cycle time (null when not compensated)
   const Evaluation* feedforward = nullptr;  //!< the original on the control with the drives' model
                                             //!< inverse as feed-forward, no learning (or null)
+  const LocalSlowdown* slowdown = nullptr;  //!< where the compensation's plan is slower than the control's
   const Evaluation* after = nullptr;     //!< the written compensated program, re-parsed and
                                          //!< simulated (null when not compensated)
   const Result* result = nullptr;

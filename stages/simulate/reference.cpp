@@ -581,7 +581,7 @@ std::size_t margin_end(const Model& model, const Nominal& nom, std::size_t k1, s
 class ChunkedPlan {
  public:
   ChunkedPlan(const Model& model, const ReferencePlan& plan, double max_ticks, Nominal& nom)
-      : model_(model), c_(plan_settings(model, plan, nom.period)), max_ticks_(max_ticks), nom_(nom),
+      : model_(model), c_(plan_settings(model, plan, nom.period)), caps_(plan.caps), max_ticks_(max_ticks), nom_(nom),
         N_(nom.raw.size()), moving_(moving_steps(model, nom)), chunk_(ticks(plan.chunk_seconds, c_.T)),
         min_margin_(ticks(2.0, c_.T)), state_(c_.ma, c_.mb, c_.m1, c_.m2) {
     // The reference and its progress grow in scratch arrays (gcpipe/scratch.hpp), which never
@@ -601,6 +601,7 @@ class ChunkedPlan {
     RawPath p = raw_path(model_, nom_, first, k2, k0_ == 0 ? 0.0 : prev_.sigma[first - prev_.first], moving_);
     Chunk ch{k0_ - first, k1 - first, p.ends_program && k1 == N_ - 1};
     std::vector<double> w = step_speed_limits(model_, nom_, p, c_.T, c_.T1, c_.a_sigma);
+    apply_caps(p, w);
     std::copy_n(carried_w_.begin(), std::min(carried_w_.size(), w.size() - ch.from), w.begin() + static_cast<std::ptrdiff_t>(ch.from));
     const std::size_t made = nom_.reference.size();  // ticks the chunks before committed
     Round r;
@@ -622,6 +623,13 @@ class ChunkedPlan {
   }
 
  private:
+  // The plan's own slow-downs (ReferencePlan::caps) on the chunk's steps; the steps carried from
+  // the chunk before are overwritten by their limits there, which had them already.
+  void apply_caps(const RawPath& p, std::vector<double>& w) const {
+    for (const ReferencePlan::SpeedCap& c : caps_)
+      for (std::size_t g = std::max(c.first, p.first); g <= c.last && g < p.first + w.size(); ++g) w[g - p.first] *= c.factor;
+  }
+
   // The first raw sample of the next chunk's path: its first planned sample less the samples the
   // smoothed sigma may still be behind it (the speed smoothing's lag).
   std::size_t lead_in_start() const {
@@ -696,6 +704,7 @@ class ChunkedPlan {
 
   const Model& model_;
   const PlanSettings c_;
+  std::vector<ReferencePlan::SpeedCap> caps_;
   double max_ticks_;
   Nominal& nom_;
   std::size_t N_;

@@ -351,6 +351,14 @@ struct ReferencePlan {
   /// [s] of the program as the control runs it planned at a time (plus a margin past it): the
   /// planner holds a chunk's series, not the program's. Not a config key (tests shorten it).
   double chunk_seconds = 120;
+  /// Stretches of the path planned slower than the control plans them: the speed limit of every
+  /// raw step from `first` to `last` is multiplied by `factor` (the compensation slows where a
+  /// drive limit forbids its pre-compensation at the control's speed).
+  struct SpeedCap {
+    std::size_t first = 0, last = 0;  //!< raw samples
+    double factor = 1;
+  };
+  std::vector<SpeedCap> caps;
 };
 
 /// The nominal run of the original program.
