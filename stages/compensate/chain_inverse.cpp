@@ -135,9 +135,18 @@ AxisInverse design_axis(const std::vector<double>& step, std::size_t onset, std:
 ChainInverse design_chain_inverse(const simulate::Model& model) {
   const double T = model.interp.period;
   const auto ticks = [T](double seconds) { return static_cast<std::size_t>(std::max(1L, std::lround(seconds / T))); };
-  const std::size_t stride = ticks(kStrideSeconds);
+  // Taps 4 ms apart fit a chain that is smooth on that scale (acc/dec after interpolation first);
+  // the drives alone (the look-ahead control has no acc/dec after interpolation) answer within a
+  // tick or two, and a comb of taps 4 ms apart cannot fit them: the least squares then spread the
+  // DC condition over the whole span, a 300 ms average that lagged Y by 0.8 mm on a circle at
+  // F3000. There the taps are every tick (four times the work of applying L).
+  const std::size_t stride = model.interp.smoothing == interpolate::Smoothing::kNone ? 1 : ticks(kStrideSeconds);
   ChainInverse inv;
-  const std::size_t onset = kOnsetTicks;
+  // Under the look-ahead control the drives alone are the chain: their feed-forward reads the
+  // command Tp ahead and answers before the step, and without that part g shows a delay of about
+  // the drive's lag which the drives do not have (with it left out the feed-forward led Y by
+  // 0.8 mm on a circle at F3000). There the step comes 0.1 s in, so g holds it.
+  const std::size_t onset = model.interp.smoothing == interpolate::Smoothing::kNone ? ticks(kLeadSeconds) : kOnsetTicks;
   for (std::size_t i = 0; i < kNumAxes; ++i)
     inv.axis[i] = design_axis(chain_step_response(model, i, onset + ticks(kResponseSeconds), onset), onset,
                               ticks(kLeadSeconds), std::max<std::size_t>(3, ticks(kSpanSeconds) / stride), stride,
