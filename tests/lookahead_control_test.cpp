@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -174,9 +175,12 @@ TEST(LookaheadControl, TheCompensationKeepsTheControlsCycle) {
   const double compensated = static_cast<double>(pc.result->end_tick) * T;
   EXPECT_LE(compensated, 1.02 * control);
   EXPECT_GE(compensated, 0.98 * control);
-  const Evaluation ff = feedforward_run(r.model, *r.run.nominal, r.program, r.run.start);
+  const Evaluation ff = feedforward_run(r.model, *r.run.nominal, r.program, r.run.start).eval;
   EXPECT_NEAR(static_cast<double>(ff.stats.ticks) * T, control, 0.01 * control);
-  EXPECT_GT(ff.contour.max, 0.0);
+  // The drives' model inverse on the control's own clock brings the error down by itself (X of
+  // seed 002 lags by its slow velocity loop; the inverse leads it by that).
+  std::printf("contour error before %.2f um, feed-forward %.2f um\n", r.run.before->contour.max * 1e3, ff.contour.max * 1e3);
+  EXPECT_LT(ff.contour.max, 0.5 * r.run.before->contour.max);
 }
 
 }  // namespace
