@@ -222,7 +222,9 @@ class CompensateStage final : public pipeline::Stage {
   // Under the look-ahead control the compensation keeps the control's clock except where the
   // drives' limits forbid the pre-compensation at its speed: there the plan is slowed locally.
   void slow_where_needed() {
-    if (!feedforward_ || !options_.enabled || model_.interp.control != interpolate::Control::kLookahead) return;
+    if (!feedforward_ || !options_.enabled || !options_.slow_for_drive_limits ||
+        model_.interp.control != interpolate::Control::kLookahead)
+      return;
     if (progress_) progress_("slowing the plan where the drives cannot follow it", 0, 0);
     slowdown_ = compensate::slow_where_drives_cannot_follow(model_, simulated_->run, *feedforward_,
                                                             compensate::run_bounds(options_).plan,
