@@ -18,6 +18,7 @@
 #include "gcpipe/config.hpp"
 #include "gcpipe/pipeline_config.hpp"
 #include "parse.hpp"
+#include "unseen_machine/unseen_machine.hpp"
 #include "write.hpp"
 
 namespace gcpipe::compensate {
@@ -181,6 +182,93 @@ TEST(LookaheadControl, TheCompensationKeepsTheControlsCycle) {
   // seed 002 lags by its slow velocity loop; the inverse leads it by that).
   std::printf("contour error before %.2f um, feed-forward %.2f um\n", r.run.before->contour.max * 1e3, ff.contour.max * 1e3);
   EXPECT_LT(ff.contour.max, 0.5 * r.run.before->contour.max);
+}
+
+}  // namespace
+}  // namespace gcpipe::compensate
+
+namespace gcpipe::compensate {
+namespace {
+
+// The X and Y drives of seed 002 rebuilt in the second simulator (tests/unseen_machine: a sampled
+// controller at 0.25 ms, moving-average feed-forward without look-ahead, implicit trapezoidal
+// integration, no code shared with stages/servo), with the drives file's own numbers.
+unseen::AxisMachine unseen_twin(const servo::DriveParams& p, double lead) {
+  unseen::AxisMachine m;
+  m.lead = lead;
+  m.J = p.J + p.J1;
+  m.c = p.C;
+  m.Kp = p.Kpp;
+  m.Kv = p.Kvp;
+  m.Ki = p.Kvi;
+  m.kff = p.K_FFP / 100;
+  m.Tff = 0.001;
+  return m;
+}
+
+// Distance of (x, y) to the programmed path of kUnseenProgram: X0->X10 on Y0, the full circle of
+// radius 10 about (10, 10) from (10, 0), and back along Y0 (the same line).
+double to_program(double x, double y) {
+  return std::min(point_segment(x, y, 0, 0, 10, 0), std::abs(std::hypot(x - 10, y - 10) - 10));
+}
+
+const char* kUnseenProgram = "G21 G17 G90 G94\nG0 X0. Y0. Z0.\nG1 X10. F3000.\nG2 X10. Y0. I0. J10.\nG1 X0.\nM30\n";
+
+// Largest and RMS distance of the unseen machine's X Y to the programmed path when it is fed
+// `command` (one row a tick).
+std::pair<double, double> unseen_contour(const std::array<unseen::AxisMachine, 2>& xy, const std::vector<Axes>& command,
+                                         double T) {
+  std::array<std::vector<double>, 2> c;
+  for (const Axes& a : command) c[0].push_back(a[kX]), c[1].push_back(a[kY]);
+  const auto x = unseen::run_axis(xy[0], c[0], T).actual, y = unseen::run_axis(xy[1], c[1], T).actual;
+  double worst = 0, sum_sq = 0;
+  for (std::size_t n = 0; n < x.size(); ++n) {
+    const double e = to_program(x[n], y[n]);
+    worst = std::max(worst, e);
+    sum_sq += e * e;
+  }
+  return {worst, std::sqrt(sum_sq / static_cast<double>(std::max<std::size_t>(1, x.size())))};
+}
+
+// The judge independent of the model the compensation learned on: the control's plan and the
+// compensated program, both run on the unseen twin of the X Y drives (a machine built otherwise
+// with the drives file's numbers). What of the compensation carries over to it.
+TEST(LookaheadControl, TheCompensationHoldsOnTheUnseenMachine) {
+  const PipelineConfig pc = default_config();
+  const Model model = load_model(pc);
+  const auto program = parse_text(kUnseenProgram, pc);
+  const auto run = simulate::simulate_program(model, program, run_bounds(CompensateOptions{}));
+  ASSERT_TRUE(run.before) << run.note;
+  CompensateOptions opt;
+  opt.node_period = model.interp.period;
+  opt.slowed_baseline = false;
+  const ProgramCompensation comp = compensate_program(model, opt, WriteOptions{}, run, {});
+  ASSERT_TRUE(comp.result && comp.result->compensated) << comp.note;
+  // compensated.nc as written, read back and interpolated by the control: its commands per tick.
+  const auto blocks = parse_text(comp.text, pc);
+  std::vector<Axes> after;
+  simulate::run_program(model, blocks, run.start, [&](const Tick& t) { after.push_back(t.command); });
+  std::vector<Axes> before;
+  for (std::size_t n = 0; n < run.nominal->reference.size(); ++n) before.push_back(run.nominal->reference[n]);
+  const auto& d = model.drives.axes;
+  const std::array<unseen::AxisMachine, 2> xy{unseen_twin(d[kX], 0.016), unseen_twin(d[kY], 0.0)};
+  const double T = model.interp.period;
+  const auto [max_before, rms_before] = unseen_contour(xy, before, T);
+  const auto [max_after, rms_after] = unseen_contour(xy, after, T);
+  std::printf("unseen machine: contour error before max %.2f um RMS %.2f um, after max %.2f um RMS %.2f um; "
+              "gcpipe's model before max %.2f um\n",
+              max_before * 1e3, rms_before * 1e3, max_after * 1e3, rms_after * 1e3, run.before->contour.max * 1e3);
+  RecordProperty("unseen_max_before_um", std::to_string(max_before * 1e3));
+  RecordProperty("unseen_max_after_um", std::to_string(max_after * 1e3));
+  // The twin is a twin: the control's own run shows the same largest error on both machines.
+  EXPECT_NEAR(max_before, run.before->contour.max, 0.1 * run.before->contour.max);
+  // Measured: RMS 51.7 -> 39.8 um, max 104.1 -> 103.8 um. On gcpipe's own model the same
+  // compensated program has max 101.6 um, RMS 42.8 um (its feed-forward start had 14.6 um, but
+  // broke X's acceleration limit in the first second and the learning fell back towards the
+  // plan there: stages/compensate/README.md "The judge on the unseen machine"). The unseen
+  // machine confirms the figures of gcpipe's model, good and bad alike.
+  EXPECT_LT(rms_after, 0.85 * rms_before);
+  EXPECT_LT(max_after, 1.05 * max_before);
 }
 
 }  // namespace
