@@ -230,6 +230,27 @@ std::pair<double, double> unseen_contour(const std::array<unseen::AxisMachine, 2
   return {worst, std::sqrt(sum_sq / static_cast<double>(std::max<std::size_t>(1, x.size())))};
 }
 
+// A line into an arc that starts back along it (a reversal at X10 Y0): the corner rule bounds the
+// blend's jump, but the speed smoothing fills the dip at the corner from both sides; the plan's
+// acceleration check slows it until X stays within its limit (it asked 7237 mm/s^2 of 5050).
+TEST(LookaheadControl, AReversalStaysWithinTheAccelerationLimit) {
+  const PipelineConfig pc = default_config();
+  const Model model = load_model(pc);
+  const auto program = parse_text(kUnseenProgram, pc);
+  std::vector<Axes> c;
+  const auto run = simulate::simulate_program(model, program, run_bounds(CompensateOptions{}),
+                                              [&](const Tick& t) { c.push_back(t.command); });
+  ASSERT_TRUE(run.before) << run.note;
+  const double T = model.interp.period;
+  double worst = 0;
+  for (std::size_t n = 2; n < c.size(); ++n)
+    for (std::size_t i = 0; i < kNumAxes; ++i)
+      if (model.kin.max_acceleration[i] > 0)
+        worst = std::max(worst, std::abs(c[n][i] - 2 * c[n - 1][i] + c[n - 2][i]) / (T * T) / model.kin.max_acceleration[i]);
+  EXPECT_LE(worst, 1.0 + 1e-6) << "of the acceleration limit";
+  EXPECT_GT(worst, 0.05) << "the program did not accelerate at all";
+}
+
 // The judge independent of the model the compensation learned on: the control's plan and the
 // compensated program, both run on the unseen twin of the X Y drives (a machine built otherwise
 // with the drives file's numbers). What of the compensation carries over to it.
@@ -262,13 +283,13 @@ TEST(LookaheadControl, TheCompensationHoldsOnTheUnseenMachine) {
   RecordProperty("unseen_max_after_um", std::to_string(max_after * 1e3));
   // The twin is a twin: the control's own run shows the same largest error on both machines.
   EXPECT_NEAR(max_before, run.before->contour.max, 0.1 * run.before->contour.max);
-  // Measured: RMS 51.7 -> 39.8 um, max 104.1 -> 103.8 um. On gcpipe's own model the same
-  // compensated program has max 101.6 um, RMS 42.8 um (its feed-forward start had 14.6 um, but
-  // broke X's acceleration limit in the first second and the learning fell back towards the
+  // Measured: max 104.4 -> 70.1 um, RMS 49.6 -> 21.4 um. On gcpipe's own model the same
+  // compensated program has max 78.2 um, RMS 16.2 um (its feed-forward start had 14.6 um, but
+  // broke X's acceleration limit where the program stops, and the learning fell back towards the
   // plan there: stages/compensate/README.md "The judge on the unseen machine"). The unseen
-  // machine confirms the figures of gcpipe's model, good and bad alike.
-  EXPECT_LT(rms_after, 0.85 * rms_before);
-  EXPECT_LT(max_after, 1.05 * max_before);
+  // machine confirms the figures of gcpipe's model, the good and the bad.
+  EXPECT_LT(rms_after, 0.6 * rms_before);
+  EXPECT_LT(max_after, 0.8 * max_before);
 }
 
 }  // namespace

@@ -374,6 +374,7 @@ class Excursions {
   /// Reference tick n (in order) is at joints r, with raw index k its progress.
   void add(const Axes& r, std::size_t k) {
     k = std::min(k, nom_.raw.size() - 1);
+    if (model_.interp.control == interpolate::Control::kLookahead) check_acceleration(r, k);
     const double length = tool_length_of(model_, nom_.brief[nom_.block[k]]);
     // Where the tool length changes (G43 H, G49, a tool change) the nominal tool tip jumps by the
     // change while the joints move on smoothly: a reference blended across the change has no tip
@@ -396,6 +397,23 @@ class Excursions {
   }
   std::vector<std::pair<std::size_t, double>>& over() { return over_; }
 
+  /// The look-ahead control's commands are its plan: no axis may accelerate beyond its limit. The
+  /// corner speed rule bounds the blend's jump, but smoothing the speed profile fills the dip at a
+  /// corner from both sides (a reversal at the end of a line into an arc asked X for 7237 mm/s^2,
+  /// limit 5050). Such a tick is an excursion whose slow-down is sqrt(limit / acceleration) (on a
+  /// fixed path the acceleration goes with the square of the speed), times slow_down's 0.9.
+  void check_acceleration(const Axes& r, std::size_t k) {
+    const double T = model_.interp.period;
+    if (seen_ >= 2) {
+      double ratio = 0;
+      for (std::size_t i = 0; i < kNumAxes; ++i)
+        if (model_.interp.max_acceleration[i] > 0)
+          ratio = std::max(ratio, std::abs(r[i] - 2 * r1_[i] + r2_[i]) / (T * T) / model_.interp.max_acceleration[i]);
+      if (ratio > 1.0) over_.emplace_back(k, tolerance_ * std::sqrt(ratio));
+    }
+    r2_ = r1_, r1_ = r, ++seen_;
+  }
+
   // The tool length at raw samples k - h and k + h + 2 (the reach of the blend and the search
   // around the reference's progress) differs from `length`, the one at k.
   bool tool_length_changes_near(std::size_t k, double length) const {
@@ -413,6 +431,8 @@ class Excursions {
   std::size_t h_;
   double tolerance_;
   std::vector<std::pair<std::size_t, double>> over_;
+  Axes r1_{}, r2_{};      // the two ticks before (check_acceleration)
+  std::size_t seen_ = 0;  // ticks seen
 };
 
 /// The reference made from planned sigma, tick by tick: sigma smoothed by two moving averages
