@@ -166,6 +166,8 @@ class CompensateStage final : public pipeline::Stage {
     o.written_nodes = written_nodes_;
     o.slowed = slowed_ ? &*slowed_ : nullptr;
     o.feedforward = feedforward_ ? &feedforward_->eval : nullptr;
+    if (feedforward_ && !feedforward_->over_limit.empty())
+      o.feedforward_over_limit = *std::max_element(feedforward_->over_limit.begin(), feedforward_->over_limit.end());
     o.slowdown = &slowdown_;
     o.skipped = failure_;
     compensate::report_simulation(r, o);

@@ -150,7 +150,12 @@ nlohmann::ordered_json report_json(const ReportInput& in) {
   if (in.result && in.result->points > 0 && in.after)
     j["cycle_time_after_s"] = static_cast<double>(in.result->end_tick) * T;
   j["contour_error_before"] = contour_json(*in.before);
-  if (in.feedforward) j["contour_error_feedforward"] = contour_json(*in.feedforward);
+  if (in.feedforward) {
+    j["contour_error_feedforward"] = contour_json(*in.feedforward);
+    // The feed-forward is the model inverse unbounded: where it asks more acceleration than an
+    // axis has, the learning (which keeps the limits) cannot take it as it is.
+    j["feedforward_acceleration_over_limit"] = in.feedforward_over_limit;
+  }
   if (in.after && in.feedforward)
     j["max_contour_error_reduction_over_feedforward"] = ratio(in.feedforward->contour.max, in.after->contour.max);
   if (in.after && in.result && in.result->points > 0)
@@ -248,6 +253,10 @@ void contour_lines(const ReportInput& in, std::string& s) {
     std::snprintf(buf, sizeof buf, "  feed-forward (model inverse, no learning): max %.2f um (line %llu), RMS %.2f um", f.max * 1e3,
                   static_cast<unsigned long long>(f.line_at_max), f.rms * 1e3);
     s += buf;
+    if (in.feedforward_over_limit > 1.0) {
+      std::snprintf(buf, sizeof buf, ", asking up to %.2fx an axis's acceleration limit", in.feedforward_over_limit);
+      s += buf;
+    }
     if (in.after) {
       std::snprintf(buf, sizeof buf, "; after is %.1fx below it", ratio(f.max, in.after->contour.max));
       s += buf;

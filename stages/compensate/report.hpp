@@ -23,6 +23,7 @@ struct ReportInput {
                                                      //!< cycle time (null when not compensated)
   const Evaluation* feedforward = nullptr;  //!< the original on the control with the drives' model
                                             //!< inverse as feed-forward, no learning (or null)
+  double feedforward_over_limit = 0;       //!< the feed-forward's largest acceleration / an axis's limit
   const LocalSlowdown* slowdown = nullptr;  //!< where the compensation's plan is slower than the control's
   const Evaluation* after = nullptr;     //!< the written compensated program, re-parsed and
                                          //!< simulated (null when not compensated)

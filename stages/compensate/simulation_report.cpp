@@ -75,6 +75,7 @@ void report_simulation(pipeline::ReportContext& r, const SimulationOutcome& o) {
   rin.result = o.result;
   rin.slowed = o.slowed;
   rin.feedforward = o.feedforward;
+  rin.feedforward_over_limit = o.feedforward_over_limit;
   rin.slowdown = o.slowdown;
   recommend_kffp(*o.model, nominal, rin);
   (*r.json)["simulation"] = report_json(rin);

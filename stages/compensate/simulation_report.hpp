@@ -16,6 +16,7 @@ struct SimulationOutcome {
   const Result* result = nullptr;                //!< the compensation, or null
   const simulate::SlowedBaseline* slowed = nullptr;  //!< the sceptic's baseline, or null
   const Evaluation* feedforward = nullptr;       //!< the model-inverse feed-forward run, or null
+  double feedforward_over_limit = 0;             //!< its largest acceleration / an axis's limit
   const LocalSlowdown* slowdown = nullptr;       //!< where the plan was slowed for the drives, or null
   std::uint64_t written_nodes = 0;               //!< motion blocks of compensated.nc
   std::string skipped;                           //!< why nothing was simulated
