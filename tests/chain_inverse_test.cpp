@@ -21,7 +21,7 @@ namespace {
 namespace fs = std::filesystem;
 
 simulate::Model default_model() {
-  return simulate::load_model(load_pipeline_config(fs::path(GCPIPE_SOURCE_DIR) / "pipeline_configs" / "default.yaml"));
+  return simulate::load_model(load_pipeline_config(fs::path(GCPIPE_SOURCE_DIR) / "pipeline_configs" / "seed002_control.yaml"));
 }
 
 // A smooth error bump: raised cosine of `width` ticks starting at `start`, height 1.

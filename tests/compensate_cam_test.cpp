@@ -23,7 +23,11 @@ TEST(CompensateCam, GeneratedProgramsKeepThePlannedCycleTimeAndBeatTheSlowedOrig
     // The generator is `gcpipe synth --cam-segments` (stages/cli/synthetic_program.cpp).
     const Outcome g = gcpipe({"synth", "--cam-segments", "400", "--seed", std::to_string(seed), "-o", (dir / "cam.nc").string()});
     ASSERT_EQ(g.status, 0) << g.err;
-    Outcome r = gcpipe({"batch", (dir / "cam.nc").string(), "-o", (dir / "out").string(), "--quiet"});
+    // Seed 002's control (acc/dec after interpolation): the claim of issue 12 this test holds.
+    // Under the look-ahead control, the default since issue 31, these programs reach 1.3-2.6x
+    // (README.md's table, held back by X's acceleration limit); LookaheadControl.* test that one.
+    Outcome r = gcpipe({"batch", (dir / "cam.nc").string(), "-o", (dir / "out").string(), "--quiet", "--config",
+                        std::string(GCPIPE_SOURCE_DIR) + "/pipeline_configs/seed002_control.yaml"});
     ASSERT_EQ(r.status, 0) << r.err;
     const auto sim = read_json(dir / "out" / "report.json").at("simulation");
     ASSERT_TRUE(sim.at("compensated").get<bool>()) << sim.at("note");

@@ -38,13 +38,16 @@ TEST(ForceStage, BatchPlansTheSeed000SlotAndReportsIt) {
   EXPECT_LE(after.at("max_peak_force_N").get<double>(), 1.05 * 740);
   EXPECT_LT(after.at("cutting_time_s").get<double>(), 0.9 * before.at("cutting_time_s").get<double>());
   EXPECT_GT(after.at("max_deflection_um").get<double>(), 0.0);
-  // Issue 36 item 4: the planned program's cycle as the interpolator runs it is the simulate
-  // stage's (which runs the planned blocks) less the final settling, at most 50 Ts = 3.2 s of the
-  // exponential acc/dec (Ts 0.064 s); the drives' caps only ever lower feeds.
+  // Issue 36 item 4: the planned program's cycle as the interpolator runs it, against the
+  // simulate stage's (which runs the planned blocks). Since issue 31 force_al7075.yaml, derived
+  // from the default, runs the look-ahead control: its cycle is its plan of the planned blocks,
+  // never shorter than the interpolator's (the feeds are upper bounds) and longer by its
+  // acceleration phases and exact stops (measured 80.95 s against 75.08 s; under seed 002's
+  // control it was at most the final settling longer, 50 Ts = 3.2 s).
   const double planned_cycle = after.at("interpolated").at("cycle_time_s").get<double>();
   const double simulated = report.at("simulation").at("cycle_time_before_s").get<double>();
   EXPECT_GE(simulated, planned_cycle - 1e-3);
-  EXPECT_LE(simulated, planned_cycle + 50 * 0.064);
+  EXPECT_LE(simulated, 1.1 * planned_cycle);
   EXPECT_GE(planned_cycle, f.at("force_only_cycle_time_s").get<double>() - 1e-9);
   EXPECT_LT(planned_cycle, 0.9 * before.at("interpolated").at("cycle_time_s").get<double>());
   EXPECT_TRUE(fs::exists(dir / "plots" / "force_path.png"));

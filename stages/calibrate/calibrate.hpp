@@ -109,8 +109,12 @@ struct ProgramMatch {
 double command_resolution(const std::vector<double>& values);
 /// Throws std::runtime_error when the program cannot be run by the model or the trace's commands
 /// never move (as measured_contour_error).
+/// `planned`: under the look-ahead control (interpolate.control: lookahead) the machine ran the
+/// control's plan of `program` (an original program); false for timed points the control runs
+/// as given (a compensated.nc, --ran).
 ProgramMatch check_trace_runs_program(const compensate::Model& model, std::span<const ResolvedBlock> program,
-                                      const MeasuredTrace& trace, const std::string& program_name = "the program");
+                                      const MeasuredTrace& trace, const std::string& program_name = "the program",
+                                      bool planned = true);
 
 /// Radius at which rotary errors are stated in micrometres: 100 mm (a part's size on the
 /// MX-330 table); rms_deg is given beside it.

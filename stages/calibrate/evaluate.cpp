@@ -29,7 +29,25 @@ struct NominalPath {
   double period = 0;
 };
 
-NominalPath nominal_path(const compensate::Model& model, std::span<const ResolvedBlock> program) {
+/// Under the look-ahead control the machine runs the control's plan of the path: the commands,
+/// blocks and the polyline index reached are those of the plan's ticks (simulate_program, the
+/// plan with the compensate section's defaults), the polyline the path's own.
+void on_the_plans_clock(const compensate::Model& model, std::span<const ResolvedBlock> program, NominalPath& p) {
+  std::vector<std::uint32_t> raw_index = std::move(p.index_of_tick);
+  p.index_of_tick.clear(), p.block.clear(), p.raw.clear(), p.command.clear();
+  const simulate::SimulationRun run = simulate::simulate_program(model, program, simulate::RunBounds{});
+  if (!run.before) throw std::runtime_error(run.note);
+  const simulate::Nominal& nom = *run.nominal;
+  for (std::size_t n = 0; n < nom.reference.size(); ++n) {
+    const std::size_t k = std::min<std::size_t>(nom.progress[n], raw_index.size() - 1);
+    p.index_of_tick.push_back(raw_index[k]);
+    p.block.push_back(nom.block[k]);
+    p.raw.push_back(nom.raw[k]);
+    p.command.push_back(nom.reference[n]);
+  }
+}
+
+NominalPath nominal_path(const compensate::Model& model, std::span<const ResolvedBlock> program, bool planned = true) {
   std::size_t first = 0;
   while (first < program.size() && program[first].motion == Motion::kNone) ++first;
   if (first == program.size()) throw std::runtime_error("the program moves nothing");
@@ -46,6 +64,7 @@ NominalPath nominal_path(const compensate::Model& model, std::span<const Resolve
   });
   if (!st.ok) throw std::runtime_error("line " + std::to_string(st.failed_line) + ": " + st.message);
   if (p.pts.size() < 2) throw std::runtime_error("the program's tool tip does not move");
+  if (planned && model.interp.control == interpolate::Control::kLookahead) on_the_plans_clock(model, program, p);
   return p;
 }
 
@@ -212,8 +231,8 @@ double command_resolution(const std::vector<double>& v) {
 }
 
 ProgramMatch check_trace_runs_program(const compensate::Model& model, std::span<const ResolvedBlock> program,
-                                      const MeasuredTrace& trace, const std::string& program_name) {
-  const NominalPath path = nominal_path(model, program);
+                                      const MeasuredTrace& trace, const std::string& program_name, bool planned) {
+  const NominalPath path = nominal_path(model, program, planned);
   Clock clock = align(path, trace);
   const std::size_t N = path.command.size();
   const double T = path.period;
@@ -433,7 +452,7 @@ int run_evaluate(const EvaluateRequest& q, std::ostream& out, std::ostream& err)
     for (std::size_t i = 0; i < r.diagnostics.size() && i < 20; ++i) err << format(r.diagnostics[i]) << "\n";
     if (!r.trace) { err << q.trace << ": trace rejected\n"; return 1; }
     // A trace of another program would be scored against the wrong path: refused before measuring.
-    if (const ProgramMatch m = q.ran ? check_trace_runs_program(model, ran, *r.trace, *q.ran)
+    if (const ProgramMatch m = q.ran ? check_trace_runs_program(model, ran, *r.trace, *q.ran, false)
                                      : check_trace_runs_program(model, program, *r.trace, q.program);
         !m.ok()) {
       err << "gcpipe evaluate: " << m.message << "\n";

@@ -74,6 +74,17 @@ Eigen::VectorXd gaussian(std::size_t length, std::size_t centre, double sigma) {
   return q / q.sum();
 }
 
+// The target Gaussian (`sigma` ticks) at the taps, tap j reading `lead - stride j` ticks from its
+// centre, with unit sum.
+Eigen::VectorXd sampled_target(Index taps, Index stride, std::size_t lead, double sigma) {
+  Eigen::VectorXd f(taps);
+  for (Index j = 0; j < taps; ++j) {
+    const double z = (static_cast<double>(stride * j) - static_cast<double>(lead)) / sigma;
+    f[j] = std::exp(-0.5 * z * z);
+  }
+  return f / f.sum();
+}
+
 // Least squares for taps f (every `stride` ticks): min |g * f - q|^2 + w |D2 f|^2 subject to
 // sum f = 1 / sum g and sum (stride j) f_j = (lead - mean delay of g) / sum g, so that a held
 // error and a ramp come back exactly (the Gaussian has unit sum and its centre at `lead`).
@@ -103,7 +114,14 @@ AxisInverse design_axis(const std::vector<double>& step, std::size_t onset, std:
   Eigen::VectorXd rhs(K + 2);
   rhs.head(K) = A.transpose() * q;
   rhs.tail(2) << 1.0 / dc, (static_cast<double>(centre) - g_delay) / dc;
-  const Eigen::VectorXd x = kkt.fullPivLu().solve(rhs);
+  Eigen::VectorXd x = kkt.fullPivLu().solve(rhs);
+  // A chain that is the identity (an ideal axis without acc/dec after interpolation, as under the
+  // look-ahead control): its response to the comb of taps is a comb, which no taps fit to the
+  // smooth target; the least squares then spread the DC constraint over every tap (a 300 ms
+  // average: the feed-forward lagged Z by tens of um at every corner). Its inverse is the target
+  // itself: the Gaussian sampled at the taps, scaled to unit sum (symmetric about the lead, so
+  // the first-moment condition holds too).
+  if (g.cwiseAbs().maxCoeff() > 0.99 * std::abs(dc)) x.head(K) = sampled_target(K, s, lead, sigma) / dc;
   AxisInverse f;
   f.taps.assign(x.data(), x.data() + K);
   f.lead = static_cast<std::ptrdiff_t>(lead);
@@ -117,9 +135,18 @@ AxisInverse design_axis(const std::vector<double>& step, std::size_t onset, std:
 ChainInverse design_chain_inverse(const simulate::Model& model) {
   const double T = model.interp.period;
   const auto ticks = [T](double seconds) { return static_cast<std::size_t>(std::max(1L, std::lround(seconds / T))); };
-  const std::size_t stride = ticks(kStrideSeconds);
+  // Taps 4 ms apart fit a chain that is smooth on that scale (acc/dec after interpolation first);
+  // the drives alone (the look-ahead control has no acc/dec after interpolation) answer within a
+  // tick or two, and a comb of taps 4 ms apart cannot fit them: the least squares then spread the
+  // DC condition over the whole span, a 300 ms average that lagged Y by 0.8 mm on a circle at
+  // F3000. There the taps are every tick (four times the work of applying L).
+  const std::size_t stride = model.interp.smoothing == interpolate::Smoothing::kNone ? 1 : ticks(kStrideSeconds);
   ChainInverse inv;
-  const std::size_t onset = kOnsetTicks;
+  // Under the look-ahead control the drives alone are the chain: their feed-forward reads the
+  // command Tp ahead and answers before the step, and without that part g shows a delay of about
+  // the drive's lag which the drives do not have (with it left out the feed-forward led Y by
+  // 0.8 mm on a circle at F3000). There the step comes 0.1 s in, so g holds it.
+  const std::size_t onset = model.interp.smoothing == interpolate::Smoothing::kNone ? ticks(kLeadSeconds) : kOnsetTicks;
   for (std::size_t i = 0; i < kNumAxes; ++i)
     inv.axis[i] = design_axis(chain_step_response(model, i, onset + ticks(kResponseSeconds), onset), onset,
                               ticks(kLeadSeconds), std::max<std::size_t>(3, ticks(kSpanSeconds) / stride), stride,
@@ -175,6 +202,26 @@ Axes apply_inverse(const ChainInverse& inv, const simulate::JointSeries& x, std:
   return apply_all(inv, size, n, [&](std::int64_t m, std::size_t i) {
     return base[(m >> kBits) * kA + static_cast<std::int64_t>(i)] + static_cast<double>(offset[m * kA + static_cast<std::int64_t>(i)]);
   });
+}
+
+FeedforwardRun feedforward_run(const simulate::Model& model, const simulate::Nominal& nom,
+                               std::span<const ResolvedBlock> program, const Axes& start) {
+  const ChainInverse inv = design_chain_inverse(model);
+  const double T = model.interp.period;
+  const auto per_second = static_cast<std::size_t>(std::llround(1.0 / T));
+  FeedforwardRun r;
+  r.over_limit.assign(nom.reference.size() / per_second + 1, 0.0);
+  Axes u1 = start, u2 = start;
+  r.eval = simulate::run_commands(model, nom, program, start, nom.reference.size(), [&](std::size_t n) {
+    const Axes u = apply_inverse(inv, nom.reference, static_cast<std::int64_t>(n));
+    double& over = r.over_limit[n / per_second];
+    for (std::size_t i = 0; i < kNumAxes && n >= 2; ++i)
+      if (model.kin.max_acceleration[i] > 0)
+        over = std::max(over, std::abs(u[i] - 2 * u1[i] + u2[i]) / (T * T) / model.kin.max_acceleration[i]);
+    u2 = u1, u1 = u;
+    return u;
+  });
+  return r;
 }
 
 }  // namespace gcpipe::compensate

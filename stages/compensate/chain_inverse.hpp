@@ -7,6 +7,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "simulate.hpp"
@@ -45,5 +46,19 @@ using AxesF = std::array<float, kNumAxes>;
 Axes apply_inverse(const ChainInverse& inv, const std::vector<Axes>& x, std::int64_t n);
 Axes apply_inverse(const ChainInverse& inv, const std::vector<AxesF>& x, std::int64_t n);
 Axes apply_inverse(const ChainInverse& inv, const simulate::JointSeries& x, std::int64_t n);
+
+/// The configured control running the original with the drives' model inverse as feed-forward
+/// and no learning: the command u = L r (r the reference, the look-ahead control's own plan) on
+/// the reference clock, measured as every run is. The fair baseline of the learning: the same
+/// clock, the same model, only the learning left out.
+struct FeedforwardRun {
+  simulate::Evaluation eval;
+  /// Per second of the reference clock: the largest ratio, over the axes, of the feed-forward
+  /// command's acceleration (second difference of its ticks) to the axis's limit. Above 1 the
+  /// drives' limits forbid the pre-compensation at the planned speed there.
+  std::vector<double> over_limit;
+};
+FeedforwardRun feedforward_run(const simulate::Model& model, const simulate::Nominal& nom,
+                               std::span<const ResolvedBlock> program, const Axes& start);
 
 }  // namespace gcpipe::compensate

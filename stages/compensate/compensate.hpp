@@ -57,6 +57,11 @@ struct CompensateOptions {
   std::uint64_t max_blocks = 500000;    //!< more blocks: not simulated (memory is per block)
   bool slowed_baseline = true;          //!< also simulate the original slowed to the compensated
                                         //!< cycle time (the baseline in report.json)
+  /// Look-ahead control: slow the plan locally where the drives' model inverse needs more
+  /// acceleration than an axis has (local_slowdown.hpp). Off by default: measured, it cost
+  /// 6-15 % of the cycle on the CAM-like programs and did not lower their error (README.md
+  /// beside this file, "Slowing where the drives cannot follow").
+  bool slow_for_drive_limits = false;
 };
 
 /// Reads the `compensate` section; unknown keys rejected; throws ConfigError.

@@ -9,6 +9,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "chain_inverse.hpp"
+#include "local_slowdown.hpp"
 #include "compensate_program.hpp"
 #include "error_budget.hpp"
 #include "force_product.hpp"
@@ -109,7 +111,14 @@ class CompensateStage final : public pipeline::Stage {
         progress_(c.progress),
         keep_going_(c.keep_going),
         collect_(std::find(c.stages.begin(), c.stages.end(), "simulate") == c.stages.end()),
-        blocks_(options_.max_blocks) {}
+        blocks_(options_.max_blocks) {
+    // The look-ahead control has no acc/dec after interpolation: it runs the velocity steps of
+    // the timed points' chain as they are, so points 4 ms apart would make a velocity step every
+    // 4 ms (accelerations of v/T at the steps, which the learning's limits then see). A point
+    // every interpolation period is the command itself.
+    if (model_.interp.control == interpolate::Control::kLookahead && !c.config->root.section("compensate").has("node_period"))
+      options_.node_period = model_.interp.period;
+  }
 
   bool block(const ResolvedBlock& b, Emitter&) override {
     if (is_cutting(b)) ++cutting_blocks_;
@@ -137,14 +146,17 @@ class CompensateStage final : public pipeline::Stage {
     if (!simulated_) simulate_here();
     if (!not_compensated_.empty()) return true;  // said in the report; not a failure of the run
     if (!simulated_->run.before) return fail("not simulated: " + simulated_->run.note);
+    measure_feedforward();
+    slow_where_needed();
+    const simulate::SimulationRun& run = slowdown_.run ? *slowdown_.run : simulated_->run;
     // compensated.nc goes out and is read back window by window as the learning commits its
     // nodes: on a long program neither the text (tens of MB) nor the nodes are held whole.
     std::optional<ReadBack> back;
     bool go = true;
     compensation_ = compensate::compensate_program(
-        model_, options_, write_options_, simulated_->run, progress_,
+        model_, options_, write_options_, run, progress_,
         [&](std::string& piece, const std::vector<std::uint32_t>& point_blocks) {
-          if (!back) back.emplace(read_back_options(), machine_, model_, simulated_->run);
+          if (!back) back.emplace(read_back_options(), machine_, model_, run);
           back->feed(piece, point_blocks);
           go = out.text(piece) && go;
         });
@@ -164,6 +176,10 @@ class CompensateStage final : public pipeline::Stage {
     o.result = compensation_.result ? &*compensation_.result : nullptr;
     o.written_nodes = written_nodes_;
     o.slowed = slowed_ ? &*slowed_ : nullptr;
+    o.feedforward = feedforward_ ? &feedforward_->eval : nullptr;
+    if (feedforward_ && !feedforward_->over_limit.empty())
+      o.feedforward_over_limit = *std::max_element(feedforward_->over_limit.begin(), feedforward_->over_limit.end());
+    o.slowdown = &slowdown_;
     o.skipped = failure_;
     o.not_compensated = not_compensated_;
     compensate::report_simulation(r, o);
@@ -230,6 +246,27 @@ class CompensateStage final : public pipeline::Stage {
     return po;
   }
 
+  // The control with the drives' model inverse as feed-forward and no learning: the learning's
+  // fair baseline (same clock, same model).
+  void measure_feedforward() {
+    const simulate::Nominal& nom = *simulated_->run.nominal;
+    if (nom.reference.empty()) return;
+    if (progress_) progress_("simulating the original with the model-inverse feed-forward", 0, 0);
+    feedforward_ = compensate::feedforward_run(model_, nom, simulated_->run.program, simulated_->run.start);
+  }
+
+  // Under the look-ahead control the compensation keeps the control's clock except where the
+  // drives' limits forbid the pre-compensation at its speed: there the plan is slowed locally.
+  void slow_where_needed() {
+    if (!feedforward_ || !options_.enabled || !options_.slow_for_drive_limits ||
+        model_.interp.control != interpolate::Control::kLookahead)
+      return;
+    if (progress_) progress_("slowing the plan where the drives cannot follow it", 0, 0);
+    slowdown_ = compensate::slow_where_drives_cannot_follow(model_, simulated_->run, *feedforward_,
+                                                            compensate::run_bounds(options_).plan,
+                                                            options_.max_machine_time);
+  }
+
   // The original slowed to the compensated program's cycle time: what a sceptic compares with.
   void measure_slowed_baseline() {
     if (!options_.slowed_baseline || !compensation_.result || compensation_.result->points == 0) return;
@@ -258,6 +295,8 @@ class CompensateStage final : public pipeline::Stage {
   compensate::ProgramCompensation compensation_;
   std::optional<simulate::Evaluation> after_;
   std::optional<simulate::SlowedBaseline> slowed_;
+  std::optional<compensate::FeedforwardRun> feedforward_;
+  compensate::LocalSlowdown slowdown_;
   std::uint64_t written_nodes_ = 0;
   std::string failure_;
 };

@@ -46,6 +46,28 @@ Json axis_stats_json(const AxisStats& a) {
 
 double ratio(double before, double after) { return after > 0 ? before / after : 0.0; }
 
+// Where the compensation's plan is slower than the control's, and what it costs.
+Json slowdown_json(const ReportInput& in, double T) {
+  const LocalSlowdown& s = *in.slowdown;
+  Json list = Json::array();
+  for (const SlowStretch& x : s.stretches)
+    list.push_back({{"first_line", x.first_line}, {"last_line", x.last_line}, {"t_begin_s", x.t_begin}, {"t_end_s", x.t_end},
+                    {"speed_factor", x.factor}});
+  const double planned = static_cast<double>(s.run->nominal->reference.size()) * T;
+  return {{"stretches", list},
+          {"cycle_time_added_s", planned - static_cast<double>(in.before->stats.ticks) * T},
+          {"rounds", s.rounds},
+          {"feedforward_acceleration_over_limit", s.worst_over_limit}};
+}
+
+// The configured control's cycle for the original [s]: seed 002's control runs the interpolator's
+// ticks; the look-ahead control its plan with the in-position waits (the "before" run's ticks).
+double control_cycle(const ReportInput& in) {
+  const double T = in.model->interp.period;
+  if (in.model->interp.control == interpolate::Control::kLookahead) return static_cast<double>(in.before->stats.ticks) * T;
+  return static_cast<double>(in.nominal->raw.size()) * T;
+}
+
 const char* smoothing_name(interpolate::Smoothing s) {
   return s == interpolate::Smoothing::kExponential ? "exponential" : s == interpolate::Smoothing::kLinear ? "linear" : "none";
 }
@@ -143,7 +165,8 @@ nlohmann::ordered_json report_json(const ReportInput& in) {
   j["compensated"] = in.result && in.result->compensated && in.after;
   j["note"] = in.result ? in.result->note : std::string();
   const double T = in.model->interp.period;
-  j["cycle_time_before_s"] = static_cast<double>(in.nominal->raw.size()) * T;
+  j["control"] = in.model->interp.control == interpolate::Control::kLookahead ? "lookahead" : "after_interpolation";
+  j["cycle_time_before_s"] = control_cycle(in);
   // The original as a look-ahead control runs it to compensate.path_tolerance: the reference.
   if (!in.nominal->reference.empty())
     j["cycle_time_planned_s"] = static_cast<double>(in.nominal->reference.size()) * T;
@@ -151,6 +174,21 @@ nlohmann::ordered_json report_json(const ReportInput& in) {
     j["cycle_time_after_s"] = static_cast<double>(in.result->end_tick) * T;
   if (in.nominal->stats.interp.velocity_limited_blocks > 0) j["feed_clamped"] = feed_clamp_json(in.nominal->stats.interp);
   j["contour_error_before"] = contour_json(*in.before);
+  if (in.feedforward) {
+    j["contour_error_feedforward"] = contour_json(*in.feedforward);
+    // The feed-forward is the model inverse unbounded: where it asks more acceleration than an
+    // axis has, the learning (which keeps the limits) cannot take it as it is.
+    j["feedforward_acceleration_over_limit"] = in.feedforward_over_limit;
+  }
+  if (in.after && in.feedforward)
+    j["max_contour_error_reduction_over_feedforward"] = ratio(in.feedforward->contour.max, in.after->contour.max);
+  if (in.after && in.result && in.result->points > 0)
+    j["cycle_time_ratio"] = static_cast<double>(in.result->end_tick) * T / control_cycle(in);
+  if (in.slowdown != nullptr && in.slowdown->run) j["slowed_for_drive_limits"] = slowdown_json(in, T);
+  if (in.model->interp.control == interpolate::Control::kLookahead)
+    j["in_position"] = {{"checks", in.nominal->in_position_checks},
+                        {"wait_s", static_cast<double>(in.nominal->in_position_ticks) * T},
+                        {"waits_cut_at_2s", in.nominal->in_position_capped}};
   if (in.after) {
     j["contour_error_after"] = contour_json(*in.after);
     j["max_contour_error_reduction"] = ratio(in.before->contour.max, in.after->contour.max);
@@ -254,6 +292,43 @@ void contour_lines(const ReportInput& in, std::string& s) {
                   a.max * 1e3, static_cast<unsigned long long>(a.line_at_max), a.t_at_max, a.rms * 1e3, ratio(b.max, a.max));
     s += buf;
   }
+  if (in.feedforward) {
+    const ErrorStats& f = in.feedforward->contour;
+    std::snprintf(buf, sizeof buf, "  feed-forward (model inverse, no learning): max %.2f um (line %llu), RMS %.2f um", f.max * 1e3,
+                  static_cast<unsigned long long>(f.line_at_max), f.rms * 1e3);
+    s += buf;
+    if (in.feedforward_over_limit > 1.0) {
+      std::snprintf(buf, sizeof buf, ", asking up to %.2fx an axis's acceleration limit", in.feedforward_over_limit);
+      s += buf;
+    }
+    if (in.after) {
+      std::snprintf(buf, sizeof buf, "; after is %.1fx below it", ratio(f.max, in.after->contour.max));
+      s += buf;
+    }
+    s += "\n";
+  }
+}
+
+// Where the drives' limits made the compensation slow the plan: the first stretches, the time.
+void slowdown_lines(const ReportInput& in, std::string& s) {
+  if (in.slowdown == nullptr || !in.slowdown->run) return;
+  const LocalSlowdown& sd = *in.slowdown;
+  const double T = in.model->interp.period;
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                "  slowed where the drives' limits forbid the pre-compensation at the control's speed: %zu stretches, "
+                "+%.3f s%s\n",
+                sd.stretches.size(),
+                static_cast<double>(sd.run->nominal->reference.size()) * T - static_cast<double>(in.before->stats.ticks) * T,
+                sd.worst_over_limit > 1.0 ? " (the model inverse still asks more than an axis has in places)" : "");
+  s += buf;
+  for (std::size_t k = 0; k < sd.stretches.size() && k < 5; ++k) {
+    const SlowStretch& x = sd.stretches[k];
+    std::snprintf(buf, sizeof buf, "    lines %llu-%llu (t %.2f-%.2f s): speed x%.2f\n", static_cast<unsigned long long>(x.first_line),
+                  static_cast<unsigned long long>(x.last_line), x.t_begin, x.t_end, x.factor);
+    s += buf;
+  }
+  if (sd.stretches.size() > 5) s += "    ... (report.json simulation.slowed_for_drive_limits has them all)\n";
 }
 
 // The compensation's note, the slowed-original baseline, the rapids, the cycle times.
@@ -279,12 +354,23 @@ void outcome_lines(const ReportInput& in, std::string& s) {
     }
   }
   s += "\n";
-  if (in.result && in.result->points > 0 && in.after) {
+  const bool lookahead = in.model->interp.control == interpolate::Control::kLookahead;
+  if (in.result && in.result->points > 0 && in.after && lookahead) {
+    const double after = static_cast<double>(in.result->end_tick) * in.model->interp.period;
+    std::snprintf(buf, sizeof buf,
+                  "  compensated program runs %.3f s, %.3fx the look-ahead control's %.3f s for the original (%llu "
+                  "in-position checks waited %.3f s)\n",
+                  after, after / control_cycle(in), control_cycle(in),
+                  static_cast<unsigned long long>(in.nominal->in_position_checks),
+                  static_cast<double>(in.nominal->in_position_ticks) * in.model->interp.period);
+    s += buf;
+    slowdown_lines(in, s);
+  } else if (in.result && in.result->points > 0 && in.after) {
     std::snprintf(buf, sizeof buf,
                   "  compensated program runs %.3f s (original %.3f s as the control runs it, %.3f s planned to "
                   "compensate.path_tolerance)\n",
                   static_cast<double>(in.result->end_tick) * in.model->interp.period,
-                  static_cast<double>(in.nominal->raw.size()) * in.model->interp.period,
+                  control_cycle(in),
                   static_cast<double>(in.nominal->reference.size()) * in.model->interp.period);
     s += buf;
   }

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "compensate.hpp"
+#include "local_slowdown.hpp"
 #include "circle.hpp"
 #include "servo.hpp"
 
@@ -20,6 +21,10 @@ struct ReportInput {
   const Evaluation* before = nullptr;    //!< the original program, simulated
   const simulate::SlowedBaseline* slowed = nullptr;  //!< the original slowed to the compensated
                                                      //!< cycle time (null when not compensated)
+  const Evaluation* feedforward = nullptr;  //!< the original on the control with the drives' model
+                                            //!< inverse as feed-forward, no learning (or null)
+  double feedforward_over_limit = 0;       //!< the feed-forward's largest acceleration / an axis's limit
+  const LocalSlowdown* slowdown = nullptr;  //!< where the compensation's plan is slower than the control's
   const Evaluation* after = nullptr;     //!< the written compensated program, re-parsed and
                                          //!< simulated (null when not compensated)
   const Result* result = nullptr;

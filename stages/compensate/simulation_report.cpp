@@ -42,9 +42,15 @@ void recommend_kffp(const Model& model, const Nominal& nominal, ReportInput& rin
       rin.segment_kffp.push_back({g, {seg_omega[g], servo::best_kffp(model.drives, model.interp.smoothing, T, seg_omega[g], 2.0, 1.0)}});
 }
 
-// The runs every figure compares, in the palette's order: before, (feed-forward,) after.
-FigureRuns figure_runs(const Evaluation& before, const Evaluation* after) {
-  FigureRuns runs{{plot::Role::kBefore, &before, false, "the control runs the original"}};
+// The runs every figure compares, in the palette's order: before, (feed-forward,) after. Under
+// the look-ahead control the original runs the plan, whose clock is the reference's (its
+// in-position waits shift the figure's path-length axis by the distance those waits stand for).
+FigureRuns figure_runs(const Model& model, const Evaluation& before, const Evaluation* feedforward,
+                       const Evaluation* after) {
+  const bool planned = model.interp.control == interpolate::Control::kLookahead;
+  FigureRuns runs{{plot::Role::kBefore, &before, planned, "the control runs the original"}};
+  if (feedforward)
+    runs.push_back({plot::Role::kFeedForward, feedforward, true, "the drives' model inverse, no learning"});
   if (after) runs.push_back({plot::Role::kAfter, after, true, "compensated.nc as written"});
   return runs;
 }
@@ -81,12 +87,20 @@ void report_simulation(pipeline::ReportContext& r, const SimulationOutcome& o) {
   rin.after = o.after;
   rin.result = o.result;
   rin.slowed = o.slowed;
+  rin.feedforward = o.feedforward;
+  rin.feedforward_over_limit = o.feedforward_over_limit;
+  rin.slowdown = o.slowdown;
   recommend_kffp(*o.model, nominal, rin);
   (*r.json)["simulation"] = report_json(rin);
   if (!o.not_compensated.empty()) (*r.json)["simulation"]["not_compensated"] = o.not_compensated;
   char buf[256];
-  std::snprintf(buf, sizeof buf, "  simulate: %.3f s of machine time at %.4g s\n",
-                static_cast<double>(nominal.raw.size() - 1) * o.model->interp.period, o.model->interp.period);
+  // The machine's time: the interpolator's run under seed 002's control, the plan with its
+  // in-position waits under the look-ahead control (its run is the "before").
+  const bool lookahead = o.model->interp.control == interpolate::Control::kLookahead;
+  const double machine_time = lookahead ? static_cast<double>(o.run->before->stats.ticks - 1) * o.model->interp.period
+                                        : static_cast<double>(nominal.raw.size() - 1) * o.model->interp.period;
+  std::snprintf(buf, sizeof buf, "  simulate: %.3f s of machine time at %.4g s (%s control)\n", machine_time,
+                o.model->interp.period, lookahead ? "look-ahead" : "seed 002's acc/dec-after-interpolation");
   *r.text += buf;
   *r.text += report_text(rin);
   if (!o.not_compensated.empty()) *r.text += "  not compensated: " + o.not_compensated + "\n";
@@ -96,7 +110,7 @@ void report_simulation(pipeline::ReportContext& r, const SimulationOutcome& o) {
                   static_cast<unsigned long long>(o.written_nodes));
     *r.text += buf;
   }
-  const FigureRuns runs = figure_runs(*o.run->before, o.after);
+  const FigureRuns runs = figure_runs(*o.model, *o.run->before, o.feedforward, o.after);
   const ToolpathView view = toolpath_view(nominal, runs);
   (*r.json)["simulation"]["toolpath_figure"] = {{"plane", view.plane}, {"magnification", view.magnification}};
   draw(r, *o.model, nominal, runs);

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "compensate.hpp"
+#include "local_slowdown.hpp"
 #include "stage.hpp"
 
 namespace gcpipe::compensate {
@@ -14,6 +15,9 @@ struct SimulationOutcome {
   const Evaluation* after = nullptr;             //!< the compensated program's, or null
   const Result* result = nullptr;                //!< the compensation, or null
   const simulate::SlowedBaseline* slowed = nullptr;  //!< the sceptic's baseline, or null
+  const Evaluation* feedforward = nullptr;       //!< the model-inverse feed-forward run, or null
+  double feedforward_over_limit = 0;             //!< its largest acceleration / an axis's limit
+  const LocalSlowdown* slowdown = nullptr;       //!< where the plan was slowed for the drives, or null
   std::uint64_t written_nodes = 0;               //!< motion blocks of compensated.nc
   std::string skipped;                           //!< why nothing was simulated
   std::string not_compensated;                   //!< why the program was deliberately not compensated

@@ -14,11 +14,19 @@ constexpr double kTwoPi = 2 * std::numbers::pi;
 }
 
 InterpolateOptions load_interpolate_options(const Config& s) {
-  s.reject_unknown({"period", "smoothing", "in_position"});
+  s.reject_unknown({"period", "control", "smoothing", "in_position", "path_tolerance"});
   InterpolateOptions o;
   o.period = s.number("period", o.period, "s", 1e-5, 0.1);
   o.in_position = s.number("in_position", o.in_position, "mm or deg", 1e-6, 1);
-  const std::string k = s.choice("smoothing", "exponential", {"none", "linear", "exponential"});
+  const std::string c = s.choice("control", "after_interpolation", {"after_interpolation", "lookahead"});
+  o.control = c == "lookahead" ? Control::kLookahead : Control::kAfterInterpolation;
+  o.path_tolerance = s.number("path_tolerance", o.path_tolerance, "mm", 1e-5, 1.0);
+  // The look-ahead control plans acc/dec before interpolation: a second acc/dec after it would
+  // round every corner again by its lag, which is what the look-ahead exists to avoid.
+  const std::string k = s.choice("smoothing", o.control == Control::kLookahead ? "none" : "exponential",
+                                 {"none", "linear", "exponential"});
+  if (o.control == Control::kLookahead && k != "none")
+    throw s.error("smoothing", "must be none with control: lookahead (its acc/dec is before interpolation)");
   o.smoothing = k == "none" ? Smoothing::kNone : k == "linear" ? Smoothing::kLinear : Smoothing::kExponential;
   return o;
 }

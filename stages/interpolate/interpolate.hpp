@@ -38,8 +38,21 @@ enum class Smoothing : std::uint8_t {
   kExponential,  //!< first-order lag of time constant Ts: initial acceleration dv/Ts
 };
 
+/// Which control runs the program (README.md beside this file, "Control models").
+enum class Control : std::uint8_t {
+  kAfterInterpolation,  //!< seed 002: blocks at their feed, acc/dec after interpolation (smoothing), no look-ahead
+  kLookahead,           //!< a modern control: jerk-limited feed planned over a look-ahead of blocks BEFORE
+                        //!< interpolation, corners blended within the path tolerance, exact stop with an
+                        //!< in-position check at every rapid's end and at G61 / G09 blocks (the plan is
+                        //!< stages/simulate/reference.cpp's; this interpolator then gives the path only)
+};
+
 struct InterpolateOptions {
   double period = 0.001;                  //!< interpolation period ITP [s]
+  Control control = Control::kAfterInterpolation;
+  /// kLookahead: the largest deviation of a blended corner from the programmed path [mm] where
+  /// the program sets no G64 P (LinuxCNC's naive-CAM / blend tolerance, Fanuc's corner tolerance).
+  double path_tolerance = 0.02;
   Smoothing smoothing = Smoothing::kExponential;
   Axes smoothing_time{};                  //!< Ts per axis [s] (0: no smoothing on that axis)
   Axes max_velocity{{500, 500, 500, 3600, 3600}};          //!< [mm/s, deg/s] (machine limits)

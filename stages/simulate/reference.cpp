@@ -28,6 +28,10 @@ struct RawPath {
   /// a block ends on a tick) neither stop the plan nor take time.
   std::vector<std::uint8_t> rest;
   std::vector<double> sigma;  //!< cumulative sigma at every sample, from the program's start
+  /// Per sample: an exact stop of the look-ahead control (interpolate::Control::kLookahead): the
+  /// last sample of a rapid or of a G61 / G61.1 / G09 block. The plan comes to rest there and
+  /// stands still long enough for its smoothing to stand still too (PlanSettings::hold).
+  std::vector<std::uint8_t> stop;
   // The unit directions of the steps are not kept (40 bytes a tick, the largest series of the
   // plan): step_speed_limits, their only user, recomputes them with step_direction().
   std::size_t samples() const { return sigma.size(); }
@@ -67,6 +71,15 @@ MovingSteps moving_steps(const Model& model, const Nominal& nom) {
   return m;
 }
 
+/// Raw sample g ends a block after which the look-ahead control stops exactly: a rapid (LinuxCNC
+/// and Fanuc position with G0 and check in-position before the next block) or a block in G61 /
+/// G61.1 (G09 is resolved as one G61 block).
+bool exact_stop_at(const Nominal& nom, std::size_t g) {
+  if (g + 1 >= nom.raw.size() || nom.block[g] == nom.block[g + 1]) return false;
+  const BlockBrief& b = nom.brief[nom.block[g]];
+  return b.motion == Motion::kRapid || b.path_mode != PathMode::kBlend;
+}
+
 /// The path from raw sample `first` to `last` (inclusive), its sigma counted on from `sigma0`
 /// (the sigma at `first`: the same sums in the same order as over the whole program).
 RawPath raw_path(const Model& model, const Nominal& nom, std::size_t first,
@@ -93,6 +106,9 @@ RawPath raw_path(const Model& model, const Nominal& nom, std::size_t first,
     p.rest[k] = g < moving.first || g > moving.last || b.motion == Motion::kDwell || b.stop != ProgramStop::kNone ||
                 b.path_mode != PathMode::kBlend;
   }
+  p.stop.assign(n, 0);
+  if (model.interp.control == interpolate::Control::kLookahead)
+    for (std::size_t k = 0; k < n; ++k) p.stop[k] = exact_stop_at(nom, first + k);
   return p;
 }
 
@@ -143,9 +159,14 @@ std::vector<double> step_speed_limits(const Model& model, const Nominal& nom, co
   Axes prev_dir{};
   bool have_prev = moving_direction(model, nom, p.first, true, prev_dir);
   double prev_jump = 0;  // the jump where the previous moving step began
+  // The look-ahead control's plan is the machine's command: a rapid at an axis's velocity limit
+  // would step by exactly v T, and the compact reference (float offsets, joint_series.hpp) rounds
+  // a step by up to about 1e-5 of it, past the limit (C by 3.8e-6 on five_axis_demo). It plans
+  // 1e-4 below the programmed speed: 0.01 % of the time.
+  const double fastest = model.interp.control == interpolate::Control::kLookahead ? 1 - 1e-4 : 1.0;
   auto limit = [&](std::size_t k, double jump_begin, double jump_next) {
     const double j = std::max(jump_begin, jump_next);
-    w[k] = p.ds[k] / T;
+    w[k] = fastest * p.ds[k] / T;
     if (j > 1e-12) w[k] = std::min(w[k], a_sigma * T1 / j);
   };
   for (std::size_t k = 0; k < S; ++k) {
@@ -176,7 +197,7 @@ std::vector<double> sample_speeds(const RawPath& p, const std::vector<double>& w
     const bool rapid_a = nom.brief[nom.block[g - 1]].motion == Motion::kRapid;
     const bool rapid_b = nom.brief[nom.block[g + 1]].motion == Motion::kRapid;
     if (rapid_a != rapid_b) continue;
-    if (p.rest[k - 1] || p.rest[k]) continue;
+    if (p.rest[k - 1] || p.rest[k] || p.stop[k]) continue;
     const double inf = std::numeric_limits<double>::infinity();
     W[k] = std::min(p.ds[k - 1] > kStill ? w[k - 1] : inf, p.ds[k] > kStill ? w[k] : inf);
   }
@@ -200,9 +221,9 @@ std::vector<double> sample_speeds(const RawPath& p, const std::vector<double>& w
 /// program's tick `first_tick`.
 class PlannedSigma {
  public:
-  PlannedSigma(const RawPath& p, std::vector<double> W, double T, double a, std::size_t from = 0,
+  PlannedSigma(const RawPath& p, std::vector<double> W, double T, double a, double hold, std::size_t from = 0,
                double t_start = 0, std::size_t first_tick = 0, std::size_t commit_step = SIZE_MAX)
-      : p_(p), W_(std::move(W)), T_(T), a_(a), j_(first_tick), k_(from), t0_(t_start) {
+      : p_(p), W_(std::move(W)), T_(T), a_(a), hold_(hold), j_(first_tick), k_(from), t0_(t_start) {
     const std::size_t S = p.ds.size();
     double t = t_start;
     commit_time_ = std::numeric_limits<double>::infinity();
@@ -234,17 +255,19 @@ class PlannedSigma {
       t0_ = t1_;
       t1_ = t0_ + step_time(k_);
     }
-    const double span = t1_ - t0_;
-    const double f = span > 0 ? std::clamp((tj - t0_) / span, 0.0, 1.0) : 1.0;
+    // An exact stop stands still for its hold at the start of the step that leaves it.
+    const double h = p_.stop[k_] ? hold_ : 0.0;
+    const double span = t1_ - t0_ - h;
+    const double f = span > 0 ? std::clamp((tj - t0_ - h) / span, 0.0, 1.0) : 1.0;
     return p_.sigma[k_] + f * p_.ds[k_];
   }
 
  private:
   double step_time(std::size_t k) const {
-    double dt = p_.rest[k] ? T_ : 0.0;
+    double dt = (p_.rest[k] ? T_ : 0.0) + (p_.stop[k] ? hold_ : 0.0);
     if (p_.ds[k] > kStill) {
       const double v = W_[k] + W_[k + 1];
-      dt = std::max(T_, v > 1e-15 ? 2 * p_.ds[k] / v : 2 * std::sqrt(p_.ds[k] / a_));
+      dt = std::max(T_, v > 1e-15 ? 2 * p_.ds[k] / v : 2 * std::sqrt(p_.ds[k] / a_)) + (p_.stop[k] ? hold_ : 0.0);
     }
     return dt;
   }
@@ -252,6 +275,7 @@ class PlannedSigma {
   const RawPath& p_;
   std::vector<double> W_;  // speed at every raw sample (sample_speeds)
   double T_, a_;
+  double hold_;            // [s] an exact stop stands still this long (PlanSettings::hold)
   double end_ = 0;         // when the path's last step ends [s]
   double commit_time_ = 0;
   std::size_t ticks_ = 0;
@@ -355,6 +379,7 @@ class Excursions {
   /// Reference tick n (in order) is at joints r, with raw index k its progress.
   void add(const Axes& r, std::size_t k) {
     k = std::min(k, nom_.raw.size() - 1);
+    if (model_.interp.control == interpolate::Control::kLookahead) check_acceleration(r, k);
     const double length = tool_length_of(model_, nom_.brief[nom_.block[k]]);
     // Where the tool length changes (G43 H, G49, a tool change) the nominal tool tip jumps by the
     // change while the joints move on smoothly: a reference blended across the change has no tip
@@ -377,6 +402,23 @@ class Excursions {
   }
   std::vector<std::pair<std::size_t, double>>& over() { return over_; }
 
+  /// The look-ahead control's commands are its plan: no axis may accelerate beyond its limit. The
+  /// corner speed rule bounds the blend's jump, but smoothing the speed profile fills the dip at a
+  /// corner from both sides (a reversal at the end of a line into an arc asked X for 7237 mm/s^2,
+  /// limit 5050). Such a tick is an excursion whose slow-down is sqrt(limit / acceleration) (on a
+  /// fixed path the acceleration goes with the square of the speed), times slow_down's 0.9.
+  void check_acceleration(const Axes& r, std::size_t k) {
+    const double T = model_.interp.period;
+    if (seen_ >= 2) {
+      double ratio = 0;
+      for (std::size_t i = 0; i < kNumAxes; ++i)
+        if (model_.interp.max_acceleration[i] > 0)
+          ratio = std::max(ratio, std::abs(r[i] - 2 * r1_[i] + r2_[i]) / (T * T) / model_.interp.max_acceleration[i]);
+      if (ratio > 1.0) over_.emplace_back(k, tolerance_ * std::sqrt(ratio));
+    }
+    r2_ = r1_, r1_ = r, ++seen_;
+  }
+
   // The tool length at raw samples k - h and k + h + 2 (the reach of the blend and the search
   // around the reference's progress) differs from `length`, the one at k.
   bool tool_length_changes_near(std::size_t k, double length) const {
@@ -394,6 +436,8 @@ class Excursions {
   std::size_t h_;
   double tolerance_;
   std::vector<std::pair<std::size_t, double>> over_;
+  Axes r1_{}, r2_{};      // the two ticks before (check_acceleration)
+  std::size_t seen_ = 0;  // ticks seen
 };
 
 /// The reference made from planned sigma, tick by tick: sigma smoothed by two moving averages
@@ -503,6 +547,10 @@ namespace {
 // The plan's constants from the model and the `compensate` section.
 struct PlanSettings {
   double T, a_sigma, T1, half_span, tolerance;
+  /// [s] an exact stop stands still in the planned sigma: the span of the speed smoothing and the
+  /// blend, so that the reference itself stands still there for a few ticks (the look-ahead
+  /// control's in-position check then holds it until the drives are there, simulate.cpp).
+  double hold;
   std::size_t ma, mb, m1, m2, h, spread;
 };
 
@@ -516,12 +564,15 @@ PlanSettings plan_settings(const Model& model, const ReferencePlan& plan, double
   PlanSettings s;
   s.T = T;
   s.a_sigma = a_sigma * plan.acceleration;
-  s.tolerance = plan.tolerance;
+  // The look-ahead control blends within its own tolerance (interpolate.path_tolerance): its
+  // plan is the reference. Under seed 002's control the reference is the compensation's own.
+  s.tolerance = model.interp.control == interpolate::Control::kLookahead ? model.interp.path_tolerance : plan.tolerance;
   s.ma = ticks(plan.smoothing * Ts, T), s.mb = std::max<std::size_t>(1, s.ma / 2);
   s.m1 = ticks(plan.blend_time, T), s.m2 = std::max<std::size_t>(1, s.m1 / 2);
   s.T1 = static_cast<double>(s.m1) * T;
   s.h = (s.m1 + s.m2) / 2 + 1, s.spread = (s.ma + s.mb) / 2 + s.h;
   s.half_span = static_cast<double>(s.ma + s.mb) * T / 2;
+  s.hold = static_cast<double>(s.ma + s.mb + s.m1 + s.m2 + 4) * T;
   return s;
 }
 
@@ -555,7 +606,7 @@ std::size_t margin_end(const Model& model, const Nominal& nom, std::size_t k1, s
 class ChunkedPlan {
  public:
   ChunkedPlan(const Model& model, const ReferencePlan& plan, double max_ticks, Nominal& nom)
-      : model_(model), c_(plan_settings(model, plan, nom.period)), max_ticks_(max_ticks), nom_(nom),
+      : model_(model), c_(plan_settings(model, plan, nom.period)), caps_(plan.caps), max_ticks_(max_ticks), nom_(nom),
         N_(nom.raw.size()), moving_(moving_steps(model, nom)), chunk_(ticks(plan.chunk_seconds, c_.T)),
         min_margin_(ticks(2.0, c_.T)), state_(c_.ma, c_.mb, c_.m1, c_.m2) {
     // The reference and its progress grow in scratch arrays (gcpipe/scratch.hpp), which never
@@ -575,6 +626,7 @@ class ChunkedPlan {
     RawPath p = raw_path(model_, nom_, first, k2, k0_ == 0 ? 0.0 : prev_.sigma[first - prev_.first], moving_);
     Chunk ch{k0_ - first, k1 - first, p.ends_program && k1 == N_ - 1};
     std::vector<double> w = step_speed_limits(model_, nom_, p, c_.T, c_.T1, c_.a_sigma);
+    apply_caps(p, w);
     std::copy_n(carried_w_.begin(), std::min(carried_w_.size(), w.size() - ch.from), w.begin() + static_cast<std::ptrdiff_t>(ch.from));
     const std::size_t made = nom_.reference.size();  // ticks the chunks before committed
     Round r;
@@ -596,6 +648,13 @@ class ChunkedPlan {
   }
 
  private:
+  // The plan's own slow-downs (ReferencePlan::caps) on the chunk's steps; the steps carried from
+  // the chunk before are overwritten by their limits there, which had them already.
+  void apply_caps(const RawPath& p, std::vector<double>& w) const {
+    for (const ReferencePlan::SpeedCap& c : caps_)
+      for (std::size_t g = std::max(c.first, p.first); g <= c.last && g < p.first + w.size(); ++g) w[g - p.first] *= c.factor;
+  }
+
   // The first raw sample of the next chunk's path: its first planned sample less the samples the
   // smoothed sigma may still be behind it (the speed smoothing's lag).
   std::size_t lead_in_start() const {
@@ -621,7 +680,7 @@ class ChunkedPlan {
   /// past max_ticks.
   bool plan_round(const RawPath& p, const Chunk& ch, const std::vector<double>& w, Round& r) {
     PlannedSigma sig(p, sample_speeds(p, w, c_.a_sigma, nom_, ch.from, seed_, ch.commit, r.forward_at_commit),
-                     c_.T, c_.a_sigma, ch.from, t0_, tick0_, ch.last ? SIZE_MAX : ch.commit);
+                     c_.T, c_.a_sigma, c_.hold, ch.from, t0_, tick0_, ch.last ? SIZE_MAX : ch.commit);
     if (sig.longer_than(max_ticks_)) {
       nom_.reference.release();
       nom_.progress.release();
@@ -670,6 +729,7 @@ class ChunkedPlan {
 
   const Model& model_;
   const PlanSettings c_;
+  std::vector<ReferencePlan::SpeedCap> caps_;
   double max_ticks_;
   Nominal& nom_;
   std::size_t N_;

@@ -537,7 +537,7 @@ struct OwnRun {
 
 OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> program, const Axes& start, Nominal& nom,
                        bool record, std::uint64_t max_ticks, const std::function<void(const Tick&)>& on_tick,
-                       double feed_factor) {
+                       double feed_factor, bool evaluate) {
   OwnRun own;
   RunAccumulator acc(model, nom.segments.size(), record);
   ContourSearch contour;
@@ -574,6 +574,7 @@ OwnRun run_own_program(const Model& model, std::span<const ResolvedBlock> progra
           nom.raw.push_back(t.raw);
           nom.block.push_back(t.block);
         }
+        if (!evaluate) return;  // the look-ahead control's run is another (run_commands)
         const double tool = tool_length_of(model, nom.brief[t.block]);
         evaluation.push({t, forward_kinematics(model.kin, t.raw, tool).tip, forward_kinematics(model.kin, t.actual, tool).tip});
       },
@@ -715,6 +716,33 @@ std::string travel_error(const Model& model, const interpolate::InterpolateStats
 
 namespace {
 
+/// The look-ahead control runs the program: its plan (the reference, with its in-position waits)
+/// fed to the drives. Its ticks go to `on_tick`; its evaluation is the program's "before".
+void run_lookahead_control(SimulationRun& run, const Model& model, const BlockStore& p, const RunBounds& bounds,
+                           double max_ticks, const std::function<void(const Tick&)>& on_tick) {
+  Nominal& nom = *run.nominal;
+  shrink_recorded(nom);
+  describe_segments(model, nom);
+  plan_reference(model, bounds.plan, max_ticks, nom);
+  if (nom.reference_too_long || nom.reference.empty()) {
+    run.note = "the look-ahead control's plan runs longer than max_machine_time";
+    return;
+  }
+  const InPositionWaits waits = add_in_position_waits(model, nom, run.start);
+  nom.in_position_ticks = waits.ticks, nom.in_position_checks = waits.checks, nom.in_position_capped = waits.capped;
+  Evaluation ev = run_commands(model, nom, p, run.start, nom.reference.size(),
+                               [&nom](std::size_t n) { return nom.reference[n]; }, on_tick);
+  // The interpolator's figures of the path (travel, TCP, velocity-limited blocks) with the
+  // control run's ticks, torque limits and command peaks.
+  RunStats s = nom.stats;
+  s.ticks = ev.stats.ticks;
+  s.saturated_ticks = ev.stats.saturated_ticks;
+  s.interp.peak_velocity = ev.stats.interp.peak_velocity;
+  s.interp.peak_acceleration = ev.stats.interp.peak_acceleration;
+  ev.stats = s;
+  run.before = std::move(ev);
+}
+
 /// simulate_program's run of `p` (a BlockStore: its briefs are what the passes read), its feeds
 /// multiplied by `feed_factor`, into `run` (whose program is `p` or left empty).
 void simulate_into(SimulationRun& run, const Model& model, const BlockStore& p, double feed_factor,
@@ -734,8 +762,12 @@ void simulate_into(SimulationRun& run, const Model& model, const BlockStore& p, 
   nom.segment_of_block = segment_blocks(p.briefs(), nseg);
   nom.segments.assign(nseg, Segment{});
   const double max_ticks = max_ticks_of(model, bounds.max_machine_time);
-  OwnRun own = run_own_program(model, p, run.start, nom, bounds.record_nominal, tick_bound(max_ticks), on_tick,
-                               feed_factor);
+  // Under the look-ahead control the interpolator's run at the programmed feeds is the nominal
+  // path only: the machine runs the plan made from it (run_lookahead_control).
+  const bool lookahead = model.interp.control == interpolate::Control::kLookahead;
+  const bool record = bounds.record_nominal || lookahead;
+  OwnRun own = run_own_program(model, p, run.start, nom, record, tick_bound(max_ticks), lookahead ? TickFn{} : on_tick,
+                               feed_factor, !lookahead);
   if (!nom.stats.ok) {
     // The interpolator's messages name the block already ("line 4 (G1 X100 F1.5): ...").
     const bool named = nom.stats.message.rfind("line ", 0) == 0;
@@ -748,6 +780,7 @@ void simulate_into(SimulationRun& run, const Model& model, const BlockStore& p, 
     run.travel_line = nom.stats.interp.first_violation_line;
     return;
   }
+  if (lookahead) return run_lookahead_control(run, model, p, bounds, max_ticks, on_tick);
   if (bounds.record_nominal) {
     shrink_recorded(nom);
     describe_segments(model, nom);

@@ -351,6 +351,14 @@ struct ReferencePlan {
   /// [s] of the program as the control runs it planned at a time (plus a margin past it): the
   /// planner holds a chunk's series, not the program's. Not a config key (tests shorten it).
   double chunk_seconds = 120;
+  /// Stretches of the path planned slower than the control plans them: the speed limit of every
+  /// raw step from `first` to `last` is multiplied by `factor` (the compensation slows where a
+  /// drive limit forbids its pre-compensation at the control's speed).
+  struct SpeedCap {
+    std::size_t first = 0, last = 0;  //!< raw samples
+    double factor = 1;
+  };
+  std::vector<SpeedCap> caps;
 };
 
 /// The nominal run of the original program.
@@ -364,6 +372,9 @@ struct Nominal {
   ScratchArray<std::uint32_t> progress; //!< p_n, the raw index r_n has reached (whole samples:
                                        //!< every user asks which sample, and 4 bytes a tick)
   bool reference_too_long = false;     //!< the reference would exceed max_machine_time (empty)
+  /// Look-ahead control: ticks its in-position checks added to the plan, how many checks, and
+  /// how many waits were cut at 2 s (a drive that does not get within interpolate.in_position).
+  std::uint64_t in_position_ticks = 0, in_position_checks = 0, in_position_capped = 0;
   ScratchArray<BlockBrief> brief;               //!< per program block: what the passes over
                                                 //!< the raw samples read (not the blocks' pages)
   std::vector<std::uint32_t> segment_of_block;  //!< per program block
@@ -444,6 +455,26 @@ class ContourMeter {
 };
 
 class RunAccumulator;
+
+/// The look-ahead control's in-position check (control.cpp): where its plan (the reference)
+/// stands still, at an exact stop, a dwell or the end, the next motion waits until every axis's
+/// actual position is within interpolate.in_position of it (at most 2 s; longer waits are cut
+/// and counted). The drives are run on the reference to find each wait, and the waits become
+/// ticks of the reference, the control's timing the compensation keeps.
+struct InPositionWaits {
+  std::uint64_t ticks = 0, checks = 0, capped = 0;
+};
+InPositionWaits add_in_position_waits(const Model& model, Nominal& nom, const Axes& start);
+
+/// Tick n's command of a run on the reference clock.
+using CommandAt = std::function<Axes(std::size_t n)>;
+
+/// The drives alone fed `command(n)` for ticks 1..ticks-1 (tick 0 is the rest at `start`),
+/// measured against the nominal path on the reference clock: the look-ahead control's run
+/// (command: its plan, the reference) and the same with the drives' model inverse as
+/// feed-forward (compensate). RunStats::interp has the commands' peak velocity and acceleration.
+Evaluation run_commands(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
+                        const Axes& start, std::size_t ticks, const CommandAt& command, const TickFn& on_tick = {});
 
 /// What evaluate() measures, for a run fed tick by tick (a ProgramRunner fed as blocks come).
 class RunEvaluation {
