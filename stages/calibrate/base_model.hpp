@@ -83,6 +83,18 @@ struct BaseFitOptions {
   double mismatch_ratio = 1.5;         //!< structured held-out excess / FIR excess above it: mismatch
 };
 
+/// A drive without the candidate effect, fitted to rival it: LM over every base slot (the
+/// velocity loop's Kvp and C included when `free_velocity_loop`, whatever the configured ratio of
+/// the loops) from each of `starts` on [s.begin, screen_end), the best polished on
+/// [s.begin, fit_end). `free_slots` returns how many slots it fitted (BIC's k).
+struct RivalBase {
+  servo::DriveParams params;
+  int free_slots = 0;
+  int evaluations = 0;
+};
+RivalBase fit_rival_base(const AxisSeries& s, const servo::DriveParams& config, const std::vector<servo::DriveParams>& starts,
+                         const AxisPredictor& predict, std::size_t screen_end, std::size_t fit_end, bool free_velocity_loop);
+
 /// Identifies the base model of one axis (see the file comment). `predict` runs a model on the
 /// axis's commands; `tau` is the residual's correlation time (covariance inflation).
 BaseIdentification identify_base(const AxisSeries& s, const servo::DriveParams& config, const AxisPredictor& predict,
