@@ -896,44 +896,107 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
   return res;
 }
 
-CompensatedBlocks::CompensatedBlocks(std::span<const ResolvedBlock> program, double period,
-                                     std::function<void(const ResolvedBlock&)> emit)
-    : program_(program), period_(period), emit_(std::move(emit)) {}
+CompensatedBlocks::CompensatedBlocks(std::span<const ResolvedBlock> program, double period, Emit emit,
+                                     CompensatedFrames frames)
+    : program_(program), period_(period), emit_(std::move(emit)), frames_(std::move(frames)) {}
+
+namespace {
+// Tool length as compensated.nc states it. A tool-centre-point block's joints hold the tool length
+// (inverse kinematics with it): G49. Any other block's joints are its targets, measured from the
+// tool tip the control puts there with the source's own G43 H, so that length stays in force.
+void tool_length_as_written(const ResolvedBlock& src, ResolvedBlock& c) {
+  c.tcp = false;
+  c.tool_vector_mode = false;
+  c.tool_length_active = !src.tcp && src.tool_length_active;
+  c.tool_length_offset = c.tool_length_active ? src.tool_length_offset : 0;
+  c.tool_length = c.tool_length_active ? src.tool_length : 0;
+}
+}  // namespace
+
+bool three_axis_program(std::span<const ResolvedBlock> program) {
+  for (const ResolvedBlock& b : program) {
+    if (b.motion == Motion::kNone) continue;
+    if (b.tcp || b.tool_vector_mode) return false;
+    if (b.target[kA] != b.start[kA] || b.target[kC] != b.start[kC]) return false;
+  }
+  return true;
+}
+
+// In the work frame a rapid and a move to a reference position or in machine coordinates go out
+// as the source wrote them: where they end depends on offsets and homes only the control knows,
+// and a timed point there would be in the machine file's frame.
+bool CompensatedBlocks::written_as_source(const ResolvedBlock& b) const {
+  if (!frames_.work_frame || b.motion == Motion::kNone) return false;
+  return b.motion == Motion::kRapid || b.frame.code == FrameCode::kHome || b.frame.code == FrameCode::kHome2 ||
+         b.frame.code == FrameCode::kMachine;
+}
+
+// A motion of the source is carried by the timed points that follow; the block stays as a note
+// with its text so that the operator can find every source line.
+void CompensatedBlocks::note_motion(const ResolvedBlock& b, ResolvedBlock& c) {
+  noted_line_ = b.line;
+  std::string text = b.text;
+  std::replace(text.begin(), text.end(), '(', '[');
+  std::replace(text.begin(), text.end(), ')', ']');
+  c.motion = Motion::kNone;
+  c.dwell = 0;
+  c.axis_words = 0;
+  c.frame.code = FrameCode::kNone;  // its G28 / G53 is in the points
+  c.comment = (b.motion == Motion::kDwell ? "dwell, held by the timed points below: " : "source: ") + text;
+  c.percent = false;
+  c.program_number = -1;
+}
 
 void CompensatedBlocks::pass_block(std::size_t i) {
   const ResolvedBlock& b = program_[i];
   ResolvedBlock c = b;
-  c.tcp = false;
-  c.tool_length_active = false;
-  c.tool_length = 0;
-  c.tool_length_offset = 0;
+  tool_length_as_written(b, c);
   // The timed points carry the program's stops and corner speeds (the plan followed G61 and
   // G64 P): the control runs them as timed, in its plain blending mode, not stopping at each.
   c.path_mode = PathMode::kBlend;
   c.path_tolerance = 0;
-  if (b.motion != Motion::kNone && b.line == noted_line_ && b.motion != Motion::kDwell) return;
-  if (b.motion != Motion::kNone) {
-    noted_line_ = b.line;
-    // A motion of the source is carried by the timed points that follow; the block stays as a
-    // note with its text so that the operator can find every source line.
-    std::string text = b.text;
-    std::replace(text.begin(), text.end(), '(', '[');
-    std::replace(text.begin(), text.end(), ')', ']');
-    c.motion = Motion::kNone;
-    c.dwell = 0;
-    c.axis_words = 0;
-    c.comment = (b.motion == Motion::kDwell ? "dwell, held by the timed points below: " : "source: ") + text;
-    c.percent = false;
-    c.program_number = -1;
-  }
-  // Between timed points the inverse-time mode stays (no G94/G93 flip-flop in the output);
-  // before the first point the block keeps its own feed mode.
-  c.start = c.target = last_target_;
-  if (have_node_) {
+  if (b.tool_change) section_open_ = false;
+  const bool as_source = written_as_source(b);
+  if (b.motion != Motion::kNone && !as_source && b.line == noted_line_ && b.motion != Motion::kDwell) return;
+  if (b.motion != Motion::kNone && !as_source) note_motion(b, c);
+  // Between timed points the inverse-time mode stays (no G94/G93 flip-flop in the output): a
+  // rapid ignores F. Before the first point the block keeps its own feed mode.
+  if (!as_source) c.start = c.target = last_target_;
+  else c.start = last_target_;
+  if (have_node_ && (c.motion == Motion::kNone || c.motion == Motion::kRapid)) {
     c.feed_mode = FeedMode::kInverseTime;
     c.feed = last_feed_;
   }
-  emit_(c);
+  if (as_source) last_target_ = c.target;
+  emit_(c, i);
+}
+
+void CompensatedBlocks::node(const Node& nd) {
+  const ResolvedBlock& src = program_[nd.block];
+  node_block(src, last_node_.joints, nd.joints, nd.tick - last_node_.tick, period_, block_);
+  const bool skip = written_as_source(src);
+  last_node_ = nd;
+  if (skip) return;  // the source's own move stands for its points
+  if (!section_open_ && frames_.section_start) frames_.section_start(nd.block);
+  section_open_ = true;
+  tool_length_as_written(src, block_);
+  block_.start = last_target_;
+  if (frames_.work_frame) {
+    // The points in the source's work coordinates: the writer subtracts the origin the source
+    // has in force; A and C stay as they are (never written).
+    block_.frame.origin = src.frame.origin;
+    block_.target[kA] = block_.start[kA];
+    block_.target[kC] = block_.start[kC];
+    // The axes that move (a point in a dwell names X, so that it stays a move of its time).
+    block_.axis_words = 0;
+    for (int a = 0; a < kA; ++a)
+      if (block_.target[a] != block_.start[a]) block_.axis_words |= static_cast<std::uint8_t>(1u << a);
+    if (block_.axis_words == 0) block_.axis_words = 1u << kX;
+  }
+  emit_(block_, nd.block);
+  have_node_ = true;
+  last_feed_ = block_.feed;
+  last_target_ = block_.target;
 }
 
 void CompensatedBlocks::add(std::span<const Node> nodes) {
@@ -945,16 +1008,10 @@ void CompensatedBlocks::add(std::span<const Node> nodes) {
     k = 1;
   }
   for (; k < nodes.size(); ++k) {
-    const Node& nd = nodes[k];
     // Program blocks up to this node's source block are passed in order (their M/S/T words and
     // comments), each source line's motion once as a note.
-    while (next_ <= nd.block && next_ < program_.size()) pass_block(next_++);
-    node_block(program_[nd.block], last_node_.joints, nd.joints, nd.tick - last_node_.tick, period_, block_);
-    emit_(block_);
-    have_node_ = true;
-    last_feed_ = block_.feed;
-    last_target_ = block_.target;
-    last_node_ = nd;
+    while (next_ <= nodes[k].block && next_ < program_.size()) pass_block(next_++);
+    node(nodes[k]);
   }
 }
 
@@ -966,7 +1023,7 @@ void CompensatedBlocks::finish() {
 std::vector<ResolvedBlock> compensated_blocks(std::span<const ResolvedBlock> program, const Result& result,
                                               double period) {
   std::vector<ResolvedBlock> out;
-  CompensatedBlocks blocks(program, period, [&out](const ResolvedBlock& b) { out.push_back(b); });
+  CompensatedBlocks blocks(program, period, [&out](const ResolvedBlock& b, std::size_t) { out.push_back(b); });
   blocks.add(result.nodes);
   blocks.finish();
   return out;

@@ -152,12 +152,28 @@ Result compensate(const Model& model, const Nominal& nominal, std::span<const Re
                   const Axes& start, const Evaluation& before, const CompensateOptions& options,
                   const Progress& progress, const NodeSink& sink = {});
 
-/// The compensated program's blocks made as the nodes come, window by window: the node blocks (G93 G1 in machine axes, TCP and tool length off,
-/// N = source line) interleaved with the program's non-motion blocks, in program order, each
-/// handed to `emit` (valid during the call).
+/// How compensated.nc states its frames (compensate_program.cpp chooses; README "Output").
+struct CompensatedFrames {
+  /// A three-axis program (no TCP, A and C never move): the points in the source's work
+  /// coordinates with its tool length (G54.., G43 H as the source has them), and its rapids and
+  /// G28 / G30 / G53 moves written as the source wrote them instead of as timed points, so the
+  /// control's own offsets, tool lengths and reference positions are honoured. Otherwise the
+  /// points are machine joints of the machine file under G49 (tool-centre-point blocks; a
+  /// non-TCP block keeps its G43 H), behind a guard.
+  bool work_frame = false;
+  /// Called before the first timed point and before the first point after each tool change,
+  /// with the index of that point's source block: where the guard of a five-axis program goes.
+  std::function<void(std::size_t block)> section_start;
+};
+
+/// The compensated program's blocks made as the nodes come, window by window: the node blocks
+/// (G93 G1, N = source line) interleaved with the program's non-motion blocks, in program order,
+/// each handed to `emit` (valid during the call) with the index of the program block it stands
+/// for.
 class CompensatedBlocks {
  public:
-  CompensatedBlocks(std::span<const ResolvedBlock> program, double period, std::function<void(const ResolvedBlock&)> emit);
+  using Emit = std::function<void(const ResolvedBlock& block, std::size_t source)>;
+  CompensatedBlocks(std::span<const ResolvedBlock> program, double period, Emit emit, CompensatedFrames frames = {});
   /// The next nodes, in order; the first call's first node is node 0, the start.
   void add(std::span<const Node> nodes);
   /// The program's blocks after the last node.
@@ -165,18 +181,27 @@ class CompensatedBlocks {
 
  private:
   void pass_block(std::size_t i);
+  void note_motion(const ResolvedBlock& b, ResolvedBlock& c);
+  bool written_as_source(const ResolvedBlock& b) const;
+  void node(const Node& nd);
   std::span<const ResolvedBlock> program_;
   double period_;
-  std::function<void(const ResolvedBlock&)> emit_;
+  Emit emit_;
+  CompensatedFrames frames_;
   bool started_ = false;
   Node last_node_;               // the node the next one moves from
   std::size_t next_ = 0;         // next program block not yet passed
   std::uint64_t noted_line_ = 0; // source line of the last motion note
   bool have_node_ = false;       // a node block was written
+  bool section_open_ = false;    // the guard hook ran since the start or the last tool change
   double last_feed_ = 0;
   Axes last_target_{};           // where the last block written leaves the machine
   ResolvedBlock block_;          // the node block being handed on
 };
+
+/// True when the program is three-axis as CompensatedFrames::work_frame means it: no
+/// tool-centre-point block, and A and C never move.
+bool three_axis_program(std::span<const ResolvedBlock> program);
 
 /// CompensatedBlocks of a result's collected nodes in a vector (for tests: on a long program they
 /// take 472 bytes a node).

@@ -1,6 +1,111 @@
 #include "compensate_program.hpp"
 
+#include <cstdio>
+#include <map>
+
 namespace gcpipe::compensate {
+
+namespace {
+
+constexpr double kGuardTolerance = 0.001;  // [mm, deg] an offset read back differs beyond this
+
+std::string fixed(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.4f", v);
+  return buf;
+}
+
+/// The work systems the program's motion blocks run in, with the machine file's origin of each:
+/// compensated.nc's joints are measured from those.
+std::map<std::int32_t, Axes> work_systems_used(std::span<const ResolvedBlock> program) {
+  std::map<std::int32_t, Axes> used;
+  for (const ResolvedBlock& b : program)
+    if (b.motion != Motion::kNone) used.emplace(b.work_offset, b.work_origin);
+  return used;
+}
+
+/// The tool-centre-point block that the points from `first` to the next tool change take their
+/// tool length from (its IK put that length into the joints), or null when none does.
+const ResolvedBlock* length_in_joints(std::span<const ResolvedBlock> program, std::size_t first) {
+  for (std::size_t i = first; i < program.size(); ++i) {
+    const ResolvedBlock& b = program[i];
+    if (i > first && b.tool_change) break;
+    if (b.motion != Motion::kNone && b.tcp && b.tool_length_active) return &b;
+  }
+  return nullptr;
+}
+
+// Parameter numbers of the G5x origins: #5221 + 20 k, axes X Y Z A (B) C. LinuxCNC has B at +4
+// and C at +5; a Fanuc 0i numbers the axes in the control's order, X Y Z A C here: C at +4.
+int origin_parameter(std::int32_t work_offset, int axis, Dialect d) {
+  static constexpr int kLinuxCnc[kNumAxes] = {0, 1, 2, 3, 5};
+  return 5221 + 20 * (work_offset - 54) + (d == Dialect::kFanuc ? axis : kLinuxCnc[axis]);
+}
+
+std::string origin_words(const Axes& origin) {
+  std::string t;
+  for (int a = 0; a < kNumAxes; ++a) t += std::string(a ? " " : "") + kAxisLetters[a] + fixed(origin[a]);
+  return t;
+}
+
+// LinuxCNC: one o-if per check, `(abort, ...)` stops the program with the message. The
+// parameters hold the machine's own unit, mm on a metric configuration (docs/running-compensated-programs.md).
+std::string linuxcnc_check(const std::string& label, const std::string& condition, const std::string& message) {
+  return "o<" + label + "> if [" + condition + "]\n(abort, gcpipe: " + message + ")\no<" + label + "> endif\n";
+}
+
+std::string differs(int parameter, double value) {
+  return "[ABS[#" + std::to_string(parameter) + " - " + fixed(value) + "] GT " + fixed(kGuardTolerance) + "]";
+}
+
+std::string work_offset_guard(std::span<const ResolvedBlock> program, Dialect d) {
+  std::string t;
+  int alarm = 1;
+  for (const auto& [system, origin] : work_systems_used(program)) {
+    const std::string name = "G" + std::to_string(system);
+    if (d == Dialect::kLinuxCnc) {
+      std::string condition;
+      for (int a = 0; a < kNumAxes; ++a) condition += (a ? " OR " : "") + differs(origin_parameter(system, a, d), origin[a]);
+      t += linuxcnc_check("gcpipe_" + name, condition,
+                          name + " is not " + origin_words(origin) + ", the work offset this program was computed for");
+      continue;
+    }
+    for (int a = 0; a < kNumAxes; ++a)
+      t += "IF " + differs(origin_parameter(system, a, d), origin[a]) + " THEN #3000 = " + std::to_string(alarm) + " (" +
+           name + " " + kAxisLetters[a] + " IS NOT " + fixed(origin[a]) + ")\n";
+    ++alarm;
+  }
+  if (d == Dialect::kLinuxCnc)
+    return t + linuxcnc_check("gcpipe_g92", "#5210 NE 0", "a G92 offset is in force; this program was computed without one");
+  // Fanuc's external work offset (#5201..#5205) shifts every system.
+  for (int a = 0; a < kNumAxes; ++a)
+    t += "IF " + differs(5201 + a, 0) + " THEN #3000 = 9 (EXT OFFSET " + kAxisLetters[a] + " IS NOT 0)\n";
+  return t;
+}
+
+std::string tool_length_guard(const ResolvedBlock& b, Dialect d) {
+  const std::string h = std::to_string(b.tool_length_offset), length = fixed(b.tool_length);
+  if (d == Dialect::kLinuxCnc)
+    return linuxcnc_check("gcpipe_t" + std::to_string(b.tool_in_spindle) + "_h" + h,
+                          "[#5400 NE " + std::to_string(b.tool_in_spindle) + "] OR " + differs(5403, b.tool_length),
+                          "tool " + std::to_string(b.tool_in_spindle) + " is not in the spindle with length " + length +
+                              " mm, the length this program was computed for");
+  // Fanuc: the length offset H as the control holds it, read as the compensation in force.
+  return "G43 H" + h + "\nIF " + differs(5083, b.tool_length) + " THEN #3000 = 10 (H" + h + " IS NOT " + length +
+         ")\nG49\n";
+}
+
+}  // namespace
+
+std::string five_axis_guard(std::span<const ResolvedBlock> program, std::size_t first, bool program_start, Dialect d) {
+  std::string t;
+  const ResolvedBlock* tcp = length_in_joints(program, first);
+  if (program_start)
+    t += "(gcpipe guard: the points below are machine joints computed for the work offsets and tool lengths "
+         "checked here; the program stops when the control's differ)\n" + work_offset_guard(program, d);
+  if (tcp != nullptr) t += tool_length_guard(*tcp, d);
+  return t;
+}
 
 ProgramCompensation compensate_program(const Model& model, const CompensateOptions& options,
                                        const WriteOptions& write_options, const simulate::SimulationRun& run,
@@ -14,23 +119,35 @@ ProgramCompensation compensate_program(const Model& model, const CompensateOptio
     pc.note = "compensate.enabled is false";
     return pc;
   }
+  // A three-axis program stays in the source's work frame with its tool length; a five-axis one
+  // is in machine joints behind a guard (CompensatedFrames).
+  CompensatedFrames frames;
+  frames.work_frame = three_axis_program(run.program);
+  WriteOptions wo = write_options;
+  wo.source_frames = frames.work_frame;
   // The text is written as the nodes come and handed on window by window: on a long program it
   // (tens of MB) and the nodes (56 bytes every 4 ms) are never held whole.
-  Writer writer(write_options);
+  Writer writer(wo);
   std::string held;                        // written, not handed on yet
-  std::vector<std::uint32_t> held_blocks;  // the source block of each of its timed points
+  std::vector<std::uint32_t> held_blocks;  // the source block of each of its motion blocks
   auto hand_on = [&] {
     if (text) text(held, held_blocks);
     else pc.text += held;
     held.clear();
     held_blocks.clear();
   };
-  CompensatedBlocks blocks(run.program, model.interp.period, [&](const ResolvedBlock& b) { writer.write(b, held); });
-  bool first = true;
+  bool program_start = true;
+  if (!frames.work_frame)
+    frames.section_start = [&](std::size_t block) {
+      held += five_axis_guard(run.program, block, program_start, wo.dialect);
+      program_start = false;
+    };
+  CompensatedBlocks blocks(run.program, model.interp.period, [&](const ResolvedBlock& b, std::size_t source) {
+    writer.write(b, held);
+    if (b.motion != Motion::kNone) held_blocks.push_back(static_cast<std::uint32_t>(source));
+  }, frames);
   const NodeSink sink = [&](std::span<const Node> nodes, bool learned_so_far) {
     blocks.add(nodes);
-    for (const Node& n : nodes.subspan(first ? 1 : 0)) held_blocks.push_back(n.block);  // node 0 is the start
-    first = false;
     if (learned_so_far) hand_on();
   };
   pc.result = compensate(model, *run.nominal, run.program, run.start, *run.before, options, progress, sink);

@@ -25,6 +25,14 @@ struct ProgramCompensation {
 /// measures them against). The sink takes the piece (leaves it empty or not, as it likes).
 using TextSink = std::function<void(std::string& piece, const std::vector<std::uint32_t>& point_blocks)>;
 
+/// The guard a five-axis compensated.nc (machine joints) carries before its first point
+/// (`program_start`: the work offsets of every system the program uses, no G92 / external
+/// offset) and before the first point after a tool change (the tool length the joints hold, from
+/// the tool-centre-point block of `program` at or after `first`): checks of the control's own
+/// offsets that stop the program with a message when they differ (LinuxCNC `o.. if` with
+/// `(abort, ...)`, Fanuc `IF [...] THEN #3000 = n`). Empty when there is nothing to check.
+std::string five_axis_guard(std::span<const ResolvedBlock> program, std::size_t first, bool program_start, Dialect d);
+
 /// Compensates the simulated program `run` (simulate::simulate_program). Never throws for a
 /// program the machine cannot run: the reason goes to `note`. With a `text` sink compensated.nc
 /// goes to it window by window as the learning commits its nodes, once a window has learned

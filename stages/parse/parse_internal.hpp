@@ -377,6 +377,9 @@ struct Parser::Impl {
   bool read_expression_number(std::string_view s, std::size_t& p, char letter, Word& w);
   bool read_code(std::string_view s, std::size_t& p, char letter, int& code, std::uint32_t col);
   void refresh_system_parameters();
+  void refresh_offset_parameters(double unit);
+  static bool is_abort(std::string_view comment);
+  bool linuxcnc_abort(std::string_view message, std::uint32_t col);
   bool fanuc_system_assignment(std::string_view s, std::size_t p, const Assignment& a, std::uint32_t col);
 
   // -- resolve.cpp
