@@ -320,12 +320,12 @@ TEST(Compensate, TheProgramIsWrittenWindowByWindowAsTheNodesAreCommitted) {
   std::string joined;
   std::size_t pieces = 0, largest = 0, points = 0;
   const ProgramCompensation streamed = compensate_program(
-      model, opt, WriteOptions{}, run, {}, [&](std::string& piece, const std::vector<std::uint32_t>& blocks) {
+      model, opt, WriteOptions{}, run, {}, [&](std::string& piece, const std::vector<PointSource>& sources) {
         ++pieces;
         largest = std::max(largest, piece.size());
         joined += piece;
-        points += blocks.size();
-        for (const std::uint32_t b : blocks) ASSERT_LT(b, run.program.size());
+        points += sources.size();
+        for (const PointSource& p : sources) ASSERT_LT(p.block, run.program.size());
       });
   ASSERT_TRUE(streamed.result && streamed.result->compensated) << streamed.note;
   EXPECT_TRUE(streamed.text.empty());

@@ -922,13 +922,37 @@ bool three_axis_program(std::span<const ResolvedBlock> program) {
   return true;
 }
 
-// In the work frame a rapid and a move to a reference position or in machine coordinates go out
-// as the source wrote them: where they end depends on offsets and homes only the control knows,
-// and a timed point there would be in the machine file's frame.
-bool CompensatedBlocks::written_as_source(const ResolvedBlock& b) const {
-  if (!frames_.work_frame || b.motion == Motion::kNone) return false;
-  return b.motion == Motion::kRapid || b.frame.code == FrameCode::kHome || b.frame.code == FrameCode::kHome2 ||
-         b.frame.code == FrameCode::kMachine;
+namespace {
+bool changes_origin(FrameCode c) {
+  return c == FrameCode::kSetOrigin || c == FrameCode::kSetOriginHere || c == FrameCode::kShift ||
+         c == FrameCode::kShiftClear || c == FrameCode::kShiftSuspend || c == FrameCode::kShiftRestore ||
+         c == FrameCode::kLocalShift;
+}
+bool returns_home(FrameCode c) { return c == FrameCode::kHome || c == FrameCode::kHome2 || c == FrameCode::kMachine; }
+}  // namespace
+
+std::vector<bool> moves_written_as_source(std::span<const ResolvedBlock> program) {
+  constexpr std::uint8_t kXyz = 0x07;
+  std::vector<bool> as_source(program.size(), false);
+  std::uint8_t known = 0;  // axes whose position in the work frame the control shares
+  const ResolvedBlock* last = nullptr;
+  for (std::size_t i = 0; i < program.size(); ++i) {
+    const ResolvedBlock& b = program[i];
+    if (last && (b.work_offset != last->work_offset || b.frame.origin != last->frame.origin)) known = 0;
+    if (changes_origin(b.frame.code)) known = 0;
+    if (last && (b.tool_length_active != last->tool_length_active || b.tool_length != last->tool_length))
+      known &= static_cast<std::uint8_t>(~(1u << kZ));
+    last = &b;
+    if (b.motion == Motion::kNone) continue;
+    if (returns_home(b.frame.code)) {
+      as_source[i] = true;
+      known &= static_cast<std::uint8_t>(b.frame.words ? ~b.frame.words : 0);
+    } else if ((known & kXyz) != kXyz) {
+      as_source[i] = true;
+      if (!b.frame.incremental) known |= static_cast<std::uint8_t>(b.axis_words & kXyz);
+    }
+  }
+  return as_source;
 }
 
 // A motion of the source is carried by the timed points that follow; the block stays as a note
@@ -956,25 +980,67 @@ void CompensatedBlocks::pass_block(std::size_t i) {
   c.path_mode = PathMode::kBlend;
   c.path_tolerance = 0;
   if (b.tool_change) section_open_ = false;
-  const bool as_source = written_as_source(b);
+  const bool as_source = frames_.work_frame && frames_.as_source[i];
+  if (after_points_ && next_move_written_as_source(i)) settle_before(i);
   if (b.motion != Motion::kNone && !as_source && b.line == noted_line_ && b.motion != Motion::kDwell) return;
   if (b.motion != Motion::kNone && !as_source) note_motion(b, c);
   // Between timed points the inverse-time mode stays (no G94/G93 flip-flop in the output): a
   // rapid ignores F. Before the first point the block keeps its own feed mode.
-  if (!as_source) c.start = c.target = last_target_;
-  else c.start = last_target_;
+  if (!as_source) c.start = c.target = last_target_;  // as the source wrote it: from its own start
   if (have_node_ && (c.motion == Motion::kNone || c.motion == Motion::kRapid)) {
     c.feed_mode = FeedMode::kInverseTime;
     c.feed = last_feed_;
   }
   if (as_source) last_target_ = c.target;
-  emit_(c, i);
+  emit_(c, i, last_node_.tick);
+}
+
+// The timed points of a move end near its end, not on it (the learning leads and corrects);
+// a move written as the source wrote it keeps the axes it does not name where they are. So the
+// points of the last move are closed by a rapid to its end: the next starts where the source's
+// does, and every move that ends at a rapid's end ends there.
+bool CompensatedBlocks::next_move_written_as_source(std::size_t i) const {
+  if (!frames_.work_frame) return false;
+  while (i < program_.size() && program_[i].motion == Motion::kNone) ++i;
+  return i < program_.size() && frames_.as_source[i];
+}
+
+void CompensatedBlocks::settle_before(std::size_t i) {
+  after_points_ = false;
+  std::size_t k = i;
+  while (k > 0 && program_[k - 1].motion == Motion::kNone) --k;
+  if (k == 0 || frames_.as_source[k - 1]) return;
+  const ResolvedBlock& prev = program_[k - 1];
+  bool there = true;
+  for (int a = 0; a < kA; ++a) there = there && std::abs(prev.target[a] - last_target_[a]) <= 1e-9;
+  if (there) return;
+  ResolvedBlock c = prev;
+  tool_length_as_written(prev, c);
+  c.motion = Motion::kRapid;
+  c.frame.code = FrameCode::kNone;
+  c.frame.incremental = false;
+  c.frame.selects_work_offset = c.frame.sets_tool_length = false;
+  c.start = last_target_;
+  c.target[kA] = c.start[kA];
+  c.target[kC] = c.start[kC];
+  c.axis_words = 0x07;
+  c.comment = "gcpipe: to the end of the source's move, before a move written as the source wrote it";
+  c.text.clear();
+  c.feed_mode = FeedMode::kInverseTime;
+  c.feed = last_feed_;
+  c.tool_change = false;
+  c.stop = ProgramStop::kNone;
+  c.program_number = -1;
+  c.percent = false;
+  emit_(c, k - 1, last_node_.tick);
+  last_target_ = c.target;
 }
 
 void CompensatedBlocks::node(const Node& nd) {
   const ResolvedBlock& src = program_[nd.block];
   node_block(src, last_node_.joints, nd.joints, nd.tick - last_node_.tick, period_, block_);
-  const bool skip = written_as_source(src);
+  const std::uint64_t from_tick = last_node_.tick;
+  const bool skip = frames_.work_frame && frames_.as_source[nd.block];
   last_node_ = nd;
   if (skip) return;  // the source's own move stands for its points
   if (!section_open_ && frames_.section_start) frames_.section_start(nd.block);
@@ -993,8 +1059,9 @@ void CompensatedBlocks::node(const Node& nd) {
       if (block_.target[a] != block_.start[a]) block_.axis_words |= static_cast<std::uint8_t>(1u << a);
     if (block_.axis_words == 0) block_.axis_words = 1u << kX;
   }
-  emit_(block_, nd.block);
+  emit_(block_, nd.block, from_tick);
   have_node_ = true;
+  after_points_ = frames_.work_frame;
   last_feed_ = block_.feed;
   last_target_ = block_.target;
 }
@@ -1017,13 +1084,14 @@ void CompensatedBlocks::add(std::span<const Node> nodes) {
 
 void CompensatedBlocks::finish() {
   if (!started_) return;
+  if (frames_.work_frame && after_points_) settle_before(next_);
   while (next_ < program_.size()) pass_block(next_++);
 }
 
 std::vector<ResolvedBlock> compensated_blocks(std::span<const ResolvedBlock> program, const Result& result,
                                               double period) {
   std::vector<ResolvedBlock> out;
-  CompensatedBlocks blocks(program, period, [&out](const ResolvedBlock& b, std::size_t) { out.push_back(b); });
+  CompensatedBlocks blocks(program, period, [&out](const ResolvedBlock& b, std::size_t, std::uint64_t) { out.push_back(b); });
   blocks.add(result.nodes);
   blocks.finish();
   return out;

@@ -155,12 +155,15 @@ Result compensate(const Model& model, const Nominal& nominal, std::span<const Re
 /// How compensated.nc states its frames (compensate_program.cpp chooses; README "Output").
 struct CompensatedFrames {
   /// A three-axis program (no TCP, A and C never move): the points in the source's work
-  /// coordinates with its tool length (G54.., G43 H as the source has them), and its rapids and
-  /// G28 / G30 / G53 moves written as the source wrote them instead of as timed points, so the
-  /// control's own offsets, tool lengths and reference positions are honoured. Otherwise the
-  /// points are machine joints of the machine file under G49 (tool-centre-point blocks; a
-  /// non-TCP block keeps its G43 H), behind a guard.
+  /// coordinates with its tool length (G54.., G43 H as the source has them), so the control's
+  /// own offsets and tool lengths are honoured; a move that starts where only the control knows
+  /// the tool is written as the source wrote it (as_source). Otherwise the points are machine
+  /// joints of the machine file under G49 (tool-centre-point blocks; a non-TCP block keeps its
+  /// G43 H), behind a guard.
   bool work_frame = false;
+  /// Per program block (work_frame only): its move goes out as the source wrote it, not as timed
+  /// points (moves_written_as_source).
+  std::vector<bool> as_source;
   /// Called before the first timed point and before the first point after each tool change,
   /// with the index of that point's source block: where the guard of a five-axis program goes.
   std::function<void(std::size_t block)> section_start;
@@ -169,10 +172,11 @@ struct CompensatedFrames {
 /// The compensated program's blocks made as the nodes come, window by window: the node blocks
 /// (G93 G1, N = source line) interleaved with the program's non-motion blocks, in program order,
 /// each handed to `emit` (valid during the call) with the index of the program block it stands
-/// for.
+/// for and the reference tick its move starts from.
 class CompensatedBlocks {
  public:
-  using Emit = std::function<void(const ResolvedBlock& block, std::size_t source)>;
+  /// `tick`: the reference tick the block's move starts from (its first point's predecessor).
+  using Emit = std::function<void(const ResolvedBlock& block, std::size_t source, std::uint64_t tick)>;
   CompensatedBlocks(std::span<const ResolvedBlock> program, double period, Emit emit, CompensatedFrames frames = {});
   /// The next nodes, in order; the first call's first node is node 0, the start.
   void add(std::span<const Node> nodes);
@@ -182,7 +186,8 @@ class CompensatedBlocks {
  private:
   void pass_block(std::size_t i);
   void note_motion(const ResolvedBlock& b, ResolvedBlock& c);
-  bool written_as_source(const ResolvedBlock& b) const;
+  void settle_before(std::size_t i);
+  bool next_move_written_as_source(std::size_t i) const;
   void node(const Node& nd);
   std::span<const ResolvedBlock> program_;
   double period_;
@@ -194,10 +199,19 @@ class CompensatedBlocks {
   std::uint64_t noted_line_ = 0; // source line of the last motion note
   bool have_node_ = false;       // a node block was written
   bool section_open_ = false;    // the guard hook ran since the start or the last tool change
+  bool after_points_ = false;    // timed points were the last moves written (work frame)
   double last_feed_ = 0;
   Axes last_target_{};           // where the last block written leaves the machine
   ResolvedBlock block_;          // the node block being handed on
 };
+
+/// Per block of a three-axis program: whether its move goes out as the source wrote it. A timed
+/// point in work coordinates moves from where the machine file's frames put the tool; where the
+/// control's frames may put it elsewhere, that is a jump. So a G28 / G30 / G53 move goes out as
+/// such (it ends at a position only the control knows), and so does every move until X Y and Z
+/// have each been given an absolute position again after the program start, such a move, a
+/// change of work system, origin (G10, G92, G52) or (for Z) tool length.
+std::vector<bool> moves_written_as_source(std::span<const ResolvedBlock> program);
 
 /// True when the program is three-axis as CompensatedFrames::work_frame means it: no
 /// tool-centre-point block, and A and C never move.

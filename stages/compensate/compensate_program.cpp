@@ -1,5 +1,6 @@
 #include "compensate_program.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <map>
 
@@ -95,6 +96,48 @@ std::string tool_length_guard(const ResolvedBlock& b, Dialect d) {
          ")\nG49\n";
 }
 
+/// The distance of each written point's tool tip from the program's nominal path, in order.
+class EnvelopeMeter {
+ public:
+  EnvelopeMeter(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program)
+      : nom_(nom), program_(program), meter_(model, nom, true), lead_(static_cast<std::uint64_t>(0.25 / nom.period)) {}
+  double distance(const Node& n) {
+    simulate::Tick t;
+    // Never backwards (the search goes forward only), and far enough ahead for a leading point.
+    t.n = std::max(last_, std::min<std::uint64_t>(n.tick + lead_, nom_.reference.size() - 1));
+    last_ = t.n;
+    t.actual = n.joints;
+    Vec3 tip, nearest;
+    return meter_.distance(t, program_[n.block], tip, nearest);
+  }
+
+ private:
+  const Nominal& nom_;
+  std::span<const ResolvedBlock> program_;
+  simulate::ContourMeter meter_;
+  std::uint64_t lead_;
+  std::uint64_t last_ = 0;
+};
+
+/// The lowest Z of a block's move [mm, machine file frame]: its ends, and for an arc across Z
+/// (G18 / G19) the bottom of its circle.
+double lowest_z(const ResolvedBlock& b) {
+  double z = std::min(b.start[kZ], b.target[kZ]);
+  const bool arc = b.motion == Motion::kArcCW || b.motion == Motion::kArcCCW;
+  if (arc && b.plane != Plane::kXY) z = std::min(z, b.centre[kZ] - b.radius);
+  return z;
+}
+
+/// A three-axis point never lower than its source block goes: the learning may command Z past a
+/// plunge's floor to make a lagging axis arrive in time, which on a machine is a cut below the
+/// part's floor should the axis not lag as modelled. Lifted to the floor; true when it was.
+bool lift_to_floor(const ResolvedBlock& b, Node& n) {
+  const double floor = lowest_z(b);
+  if (n.joints[kZ] >= floor) return false;
+  n.joints[kZ] = floor;
+  return true;
+}
+
 }  // namespace
 
 std::string five_axis_guard(std::span<const ResolvedBlock> program, std::size_t first, bool program_start, Dialect d) {
@@ -123,18 +166,19 @@ ProgramCompensation compensate_program(const Model& model, const CompensateOptio
   // is in machine joints behind a guard (CompensatedFrames).
   CompensatedFrames frames;
   frames.work_frame = three_axis_program(run.program);
+  if (frames.work_frame) frames.as_source = moves_written_as_source(run.program);
   WriteOptions wo = write_options;
   wo.source_frames = frames.work_frame;
   // The text is written as the nodes come and handed on window by window: on a long program it
   // (tens of MB) and the nodes (56 bytes every 4 ms) are never held whole.
   Writer writer(wo);
   std::string held;                        // written, not handed on yet
-  std::vector<std::uint32_t> held_blocks;  // the source block of each of its motion blocks
+  std::vector<PointSource> held_points;    // the source of each of its motion blocks
   auto hand_on = [&] {
-    if (text) text(held, held_blocks);
+    if (text) text(held, held_points);
     else pc.text += held;
     held.clear();
-    held_blocks.clear();
+    held_points.clear();
   };
   bool program_start = true;
   if (!frames.work_frame)
@@ -142,12 +186,24 @@ ProgramCompensation compensate_program(const Model& model, const CompensateOptio
       held += five_axis_guard(run.program, block, program_start, wo.dialect);
       program_start = false;
     };
-  CompensatedBlocks blocks(run.program, model.interp.period, [&](const ResolvedBlock& b, std::size_t source) {
+  const auto emit = [&](const ResolvedBlock& b, std::size_t source, std::uint64_t tick) {
     writer.write(b, held);
-    if (b.motion != Motion::kNone) held_blocks.push_back(static_cast<std::uint32_t>(source));
-  }, frames);
+    if (b.motion != Motion::kNone) held_points.push_back({static_cast<std::uint32_t>(source), tick});
+  };
+  CompensatedBlocks blocks(run.program, model.interp.period, emit, frames);
+  pc.envelope.work_frame = frames.work_frame;
+  EnvelopeMeter envelope(model, *run.nominal, run.program);
+  bool first_node = true;
+  std::vector<Node> written;
   const NodeSink sink = [&](std::span<const Node> nodes, bool learned_so_far) {
-    blocks.add(nodes);
+    written.assign(nodes.begin(), nodes.end());
+    for (Node& n : std::span(written).subspan(first_node ? 1 : 0)) {  // node 0 is the start, not written
+      if (frames.work_frame && frames.as_source[n.block]) continue;
+      if (frames.work_frame && lift_to_floor(run.program[n.block], n)) ++pc.envelope.points_clamped;
+      pc.envelope.envelope = std::max(pc.envelope.envelope, envelope.distance(n));
+    }
+    first_node = false;
+    blocks.add(written);
     if (learned_so_far) hand_on();
   };
   pc.result = compensate(model, *run.nominal, run.program, run.start, *run.before, options, progress, sink);

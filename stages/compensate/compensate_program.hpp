@@ -14,16 +14,37 @@
 
 namespace gcpipe::compensate {
 
+/// Where compensated.nc's points lie: how far the compensation moved them off the path.
+struct PointEnvelope {
+  bool work_frame = false;  //!< CompensatedFrames::work_frame (three-axis, the source's frames)
+  /// [mm] the largest distance of a written point's tool tip from the program's nominal path
+  /// (the contour metric's search, reaching 0.25 s past the reference's progress at the point's
+  /// tick, since the points lead the path by up to the learning operator's 0.1 s): every point of
+  /// compensated.nc lies within this of the source's path.
+  double envelope = 0;
+  std::uint64_t points_clamped = 0;  //!< three-axis points lifted to their source block's lowest Z
+};
+
 struct ProgramCompensation {
   std::optional<Result> result;  //!< set when compensation ran (options.enabled)
   std::string text;              //!< compensated.nc when no TextSink took it; empty when not compensated
   std::string note;              //!< why there is no compensated program
+  PointEnvelope envelope;        //!< of the points written
+};
+
+/// A motion block of compensated.nc: the program block it stands for (what a read-back of the
+/// text measures it against) and the reference tick its move starts from (a rapid written as the
+/// source wrote it runs on the control's clock, not the reference's: the read-back takes the
+/// reference's up again at the next block).
+struct PointSource {
+  std::uint32_t block = 0;
+  std::uint64_t tick = 0;
 };
 
 /// Where compensated.nc goes as it is written: pieces of whole lines, in order, each with the
-/// program block each of its timed points stands for (in order: what a read-back of the text
-/// measures them against). The sink takes the piece (leaves it empty or not, as it likes).
-using TextSink = std::function<void(std::string& piece, const std::vector<std::uint32_t>& point_blocks)>;
+/// source of each of its motion blocks, in order. The sink takes the piece (leaves it empty or
+/// not, as it likes).
+using TextSink = std::function<void(std::string& piece, const std::vector<PointSource>& points)>;
 
 /// The guard a five-axis compensated.nc (machine joints) carries before its first point
 /// (`program_start`: the work offsets of every system the program uses, no G92 / external
