@@ -41,7 +41,8 @@ namespace {
 
 const fs::path kSource = GCPIPE_SOURCE_DIR;
 
-// The default config with the writer in the LinuxCNC dialect (paths made absolute).
+// The default config with the writer in the LinuxCNC dialect (paths made absolute) and three-axis
+// programs in their work frame (compensate.work_frame).
 fs::path linuxcnc_config(const fs::path& dir) {
   std::ifstream in(kSource / "pipeline_configs" / "default.yaml");
   std::ofstream out(dir / "linuxcnc.yaml");
@@ -56,6 +57,7 @@ fs::path linuxcnc_config(const fs::path& dir) {
     if (in_write) line = std::regex_replace(line, std::regex("dialect: fanuc"), "dialect: linuxcnc");
     out << line << "\n";
   }
+  out << "compensate:\n  work_frame: true\n";  // three-axis programs in their work frame
   return dir / "linuxcnc.yaml";
 }
 

@@ -17,7 +17,7 @@ namespace gcpipe::compensate {
 
 CompensateOptions load_compensate_options(const Config& s) {
   s.reject_unknown({"enabled", "node_period", "path_tolerance", "blend_time", "reference_acceleration", "reference_smoothing", "linearisation_tolerance", "max_iterations", "gain",
-                    "max_machine_time", "max_blocks", "slowed_baseline"});
+                    "max_machine_time", "max_blocks", "slowed_baseline", "work_frame"});
   CompensateOptions o;
   o.enabled = s.boolean("enabled", o.enabled);
   o.node_period = s.number("node_period", o.node_period, "s", 1e-4, 0.1);
@@ -31,6 +31,7 @@ CompensateOptions load_compensate_options(const Config& s) {
   o.max_machine_time = s.number("max_machine_time", o.max_machine_time, "s", 1, 1e6);
   o.max_blocks = static_cast<std::uint64_t>(s.integer("max_blocks", static_cast<std::int64_t>(o.max_blocks), 1, 100000000));
   o.slowed_baseline = s.boolean("slowed_baseline", o.slowed_baseline);
+  o.work_frame = s.boolean("work_frame", o.work_frame);
   return o;
 }
 

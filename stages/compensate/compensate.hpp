@@ -55,6 +55,9 @@ struct CompensateOptions {
   double gain = 1.0;                    //!< ILC learning gain (0, 1]
   double max_machine_time = 3600;       //!< [s] longer programs are simulated but not compensated
   std::uint64_t max_blocks = 500000;    //!< more blocks: not simulated (memory is per block)
+  /// Three-axis programs in the source's work frame (CompensatedFrames::work_frame); false: every
+  /// program in machine joints behind the guard (README "Output": what the work frame costs).
+  bool work_frame = false;
   bool slowed_baseline = true;          //!< also simulate the original slowed to the compensated
                                         //!< cycle time (the baseline in report.json)
 };

@@ -165,7 +165,7 @@ ProgramCompensation compensate_program(const Model& model, const CompensateOptio
   // A three-axis program stays in the source's work frame with its tool length; a five-axis one
   // is in machine joints behind a guard (CompensatedFrames).
   CompensatedFrames frames;
-  frames.work_frame = three_axis_program(run.program);
+  frames.work_frame = options.work_frame && three_axis_program(run.program);
   if (frames.work_frame) frames.as_source = moves_written_as_source(run.program);
   WriteOptions wo = write_options;
   wo.source_frames = frames.work_frame;

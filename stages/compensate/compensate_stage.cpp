@@ -190,12 +190,18 @@ class CompensateStage final : public pipeline::Stage {
     (*r.json)["simulation"]["compensated_program"] = {
         {"frames", e.work_frame ? "work: the source's work offsets, tool length, rapids and G28/G30/G53"
                                 : "machine joints behind a guard on the control's work offsets and tool length"},
+        {"start_joints", simulated_->run.start},
+        {"starts_at", model_.start ? "the machine file's start_position" : "the program's first position"},
         {"envelope_mm", e.envelope},
         {"points_lifted_to_floor", e.points_clamped}};
     char line[240];
     std::snprintf(line, sizeof line, "  compensated.nc: %s; every point within %.4f mm of the source's path%s\n",
                   e.work_frame ? "in the source's work frame" : "machine joints behind a guard", e.envelope,
                   e.points_clamped ? ", points below a block's floor lifted to it" : "");
+    *r.text += line;
+    const Axes& s0 = simulated_->run.start;
+    std::snprintf(line, sizeof line, "  starts at X%.3f Y%.3f Z%.3f A%.3f C%.3f (machine joints: %s)\n", s0[0], s0[1], s0[2],
+                  s0[3], s0[4], model_.start ? "the machine file's start_position" : "the program's first position");
     *r.text += line;
   }
 
