@@ -307,6 +307,30 @@ TEST(Compensate, TheLearningReplaysAWindowNotTheWholeProgram) {
   EXPECT_LE(simulated, bound);
 }
 
+// The machine file's start_position (home, Z up) is where the simulation starts, not the
+// program's first position (issue 30 item 2): the first raw sample and the planned reference's
+// first tick, which is the compensated program's node 0, are there, and so is the run's start.
+TEST(Compensate, TheRunStartsAtTheMachineFilesStartPosition) {
+  const PipelineConfig pc = circle_config();
+  Model model = load_model(pc);
+  const Axes home{10, -5, 60, 0, 0};
+  model.start = home;
+  const std::vector<ResolvedBlock> program = parse_text(kCircle2Pi, pc);
+  const CompensateOptions opt;
+  const auto run = simulate::simulate_program(model, program, run_bounds(opt));
+  ASSERT_TRUE(run.before) << run.note;
+  for (std::size_t a = 0; a < kNumAxes; ++a) {
+    EXPECT_EQ(run.start[a], home[a]) << a;
+    EXPECT_NEAR(run.nominal->raw[0][a], home[a], 1e-9) << a;
+    EXPECT_NEAR(run.nominal->reference[0][a], home[a], 1e-6) << a;  // compact storage: 0.5 nm
+  }
+  // Without it, the first position of the program, as before.
+  model.start.reset();
+  const auto first = simulate::simulate_program(model, program, run_bounds(opt));
+  ASSERT_TRUE(first.before) << first.note;
+  for (std::size_t a = 0; a < kNumAxes; ++a) EXPECT_EQ(first.start[a], program[1].start[a]) << a;  // G0 X13's start
+}
+
 // compensated.nc is handed on window by window as the learning commits its nodes, so that
 // neither the text nor the nodes of a long program are held whole; the pieces are the text a
 // whole collection writes, and each timed point comes with the program block it stands for.
