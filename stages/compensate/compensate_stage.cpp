@@ -156,6 +156,7 @@ class CompensateStage final : public pipeline::Stage {
         [&](std::string& piece, const std::vector<compensate::PointSource>& points) {
           if (!back) back.emplace(read_back_options(), machine_, model_, simulated_->run);
           back->feed(piece, points);
+          bytes_ += piece.size();
           go = out.text(piece) && go;
         });
     if (!compensation_.result || !compensation_.result->compensated || !back)
@@ -193,16 +194,28 @@ class CompensateStage final : public pipeline::Stage {
         {"start_joints", simulated_->run.start},
         {"starts_at", model_.start ? "the machine file's start_position" : "the program's first position"},
         {"envelope_mm", e.envelope},
-        {"points_lifted_to_floor", e.points_clamped}};
+        {"points_lifted_to_floor", e.points_clamped},
+        {"bytes", bytes_},
+        {"points_per_second", points_per_second()}};
     char line[240];
     std::snprintf(line, sizeof line, "  compensated.nc: %s; every point within %.4f mm of the source's path%s\n",
                   e.work_frame ? "in the source's work frame" : "machine joints behind a guard", e.envelope,
                   e.points_clamped ? ", points below a block's floor lifted to it" : "");
     *r.text += line;
+    std::snprintf(line, sizeof line, "  compensated.nc: %llu bytes, %.0f points a second (the block rate a control must sustain)\n",
+                  static_cast<unsigned long long>(bytes_), points_per_second());
+    *r.text += line;
     const Axes& s0 = simulated_->run.start;
     std::snprintf(line, sizeof line, "  starts at X%.3f Y%.3f Z%.3f A%.3f C%.3f (machine joints: %s)\n", s0[0], s0[1], s0[2],
                   s0[3], s0[4], model_.start ? "the machine file's start_position" : "the program's first position");
     *r.text += line;
+  }
+
+  /// The motion blocks of compensated.nc a second of its cycle: the block rate a control must
+  /// sustain on average (the timed points are denser where the linearisation halved them).
+  double points_per_second() const {
+    const double cycle = static_cast<double>(compensation_.result->end_tick) * model_.interp.period;
+    return cycle > 0 ? static_cast<double>(written_nodes_) / cycle : 0.0;
   }
 
   /// With a force stage upstream: its deflection beside the contour error (error_budget.hpp).
@@ -265,6 +278,7 @@ class CompensateStage final : public pipeline::Stage {
   std::optional<simulate::Evaluation> after_;
   std::optional<simulate::SlowedBaseline> slowed_;
   std::uint64_t written_nodes_ = 0;
+  std::uint64_t bytes_ = 0;  // of compensated.nc
   std::string failure_;
 };
 
