@@ -101,7 +101,8 @@ int run_batch_in_prepared_folder(const BatchArgs& a) {
   log.flush();
   diagnostics.commit();
   output.commit();
-  if (compensated && compensated->written()) compensated->commit();
+  // A compensate stage that failed (its read-back checks among others) keeps no compensated.nc.
+  if (compensated && compensated->written() && run.pipeline().stage("compensate")->failure().empty()) compensated->commit();
   write_reports(run, a, o, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   if (!a.quiet && log.not_shown() > 0)
     std::cerr << "... " << log.not_shown() << " more in " << (outdir / "diagnostics.txt").string() << "\n";

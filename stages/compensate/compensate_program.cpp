@@ -96,19 +96,22 @@ std::string tool_length_guard(const ResolvedBlock& b, Dialect d) {
          ")\nG49\n";
 }
 
+}  // namespace
+
 /// The distance of each written point's tool tip from the program's nominal path, in order.
 class EnvelopeMeter {
  public:
   EnvelopeMeter(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program)
       : nom_(nom), program_(program), meter_(model, nom, true), lead_(static_cast<std::uint64_t>(0.25 / nom.period)) {}
-  double distance(const Node& n) {
+  double distance(const Node& n) { return distance(n.joints, n.tick, n.block); }
+  double distance(const Axes& joints, std::uint64_t tick, std::uint32_t block) {
     simulate::Tick t;
     // Never backwards (the search goes forward only), and far enough ahead for a leading point.
-    t.n = std::max(last_, std::min<std::uint64_t>(n.tick + lead_, nom_.reference.size() - 1));
+    t.n = std::max(last_, std::min<std::uint64_t>(tick + lead_, nom_.reference.size() - 1));
     last_ = t.n;
-    t.actual = n.joints;
+    t.actual = joints;
     Vec3 tip, nearest;
-    return meter_.distance(t, program_[n.block], tip, nearest);
+    return meter_.distance(t, program_[block], tip, nearest);
   }
 
  private:
@@ -118,6 +121,8 @@ class EnvelopeMeter {
   std::uint64_t lead_;
   std::uint64_t last_ = 0;
 };
+
+namespace {
 
 /// The lowest Z of a block's move [mm, machine file frame]: its ends, and for an arc across Z
 /// (G18 / G19) the bottom of its circle.
@@ -139,6 +144,53 @@ bool lift_to_floor(const ResolvedBlock& b, Node& n) {
 }
 
 }  // namespace
+
+ReadBackChecks::ReadBackChecks(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program,
+                               bool work_frame)
+    : program_(program), work_frame_(work_frame), meter_(std::make_unique<EnvelopeMeter>(model, nom, program)) {}
+
+ReadBackChecks::~ReadBackChecks() = default;
+
+void ReadBackChecks::keep(Worst& w, double value, std::uint64_t line) {
+  if (value > w.value) w = {value, line};
+}
+
+void ReadBackChecks::add(const ResolvedBlock& b, const PointSource& source) {
+  const ResolvedBlock& src = program_[std::min<std::size_t>(source.block, program_.size() - 1)];
+  const bool timed = b.motion == Motion::kLinear && b.feed_mode == FeedMode::kInverseTime;
+  if (timed) keep(farthest_, meter_->distance(b.target, source.tick, source.block), b.line);
+  if (!work_frame_) return;
+  if (timed) keep(below_floor_, lowest_z(src) - b.target[kZ], b.line);
+  if (b.motion == Motion::kRapid || (!timed && b.motion != Motion::kDwell))
+    keep(rapid_off_, dist3({b.target[kX], b.target[kY], b.target[kZ]}, {src.target[kX], src.target[kY], src.target[kZ]}),
+         b.line);
+}
+
+std::string ReadBackChecks::failures(double envelope) const {
+  // [mm] the text's rounding: 4 decimals of an inch are 2.54 um a word, 2.2 um over three axes
+  // at half a digit each; and the measure's window, which starts at the point's move here and at
+  // the point itself for the envelope (0.25 s ahead of either).
+  constexpr double kRounding = 5e-3;
+  std::string out;
+  char msg[240];
+  if (farthest_.value > envelope + kRounding) {
+    std::snprintf(msg, sizeof msg, "a point of line %llu lies %.4f mm from the source's path, beyond the stated envelope %.4f mm; ",
+                  static_cast<unsigned long long>(farthest_.line), farthest_.value, envelope);
+    out += msg;
+  }
+  if (below_floor_.value > kRounding) {
+    std::snprintf(msg, sizeof msg, "a point of line %llu lies %.4f mm below its source move's lowest Z; ",
+                  static_cast<unsigned long long>(below_floor_.line), below_floor_.value);
+    out += msg;
+  }
+  if (rapid_off_.value > kRounding) {
+    std::snprintf(msg, sizeof msg, "the move of line %llu ends %.4f mm from where the source's does; ",
+                  static_cast<unsigned long long>(rapid_off_.line), rapid_off_.value);
+    out += msg;
+  }
+  if (!out.empty()) out.resize(out.size() - 2);
+  return out;
+}
 
 std::string five_axis_guard(std::span<const ResolvedBlock> program, std::size_t first, bool program_start, Dialect d) {
   std::string t;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -45,6 +46,36 @@ struct PointSource {
 /// source of each of its motion blocks, in order. The sink takes the piece (leaves it empty or
 /// not, as it likes).
 using TextSink = std::function<void(std::string& piece, const std::vector<PointSource>& points)>;
+
+/// The checks compensated.nc read back must pass before `gcpipe batch` keeps it (issue 30
+/// item 5), motion block by motion block as the parser reads the text: every timed point's tool
+/// tip within the stated envelope of the source's path (and 5 um for the text's rounding); in a
+/// three-axis program in its work frame, no point below its source block's lowest Z and every
+/// move written as the source wrote it (rapids, G28 / G30 / G53) ending where the source's does.
+class EnvelopeMeter;
+
+class ReadBackChecks {
+ public:
+  ReadBackChecks(const Model& model, const Nominal& nom, std::span<const ResolvedBlock> program, bool work_frame);
+  ~ReadBackChecks();
+  ReadBackChecks(const ReadBackChecks&) = delete;
+  ReadBackChecks& operator=(const ReadBackChecks&) = delete;
+  /// A motion block of the text as read back (machine file frame), with what it stands for.
+  void add(const ResolvedBlock& b, const PointSource& source);
+  /// Empty when every check held; else each that failed, with its worst point.
+  std::string failures(double envelope) const;
+
+ private:
+  struct Worst {
+    double value = 0;
+    std::uint64_t line = 0;
+  };
+  static void keep(Worst& w, double value, std::uint64_t line);
+  std::span<const ResolvedBlock> program_;
+  bool work_frame_;
+  std::unique_ptr<EnvelopeMeter> meter_;
+  Worst farthest_, below_floor_, rapid_off_;
+};
 
 /// The guard a five-axis compensated.nc (machine joints) carries before its first point
 /// (`program_start`: the work offsets of every system the program uses, no G92 / external

@@ -28,9 +28,10 @@ using pipeline::Emitter;
 class ReadBack {
  public:
   ReadBack(const ParseOptions& options, const MachineConfig& machine, const compensate::Model& model,
-           const simulate::SimulationRun& run)
+           const simulate::SimulationRun& run, bool work_frame)
       : parser_(options, machine, "compensated.nc"), runner_(model, run.start, 0),
-        evaluation_(model, *run.nominal, run.program, run.start, true) {
+        evaluation_(model, *run.nominal, run.program, run.start, true),
+        checks_(model, *run.nominal, run.program, work_frame) {
     sink_.block = [this](const ResolvedBlock& b) {
       if (b.motion != Motion::kNone) run_block(b);
       return true;
@@ -64,6 +65,7 @@ class ReadBack {
   }
 
   std::uint64_t points() const { return points_; }
+  const compensate::ReadBackChecks& checks() const { return checks_; }
 
  private:
   void feed_line(std::string_view line) {
@@ -73,6 +75,7 @@ class ReadBack {
 
   void run_block(const ResolvedBlock& b) {
     if (read_ >= points_) throw does_not_read_back();
+    checks_.add(b, sources_[read_ - first_source_]);
     // A block the machine cannot run stops the run there (as run_program does); the rest is
     // still read, to count it.
     runner_.add(b, static_cast<std::uint32_t>(read_++), on_tick_);
@@ -110,6 +113,7 @@ class ReadBack {
   simulate::ProgramRunner runner_;
   simulate::RunEvaluation evaluation_;
   simulate::TickFn on_tick_;
+  compensate::ReadBackChecks checks_;
   std::deque<compensate::PointSource> sources_;
   std::uint32_t block_ = 0;     // the text's motion block whose ticks come now
   std::int64_t offset_ = 0;     // its ticks on the reference clock less the run's
@@ -154,7 +158,9 @@ class CompensateStage final : public pipeline::Stage {
     compensation_ = compensate::compensate_program(
         model_, options_, write_options_, simulated_->run, progress_,
         [&](std::string& piece, const std::vector<compensate::PointSource>& points) {
-          if (!back) back.emplace(read_back_options(), machine_, model_, simulated_->run);
+          if (!back)
+            back.emplace(read_back_options(), machine_, model_, simulated_->run,
+                         options_.work_frame && compensate::three_axis_program(simulated_->run.program));
           back->feed(piece, points);
           bytes_ += piece.size();
           go = out.text(piece) && go;
@@ -163,6 +169,9 @@ class CompensateStage final : public pipeline::Stage {
       return fail("no compensated program: " + compensation_.note);
     after_ = back->finish();
     written_nodes_ = back->points();
+    // gcpipe batch keeps no compensated.nc whose read-back fails a check (issue 30 item 5).
+    const std::string refused = back->checks().failures(compensation_.envelope.envelope);
+    if (!refused.empty()) return fail("compensated.nc refused, its read-back fails: " + refused);
     measure_slowed_baseline();
     return go;
   }
