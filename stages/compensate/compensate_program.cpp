@@ -214,8 +214,8 @@ ProgramCompensation compensate_program(const Model& model, const CompensateOptio
     pc.note = "compensate.enabled is false";
     return pc;
   }
-  // A three-axis program stays in the source's work frame with its tool length; a five-axis one
-  // is in machine joints behind a guard (CompensatedFrames).
+  // With compensate.work_frame a three-axis program stays in the source's work frame with its
+  // tool length; otherwise the points are machine joints behind a guard (CompensatedFrames).
   CompensatedFrames frames;
   frames.work_frame = options.work_frame && three_axis_program(run.program);
   if (frames.work_frame) frames.as_source = moves_written_as_source(run.program);
