@@ -214,7 +214,9 @@ TEST(Cli, BatchCompensatesTheCircleTestAndWritesReportAndPlots) {
   const auto& slowed = sim.at("slowed_original");
   EXPECT_LT(slowed.at("feed_factor").get<double>(), 1.0);
   EXPECT_NEAR(slowed.at("cycle_time_s").get<double>(), after_s, 0.02 * after_s) << slowed.dump();
-  // The compensated program keeps the structure and reads back in both dialects.
+  // The compensated program keeps the structure and reads back in its dialect (Fanuc here). Its
+  // guard is written in that dialect (IF [...] THEN #3000), so a LinuxCNC reading of it fails at
+  // the guard since issue 30; the LinuxCNC form is run by rs274 in tests/rs274_compensated_test.cpp.
   std::ifstream c(out / "compensated.nc");
   std::stringstream cs;
   cs << c.rdbuf();
@@ -223,14 +225,9 @@ TEST(Cli, BatchCompensatesTheCircleTestAndWritesReportAndPlots) {
   EXPECT_NE(program.find("O2 (SEED 002 SYNCHRONOUS CIRCLE TEST)"), std::string::npos);
   EXPECT_NE(program.find("(source: G3 X13. Y0 I-8. J0 C360. F15)"), std::string::npos);
   EXPECT_NE(program.find("M30"), std::string::npos);
+  EXPECT_NE(program.find("IF [ABS[#5221 - 0.0000] GT 0.0010] THEN #3000 = 1"), std::string::npos);
   Outcome p = gcpipe({"parse", (out / "compensated.nc").string(), "--strict"});
   EXPECT_EQ(p.status, 0) << p.err;
-  {
-    std::ofstream cfg(out / "linuxcnc.yaml");
-    cfg << "machine: " << GCPIPE_SOURCE_DIR << "/pipeline_configs/machines/nmv5000.yaml\nparse:\n  dialect: linuxcnc\n";
-  }
-  Outcome l = gcpipe({"parse", (out / "compensated.nc").string(), "--strict", "--config", (out / "linuxcnc.yaml").string()});
-  EXPECT_EQ(l.status, 0) << l.err;
 }
 
 // The default config ships a neural IK model: batch draws the neural-against-analytic figures and

@@ -308,6 +308,72 @@ TEST(Compensate, TheLearningReplaysAWindowNotTheWholeProgram) {
   EXPECT_LE(simulated, bound);
 }
 
+// The machine file's start_position (home, Z up) is where the simulation starts, not the
+// program's first position (issue 30 item 2): the first raw sample and the planned reference's
+// first tick, which is the compensated program's node 0, are there, and so is the run's start.
+TEST(Compensate, TheRunStartsAtTheMachineFilesStartPosition) {
+  const PipelineConfig pc = circle_config();
+  Model model = load_model(pc);
+  const Axes home{10, -5, 60, 0, 0};
+  model.start = home;
+  const std::vector<ResolvedBlock> program = parse_text(kCircle2Pi, pc);
+  const CompensateOptions opt;
+  const auto run = simulate::simulate_program(model, program, run_bounds(opt));
+  ASSERT_TRUE(run.before) << run.note;
+  for (std::size_t a = 0; a < kNumAxes; ++a) {
+    EXPECT_EQ(run.start[a], home[a]) << a;
+    EXPECT_NEAR(run.nominal->raw[0][a], home[a], 1e-9) << a;
+    EXPECT_NEAR(run.nominal->reference[0][a], home[a], 1e-6) << a;  // compact storage: 0.5 nm
+  }
+  // Without it, the first position of the program, as before.
+  model.start.reset();
+  const auto first = simulate::simulate_program(model, program, run_bounds(opt));
+  ASSERT_TRUE(first.before) << first.note;
+  for (std::size_t a = 0; a < kNumAxes; ++a) EXPECT_EQ(first.start[a], program[1].start[a]) << a;  // G0 X13's start
+}
+
+// The checks gcpipe batch runs on compensated.nc read back (issue 30 item 5) name what fails: a
+// timed point beyond the stated envelope, and in a work-frame program a point below its source
+// move's floor or a move written as the source wrote it that ends elsewhere. Points of the planned
+// reference (within compensate.path_tolerance, 0.02 mm, of the path) pass an envelope of 0.05 mm.
+TEST(Compensate, TheReadBackChecksNameWhatFails) {
+  const CircleTest c;
+  const CompensateOptions opt;
+  const auto run = simulate::simulate_program(c.model, c.program, run_bounds(opt));
+  ASSERT_TRUE(run.before) << run.note;
+  const Nominal& nom = *run.nominal;
+  auto point_at = [&](std::uint64_t tick, double dx, double dz) {
+    ResolvedBlock b;
+    b.line = 7;
+    b.motion = Motion::kLinear;
+    b.feed_mode = FeedMode::kInverseTime;
+    b.target = nom.reference[tick];
+    b.target[kX] += dx;
+    b.target[kZ] += dz;
+    return b;
+  };
+  auto source_at = [&](std::uint64_t tick) {
+    return PointSource{nom.block[nom.progress[tick]], tick};
+  };
+  ReadBackChecks good(c.model, nom, c.program, true);
+  for (std::uint64_t t = 1000; t < 3000; t += 4) good.add(point_at(t, 0, 0), source_at(t));
+  EXPECT_EQ(good.failures(0.05), "");
+  ReadBackChecks far(c.model, nom, c.program, false);
+  far.add(point_at(2000, 5.0, 0), source_at(2000));
+  EXPECT_NE(far.failures(0.05).find("beyond the stated envelope 0.0500 mm"), std::string::npos) << far.failures(0.05);
+  ReadBackChecks low(c.model, nom, c.program, true);
+  low.add(point_at(2000, 0, -1.0), source_at(2000));
+  EXPECT_NE(low.failures(5.0).find("1.0000 mm below its source move's lowest Z"), std::string::npos) << low.failures(5.0);
+  ReadBackChecks rapid(c.model, nom, c.program, true);
+  const PointSource s = source_at(2000);
+  ResolvedBlock r = c.program[s.block];
+  r.motion = Motion::kRapid;
+  r.target[kY] += 2.0;
+  rapid.add(r, s);
+  EXPECT_NE(rapid.failures(0.05).find("ends 2.0000 mm from where the source's does"), std::string::npos)
+      << rapid.failures(0.05);
+}
+
 // compensated.nc is handed on window by window as the learning commits its nodes, so that
 // neither the text nor the nodes of a long program are held whole; the pieces are the text a
 // whole collection writes, and each timed point comes with the program block it stands for.
@@ -321,12 +387,12 @@ TEST(Compensate, TheProgramIsWrittenWindowByWindowAsTheNodesAreCommitted) {
   std::string joined;
   std::size_t pieces = 0, largest = 0, points = 0;
   const ProgramCompensation streamed = compensate_program(
-      model, opt, WriteOptions{}, run, {}, [&](std::string& piece, const std::vector<std::uint32_t>& blocks) {
+      model, opt, WriteOptions{}, run, {}, [&](std::string& piece, const std::vector<PointSource>& sources) {
         ++pieces;
         largest = std::max(largest, piece.size());
         joined += piece;
-        points += blocks.size();
-        for (const std::uint32_t b : blocks) ASSERT_LT(b, run.program.size());
+        points += sources.size();
+        for (const PointSource& p : sources) ASSERT_LT(p.block, run.program.size());
       });
   ASSERT_TRUE(streamed.result && streamed.result->compensated) << streamed.note;
   EXPECT_TRUE(streamed.text.empty());

@@ -960,6 +960,55 @@ TEST(ParseIssue14, FanucPositionVariablesAndAlarm) {
   EXPECT_EQ(m.summary.lines_not_run, 1u);
 }
 
+// The control's offsets a program reads (compensated.nc's guard, issue 30), as rs274 and the 0i
+// number them. LinuxCNC: #5221 + 20 k + {X 0, Y 1, Z 2, A 3, C 5} the G54..G59 origins in the
+// machine's unit, #5220 the system in use, #5210 a G92 shift applied, #5400 the tool in the
+// spindle and #5403 its length in the tool table; `(abort, msg)` stops the program. Fanuc:
+// #5221 + 20 k + {0..4} in axis order, #5083 the tool length in force, #5201.. the external
+// offset (none). A program cannot assign them. rs274 reads the same LinuxCNC values (checked by
+// hand with `(debug, ...)` on rs274 of linuxcnc-uspace: #5403 is the loaded tool's table length, G43
+// or not; the parameters are in its internal unit, the inch for standalone rs274).
+TEST(ParseIssue30, TheControlsOffsetsReadAsTheControlNumbersThem) {
+  ParseOptions lc;
+  lc.dialect = Dialect::kLinuxCnc;
+  // G55's origin is X100 Y50 Z-20 in the test machine; G10 moves G54's.
+  Parsed p = parse_text("G10 L2 P1 X7 C30\nG55\nT2 M6\nG0 X[#5241] Y[#5242] Z[#5243]\nG0 X[#5221] C[#5226]\n"
+                        "G0 X[#5220] Y[#5400] Z[#5403]\n",
+                        lc);
+  ASSERT_EQ(p.first_error(), nullptr) << format(*p.first_error());
+  const auto e = ends(p);
+  ASSERT_EQ(e.size(), 3u);
+  EXPECT_DOUBLE_EQ(e[0][kX], 100);
+  EXPECT_DOUBLE_EQ(e[0][kY], 50);
+  EXPECT_DOUBLE_EQ(e[0][kZ], -20);
+  EXPECT_DOUBLE_EQ(e[1][kX], 7);
+  EXPECT_DOUBLE_EQ(e[1][kC], 30);
+  EXPECT_DOUBLE_EQ(e[2][kX], 2);    // G55
+  EXPECT_DOUBLE_EQ(e[2][kY], 2);    // T2 in the spindle
+  EXPECT_DOUBLE_EQ(e[2][kZ], 110);  // its length
+  EXPECT_DOUBLE_EQ(ends(parse_text("G0 X1\nG92 X5\nG0 Y[#5210]\n", lc)).back()[kY], 1);  // a G92 shift applied
+  EXPECT_DOUBLE_EQ(ends(parse_text("G0 X1\nG0 Y[#5210]\n", lc)).back()[kY], 0);
+  Parsed stop = parse_text("G0 X1\no1 if [#5221 NE 5]\n(abort, G54 X is not 5)\no1 endif\nG0 X2\n", lc);
+  ASSERT_NE(stop.first_error(), nullptr);
+  EXPECT_EQ(stop.first_error()->line, 3u);
+  EXPECT_NE(stop.first_error()->message.find("abort: G54 X is not 5"), std::string::npos) << stop.first_error()->message;
+  EXPECT_EQ(ends(stop).back()[kX], 1);  // nothing after the abort runs
+  Parsed go = parse_text("G0 X1\no1 if [#5221 NE 0]\n(abort, G54 X is not 0)\no1 endif\nG0 X2\n", lc);
+  EXPECT_EQ(go.first_error(), nullptr);
+  EXPECT_EQ(ends(go).back()[kX], 2);
+  // Fanuc: G55 X is #5241, C (the fifth axis) #5245; #5083 the length in force.
+  Parsed f = parse_text("G0 X[#5241] Y[#5245] Z[#5083]\nG43 H1\nG0 X[#5083] Y[#5201]\n");
+  ASSERT_EQ(f.first_error(), nullptr) << format(*f.first_error());
+  EXPECT_DOUBLE_EQ(ends(f)[0][kX], 100);
+  EXPECT_DOUBLE_EQ(ends(f)[0][kY], 0);
+  EXPECT_DOUBLE_EQ(ends(f)[0][kZ], 0);
+  EXPECT_DOUBLE_EQ(ends(f)[1][kX], 100);
+  EXPECT_DOUBLE_EQ(ends(f)[1][kY], 0);
+  Parsed set = parse_text("#5221 = 3\n");
+  ASSERT_NE(set.first_error(), nullptr);
+  EXPECT_NE(set.first_error()->message.find("G10 L2"), std::string::npos) << set.first_error()->message;
+}
+
 // Fanuc Custom Macro B vacant ("null") variables, as the 0i-MF operator's manual B-64604EN,
 // Custom Macro, "Null variables" states them: #0 is always vacant, and so is a variable never set.
 //  - quotation: with #1 vacant, `G90 X100 Y#1` is `G90 X100` (the address is left out);

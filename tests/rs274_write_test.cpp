@@ -51,21 +51,15 @@
 #include <sstream>
 
 #include "parse_helpers.hpp"
+#include "rs274_util.hpp"
 #include "write.hpp"
 
 using namespace gcpipe;
 using namespace gcpipe::test;
+using namespace gcpipe::test::rs274;
 namespace fs = std::filesystem;
 
 namespace {
-
-constexpr double kTol = 5e-4;  // [program units] two printed values of 4 decimals, summed
-
-std::string rs274_path() {
-  for (const char* p : {"/usr/bin/rs274", "/usr/local/bin/rs274"})
-    if (fs::exists(p)) return p;
-  return {};
-}
 
 fs::path work_dir() { return fs::path(testing::TempDir()) / ("gcpipe_rs274_write_" + std::to_string(::getpid())); }
 
@@ -106,114 +100,9 @@ MachineConfig machine_file() {
   return m;  // G54 and the reference positions at machine zero
 }
 
-struct Move {
-  char kind = 'T';  // T traverse, F feed, A arc
-  std::array<double, 6> end{};  // X Y Z [mm] A B C [deg], machine coordinates
-  std::array<double, 2> centre{};  // arc: in its plane [mm], machine coordinates
-  double feed = 0;  // feed moves [mm/min]
-  double tol = kTol;  // [mm]
-};
-
-struct Rs274Run {
-  std::vector<Move> moves;
-  std::vector<std::string> rejected;  // messages and lines rs274 rejected
-};
-
-std::vector<double> numbers(const std::string& args) {
-  std::vector<double> v;
-  std::string s = args;
-  for (char& c : s)
-    if (c == ',') c = ' ';
-  std::stringstream ss(s);
-  for (double x; ss >> x;) v.push_back(x);
-  return v;
-}
-
-// The canonical calls of one run, turned into moves in machine coordinates [mm].
-class CanonReader {
- public:
-  void call(const std::string& name, const std::string& args) {
-    if (name == "USE_LENGTH_UNITS") scale_ = args.find("INCHES") != std::string::npos ? 25.4 : 1.0;
-    else if (name == "SELECT_PLANE") plane_ = args;
-    else if (name == "SET_FEED_RATE") feed_ = numbers(args).at(0);  // program units: scaled when it moves
-    else if (name == "SET_G5X_OFFSET") store(g5x_, numbers(args), 1);
-    else if (name == "SET_G92_OFFSET") store(g92_, numbers(args), 0);
-    else if (name == "USE_TOOL_LENGTH_OFFSET") store(tool_, numbers(args), 0);
-    else if (name == "STRAIGHT_TRAVERSE" || name == "STRAIGHT_FEED") straight(name == "STRAIGHT_FEED", numbers(args));
-    else if (name == "ARC_FEED") arc(numbers(args));
-  }
-  std::vector<Move> moves;
-
- private:
-  // Offsets in mm (linear) at the time they are set: a later G20/G21 does not change them.
-  void store(std::array<double, 6>& to, const std::vector<double>& v, std::size_t first) {
-    for (std::size_t i = 0; i < 6; ++i) to[i] = v.at(first + i) * (i < 3 ? scale_ : 1.0);
-  }
-  double machine(int axis, double program) const {
-    return program * (axis < 3 ? scale_ : 1.0) + g5x_[axis] + g92_[axis] + tool_[axis];
-  }
-  void add(Move m) {
-    m.tol = kTol * scale_;
-    bool same = true;
-    for (int a = 0; a < 6; ++a) same = same && std::fabs(m.end[a] - last_[a]) <= 1e-9;
-    last_ = m.end;
-    if (!same) moves.push_back(m);
-  }
-  void straight(bool feed, const std::vector<double>& v) {
-    Move m;
-    m.kind = feed ? 'F' : 'T';
-    for (int a = 0; a < 6; ++a) m.end[a] = machine(a, v.at(a));
-    m.feed = feed ? feed_ * scale_ : 0;
-    add(m);
-  }
-  // ARC_FEED(first end, second end, first centre, second centre, turn, normal end, a, b, c, ...):
-  // the plane's axes (XY: X Y, normal Z; XZ: Z X, normal Y; YZ: Y Z, normal X).
-  void arc(const std::vector<double>& v) {
-    const int u = plane_ == "CANON_PLANE_XY" ? 0 : plane_ == "CANON_PLANE_XZ" ? 2 : 1;
-    const int w = plane_ == "CANON_PLANE_XY" ? 1 : plane_ == "CANON_PLANE_XZ" ? 0 : 2;
-    const int n = 3 - u - w;
-    Move m;
-    m.kind = 'A';
-    m.end[u] = machine(u, v.at(0));
-    m.end[w] = machine(w, v.at(1));
-    m.end[n] = machine(n, v.at(5));
-    for (int a = 3; a < 6; ++a) m.end[a] = machine(a, v.at(a + 3));
-    m.centre = {machine(u, v.at(2)), machine(w, v.at(3))};
-    m.feed = feed_ * scale_;
-    add(m);
-  }
-  double scale_ = 1;
-  std::string plane_ = "CANON_PLANE_XY";
-  double feed_ = 0;
-  std::array<double, 6> g5x_{}, g92_{}, tool_{}, last_{};
-};
-
-// rs274 on a copy of the text with M2 appended (see tests/rs274_diff_test.cpp: without an end,
-// -n 0 repeats its complaint without end), a fresh parameter file and the measured tool table.
+// rs274 on the text with the control state below.
 Rs274Run run_rs274(const std::string& name, const std::string& text) {
-  const fs::path dir = work_dir();
-  fs::create_directories(dir);
-  const fs::path program = dir / (name + ".ngc"), var = dir / "control.var", tbl = dir / "control.tbl";
-  std::ofstream(program) << text << (text.empty() || text.back() == '\n' ? "" : "\n") << "M2\n";
-  std::ofstream(var) << control_parameters();
-  std::ofstream(tbl) << kToolTable;
-  const fs::path out = dir / "rs274.out", err = dir / "rs274.err";
-  const std::string cmd = "timeout 120 " + rs274_path() + " -n 0 -g -v '" + var.string() + "' -t '" + tbl.string() +
-                          "' '" + program.string() + "' >'" + out.string() + "' 2>'" + err.string() + "'";
-  Rs274Run r;
-  if (std::system(cmd.c_str()) != 0) ADD_FAILURE() << "rs274 failed: " << cmd;
-  static const std::regex canon(R"(^\s*\d+ N\S*\s+(\w+)\((.*)\)\s*$)");
-  CanonReader reader;
-  std::ifstream o(out);
-  for (std::string line; std::getline(o, line);) {
-    std::smatch m;
-    if (std::regex_match(line, m, canon)) reader.call(m[1], m[2]);
-  }
-  r.moves = std::move(reader.moves);
-  std::ifstream e(err);
-  for (std::string line; std::getline(e, line);)
-    if (line != "executing" && !line.empty()) r.rejected.push_back(line);
-  return r;
+  return rs274::run(work_dir(), name, text, control_parameters(), kToolTable);
 }
 
 struct Written {

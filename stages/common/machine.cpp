@@ -7,7 +7,7 @@ namespace gcpipe {
 MachineConfig load_machine(const Config& m) {
   MachineConfig out;
   m.reject_unknown({"name", "work_offsets", "tools", "tool_table", "reference_positions", "initial_position",
-                    "kinematics", "limits"});
+                    "start_position", "kinematics", "limits"});
   out.name = m.string("name", "unnamed");
   if (m.has("work_offsets")) {
     Config wo = m.section("work_offsets");
@@ -34,6 +34,12 @@ MachineConfig load_machine(const Config& m) {
   if (m.has("initial_position")) {
     auto v = m.numbers("initial_position", kNumAxes, "mm or deg (X Y Z A C)", -1e5, 1e5);
     for (int a = 0; a < kNumAxes; ++a) out.initial_position[static_cast<std::size_t>(a)] = v[static_cast<std::size_t>(a)];
+  }
+  if (m.has("start_position")) {
+    auto v = m.numbers("start_position", kNumAxes, "mm or deg (X Y Z A C), machine joints", -1e5, 1e5);
+    Axes p{};
+    for (int a = 0; a < kNumAxes; ++a) p[static_cast<std::size_t>(a)] = v[static_cast<std::size_t>(a)];
+    out.start_position = p;
   }
   if (m.has("reference_positions")) {
     Config rp = m.section("reference_positions");

@@ -17,7 +17,7 @@ namespace gcpipe::compensate {
 
 CompensateOptions load_compensate_options(const Config& s) {
   s.reject_unknown({"enabled", "node_period", "path_tolerance", "blend_time", "reference_acceleration", "reference_smoothing", "linearisation_tolerance", "max_iterations", "gain",
-                    "max_machine_time", "max_blocks", "slowed_baseline", "slow_for_drive_limits"});
+                    "max_machine_time", "max_blocks", "slowed_baseline", "slow_for_drive_limits", "work_frame"});
   CompensateOptions o;
   o.enabled = s.boolean("enabled", o.enabled);
   o.node_period = s.number("node_period", o.node_period, "s", 1e-4, 0.1);
@@ -32,6 +32,7 @@ CompensateOptions load_compensate_options(const Config& s) {
   o.max_blocks = static_cast<std::uint64_t>(s.integer("max_blocks", static_cast<std::int64_t>(o.max_blocks), 1, 100000000));
   o.slowed_baseline = s.boolean("slowed_baseline", o.slowed_baseline);
   o.slow_for_drive_limits = s.boolean("slow_for_drive_limits", o.slow_for_drive_limits);
+  o.work_frame = s.boolean("work_frame", o.work_frame);
   return o;
 }
 
@@ -918,44 +919,174 @@ Result compensate(const Model& model, const Nominal& nom, std::span<const Resolv
   return res;
 }
 
-CompensatedBlocks::CompensatedBlocks(std::span<const ResolvedBlock> program, double period,
-                                     std::function<void(const ResolvedBlock&)> emit)
-    : program_(program), period_(period), emit_(std::move(emit)) {}
+CompensatedBlocks::CompensatedBlocks(std::span<const ResolvedBlock> program, double period, Emit emit,
+                                     CompensatedFrames frames)
+    : program_(program), period_(period), emit_(std::move(emit)), frames_(std::move(frames)) {}
+
+namespace {
+// Tool length as compensated.nc states it. A tool-centre-point block's joints hold the tool length
+// (inverse kinematics with it): G49. Any other block's joints are its targets, measured from the
+// tool tip the control puts there with the source's own G43 H, so that length stays in force.
+void tool_length_as_written(const ResolvedBlock& src, ResolvedBlock& c) {
+  c.tcp = false;
+  c.tool_vector_mode = false;
+  c.tool_length_active = !src.tcp && src.tool_length_active;
+  c.tool_length_offset = c.tool_length_active ? src.tool_length_offset : 0;
+  c.tool_length = c.tool_length_active ? src.tool_length : 0;
+}
+}  // namespace
+
+bool three_axis_program(std::span<const ResolvedBlock> program) {
+  for (const ResolvedBlock& b : program) {
+    if (b.motion == Motion::kNone) continue;
+    if (b.tcp || b.tool_vector_mode) return false;
+    if (b.target[kA] != b.start[kA] || b.target[kC] != b.start[kC]) return false;
+  }
+  return true;
+}
+
+namespace {
+bool changes_origin(FrameCode c) {
+  return c == FrameCode::kSetOrigin || c == FrameCode::kSetOriginHere || c == FrameCode::kShift ||
+         c == FrameCode::kShiftClear || c == FrameCode::kShiftSuspend || c == FrameCode::kShiftRestore ||
+         c == FrameCode::kLocalShift;
+}
+bool returns_home(FrameCode c) { return c == FrameCode::kHome || c == FrameCode::kHome2 || c == FrameCode::kMachine; }
+}  // namespace
+
+std::vector<bool> moves_written_as_source(std::span<const ResolvedBlock> program) {
+  constexpr std::uint8_t kXyz = 0x07;
+  std::vector<bool> as_source(program.size(), false);
+  std::uint8_t known = 0;  // axes whose position in the work frame the control shares
+  const ResolvedBlock* last = nullptr;
+  for (std::size_t i = 0; i < program.size(); ++i) {
+    const ResolvedBlock& b = program[i];
+    if (last && (b.work_offset != last->work_offset || b.frame.origin != last->frame.origin)) known = 0;
+    if (changes_origin(b.frame.code)) known = 0;
+    if (last && (b.tool_length_active != last->tool_length_active || b.tool_length != last->tool_length))
+      known &= static_cast<std::uint8_t>(~(1u << kZ));
+    last = &b;
+    if (b.motion == Motion::kNone) continue;
+    if (returns_home(b.frame.code)) {
+      as_source[i] = true;
+      known &= static_cast<std::uint8_t>(b.frame.words ? ~b.frame.words : 0);
+    } else if ((known & kXyz) != kXyz) {
+      as_source[i] = true;
+      if (!b.frame.incremental) known |= static_cast<std::uint8_t>(b.axis_words & kXyz);
+    }
+  }
+  return as_source;
+}
+
+// A motion of the source is carried by the timed points that follow; the block stays as a note
+// with its text so that the operator can find every source line.
+void CompensatedBlocks::note_motion(const ResolvedBlock& b, ResolvedBlock& c) {
+  noted_line_ = b.line;
+  std::string text = b.text;
+  std::replace(text.begin(), text.end(), '(', '[');
+  std::replace(text.begin(), text.end(), ')', ']');
+  c.motion = Motion::kNone;
+  c.dwell = 0;
+  c.axis_words = 0;
+  c.frame.code = FrameCode::kNone;  // its G28 / G53 is in the points
+  c.comment = (b.motion == Motion::kDwell ? "dwell, held by the timed points below: " : "source: ") + text;
+  c.percent = false;
+  c.program_number = -1;
+}
 
 void CompensatedBlocks::pass_block(std::size_t i) {
   const ResolvedBlock& b = program_[i];
   ResolvedBlock c = b;
-  c.tcp = false;
-  c.tool_length_active = false;
-  c.tool_length = 0;
-  c.tool_length_offset = 0;
+  tool_length_as_written(b, c);
   // The timed points carry the program's stops and corner speeds (the plan followed G61 and
   // G64 P): the control runs them as timed, in its plain blending mode, not stopping at each.
   c.path_mode = PathMode::kBlend;
   c.path_tolerance = 0;
-  if (b.motion != Motion::kNone && b.line == noted_line_ && b.motion != Motion::kDwell) return;
-  if (b.motion != Motion::kNone) {
-    noted_line_ = b.line;
-    // A motion of the source is carried by the timed points that follow; the block stays as a
-    // note with its text so that the operator can find every source line.
-    std::string text = b.text;
-    std::replace(text.begin(), text.end(), '(', '[');
-    std::replace(text.begin(), text.end(), ')', ']');
-    c.motion = Motion::kNone;
-    c.dwell = 0;
-    c.axis_words = 0;
-    c.comment = (b.motion == Motion::kDwell ? "dwell, held by the timed points below: " : "source: ") + text;
-    c.percent = false;
-    c.program_number = -1;
-  }
-  // Between timed points the inverse-time mode stays (no G94/G93 flip-flop in the output);
-  // before the first point the block keeps its own feed mode.
-  c.start = c.target = last_target_;
-  if (have_node_) {
+  if (b.tool_change) section_open_ = false;
+  const bool as_source = frames_.work_frame && frames_.as_source[i];
+  if (after_points_ && next_move_written_as_source(i)) settle_before(i);
+  if (b.motion != Motion::kNone && !as_source && b.line == noted_line_ && b.motion != Motion::kDwell) return;
+  if (b.motion != Motion::kNone && !as_source) note_motion(b, c);
+  // Between timed points the inverse-time mode stays (no G94/G93 flip-flop in the output): a
+  // rapid ignores F. Before the first point the block keeps its own feed mode.
+  if (!as_source) c.start = c.target = last_target_;  // as the source wrote it: from its own start
+  if (have_node_ && (c.motion == Motion::kNone || c.motion == Motion::kRapid)) {
     c.feed_mode = FeedMode::kInverseTime;
     c.feed = last_feed_;
   }
-  emit_(c);
+  if (as_source) last_target_ = c.target;
+  emit_(c, i, last_node_.tick);
+}
+
+// The timed points of a move end near its end, not on it (the learning leads and corrects);
+// a move written as the source wrote it keeps the axes it does not name where they are. So the
+// points of the last move are closed by a rapid to its end: the next starts where the source's
+// does, and every move that ends at a rapid's end ends there.
+bool CompensatedBlocks::next_move_written_as_source(std::size_t i) const {
+  if (!frames_.work_frame) return false;
+  while (i < program_.size() && program_[i].motion == Motion::kNone) ++i;
+  return i < program_.size() && frames_.as_source[i];
+}
+
+void CompensatedBlocks::settle_before(std::size_t i) {
+  after_points_ = false;
+  std::size_t k = i;
+  while (k > 0 && program_[k - 1].motion == Motion::kNone) --k;
+  if (k == 0 || frames_.as_source[k - 1]) return;
+  const ResolvedBlock& prev = program_[k - 1];
+  bool there = true;
+  for (int a = 0; a < kA; ++a) there = there && std::abs(prev.target[a] - last_target_[a]) <= 1e-9;
+  if (there) return;
+  ResolvedBlock c = prev;
+  tool_length_as_written(prev, c);
+  c.motion = Motion::kRapid;
+  c.frame.code = FrameCode::kNone;
+  c.frame.incremental = false;
+  c.frame.selects_work_offset = c.frame.sets_tool_length = false;
+  c.start = last_target_;
+  c.target[kA] = c.start[kA];
+  c.target[kC] = c.start[kC];
+  c.axis_words = 0x07;
+  c.comment = "gcpipe: to the end of the source's move, before a move written as the source wrote it";
+  c.text.clear();
+  c.feed_mode = FeedMode::kInverseTime;
+  c.feed = last_feed_;
+  c.tool_change = false;
+  c.stop = ProgramStop::kNone;
+  c.program_number = -1;
+  c.percent = false;
+  emit_(c, k - 1, last_node_.tick);
+  last_target_ = c.target;
+}
+
+void CompensatedBlocks::node(const Node& nd) {
+  const ResolvedBlock& src = program_[nd.block];
+  node_block(src, last_node_.joints, nd.joints, nd.tick - last_node_.tick, period_, block_);
+  const std::uint64_t from_tick = last_node_.tick;
+  const bool skip = frames_.work_frame && frames_.as_source[nd.block];
+  last_node_ = nd;
+  if (skip) return;  // the source's own move stands for its points
+  if (!section_open_ && frames_.section_start) frames_.section_start(nd.block);
+  section_open_ = true;
+  tool_length_as_written(src, block_);
+  block_.start = last_target_;
+  if (frames_.work_frame) {
+    // The points in the source's work coordinates: the writer subtracts the origin the source
+    // has in force; A and C stay as they are (never written).
+    block_.frame.origin = src.frame.origin;
+    block_.target[kA] = block_.start[kA];
+    block_.target[kC] = block_.start[kC];
+    // The axes that move (a point in a dwell names X, so that it stays a move of its time).
+    block_.axis_words = 0;
+    for (int a = 0; a < kA; ++a)
+      if (block_.target[a] != block_.start[a]) block_.axis_words |= static_cast<std::uint8_t>(1u << a);
+    if (block_.axis_words == 0) block_.axis_words = 1u << kX;
+  }
+  emit_(block_, nd.block, from_tick);
+  have_node_ = true;
+  after_points_ = frames_.work_frame;
+  last_feed_ = block_.feed;
+  last_target_ = block_.target;
 }
 
 void CompensatedBlocks::add(std::span<const Node> nodes) {
@@ -967,28 +1098,23 @@ void CompensatedBlocks::add(std::span<const Node> nodes) {
     k = 1;
   }
   for (; k < nodes.size(); ++k) {
-    const Node& nd = nodes[k];
     // Program blocks up to this node's source block are passed in order (their M/S/T words and
     // comments), each source line's motion once as a note.
-    while (next_ <= nd.block && next_ < program_.size()) pass_block(next_++);
-    node_block(program_[nd.block], last_node_.joints, nd.joints, nd.tick - last_node_.tick, period_, block_);
-    emit_(block_);
-    have_node_ = true;
-    last_feed_ = block_.feed;
-    last_target_ = block_.target;
-    last_node_ = nd;
+    while (next_ <= nodes[k].block && next_ < program_.size()) pass_block(next_++);
+    node(nodes[k]);
   }
 }
 
 void CompensatedBlocks::finish() {
   if (!started_) return;
+  if (frames_.work_frame && after_points_) settle_before(next_);
   while (next_ < program_.size()) pass_block(next_++);
 }
 
 std::vector<ResolvedBlock> compensated_blocks(std::span<const ResolvedBlock> program, const Result& result,
                                               double period) {
   std::vector<ResolvedBlock> out;
-  CompensatedBlocks blocks(program, period, [&out](const ResolvedBlock& b) { out.push_back(b); });
+  CompensatedBlocks blocks(program, period, [&out](const ResolvedBlock& b, std::size_t, std::uint64_t) { out.push_back(b); });
   blocks.add(result.nodes);
   blocks.finish();
   return out;

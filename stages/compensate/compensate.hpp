@@ -55,6 +55,9 @@ struct CompensateOptions {
   double gain = 1.0;                    //!< ILC learning gain (0, 1]
   double max_machine_time = 3600;       //!< [s] longer programs are simulated but not compensated
   std::uint64_t max_blocks = 500000;    //!< more blocks: not simulated (memory is per block)
+  /// Three-axis programs in the source's work frame (CompensatedFrames::work_frame); false: every
+  /// program in machine joints behind the guard (README "Output": what the work frame costs).
+  bool work_frame = false;
   bool slowed_baseline = true;          //!< also simulate the original slowed to the compensated
                                         //!< cycle time (the baseline in report.json)
   /// Look-ahead control: slow the plan locally where the drives' model inverse needs more
@@ -157,12 +160,32 @@ Result compensate(const Model& model, const Nominal& nominal, std::span<const Re
                   const Axes& start, const Evaluation& before, const CompensateOptions& options,
                   const Progress& progress, const NodeSink& sink = {});
 
-/// The compensated program's blocks made as the nodes come, window by window: the node blocks (G93 G1 in machine axes, TCP and tool length off,
-/// N = source line) interleaved with the program's non-motion blocks, in program order, each
-/// handed to `emit` (valid during the call).
+/// How compensated.nc states its frames (compensate_program.cpp chooses; README "Output").
+struct CompensatedFrames {
+  /// A three-axis program (no TCP, A and C never move): the points in the source's work
+  /// coordinates with its tool length (G54.., G43 H as the source has them), so the control's
+  /// own offsets and tool lengths are honoured; a move that starts where only the control knows
+  /// the tool is written as the source wrote it (as_source). Otherwise the points are machine
+  /// joints of the machine file under G49 (tool-centre-point blocks; a non-TCP block keeps its
+  /// G43 H), behind a guard.
+  bool work_frame = false;
+  /// Per program block (work_frame only): its move goes out as the source wrote it, not as timed
+  /// points (moves_written_as_source).
+  std::vector<bool> as_source;
+  /// Called before the first timed point and before the first point after each tool change,
+  /// with the index of that point's source block: where the guard of a five-axis program goes.
+  std::function<void(std::size_t block)> section_start;
+};
+
+/// The compensated program's blocks made as the nodes come, window by window: the node blocks
+/// (G93 G1, N = source line) interleaved with the program's non-motion blocks, in program order,
+/// each handed to `emit` (valid during the call) with the index of the program block it stands
+/// for and the reference tick its move starts from.
 class CompensatedBlocks {
  public:
-  CompensatedBlocks(std::span<const ResolvedBlock> program, double period, std::function<void(const ResolvedBlock&)> emit);
+  /// `tick`: the reference tick the block's move starts from (its first point's predecessor).
+  using Emit = std::function<void(const ResolvedBlock& block, std::size_t source, std::uint64_t tick)>;
+  CompensatedBlocks(std::span<const ResolvedBlock> program, double period, Emit emit, CompensatedFrames frames = {});
   /// The next nodes, in order; the first call's first node is node 0, the start.
   void add(std::span<const Node> nodes);
   /// The program's blocks after the last node.
@@ -170,18 +193,37 @@ class CompensatedBlocks {
 
  private:
   void pass_block(std::size_t i);
+  void note_motion(const ResolvedBlock& b, ResolvedBlock& c);
+  void settle_before(std::size_t i);
+  bool next_move_written_as_source(std::size_t i) const;
+  void node(const Node& nd);
   std::span<const ResolvedBlock> program_;
   double period_;
-  std::function<void(const ResolvedBlock&)> emit_;
+  Emit emit_;
+  CompensatedFrames frames_;
   bool started_ = false;
   Node last_node_;               // the node the next one moves from
   std::size_t next_ = 0;         // next program block not yet passed
   std::uint64_t noted_line_ = 0; // source line of the last motion note
   bool have_node_ = false;       // a node block was written
+  bool section_open_ = false;    // the guard hook ran since the start or the last tool change
+  bool after_points_ = false;    // timed points were the last moves written (work frame)
   double last_feed_ = 0;
   Axes last_target_{};           // where the last block written leaves the machine
   ResolvedBlock block_;          // the node block being handed on
 };
+
+/// Per block of a three-axis program: whether its move goes out as the source wrote it. A timed
+/// point in work coordinates moves from where the machine file's frames put the tool; where the
+/// control's frames may put it elsewhere, that is a jump. So a G28 / G30 / G53 move goes out as
+/// such (it ends at a position only the control knows), and so does every move until X Y and Z
+/// have each been given an absolute position again after the program start, such a move, a
+/// change of work system, origin (G10, G92, G52) or (for Z) tool length.
+std::vector<bool> moves_written_as_source(std::span<const ResolvedBlock> program);
+
+/// True when the program is three-axis as CompensatedFrames::work_frame means it: no
+/// tool-centre-point block, and A and C never move.
+bool three_axis_program(std::span<const ResolvedBlock> program);
 
 /// CompensatedBlocks of a result's collected nodes in a vector (for tests: on a long program they
 /// take 472 bytes a node).

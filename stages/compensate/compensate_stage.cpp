@@ -30,9 +30,10 @@ using pipeline::Emitter;
 class ReadBack {
  public:
   ReadBack(const ParseOptions& options, const MachineConfig& machine, const compensate::Model& model,
-           const simulate::SimulationRun& run)
+           const simulate::SimulationRun& run, bool work_frame)
       : parser_(options, machine, "compensated.nc"), runner_(model, run.start, 0),
-        evaluation_(model, *run.nominal, run.program, run.start, true) {
+        evaluation_(model, *run.nominal, run.program, run.start, true),
+        checks_(model, *run.nominal, run.program, work_frame) {
     sink_.block = [this](const ResolvedBlock& b) {
       if (b.motion != Motion::kNone) run_block(b);
       return true;
@@ -41,13 +42,16 @@ class ReadBack {
       if (d.severity == Severity::kError) throw std::runtime_error("compensated.nc does not read back: " + format(d));
       return true;
     };
-    on_tick_ = [this](const simulate::Tick& t) { evaluation_.add(t, source_of(t.block)); };
+    on_tick_ = [this](const simulate::Tick& t) {
+      const compensate::PointSource& p = source_of(t.block);
+      evaluation_.add(on_reference_clock(t, p), p.block);
+    };
   }
 
-  /// The next piece of the text (whole lines), with the program block of each of its timed points.
-  void feed(std::string_view piece, const std::vector<std::uint32_t>& point_blocks) {
-    sources_.insert(sources_.end(), point_blocks.begin(), point_blocks.end());
-    points_ += point_blocks.size();
+  /// The next piece of the text (whole lines), with the source of each of its motion blocks.
+  void feed(std::string_view piece, const std::vector<compensate::PointSource>& points) {
+    sources_.insert(sources_.end(), points.begin(), points.end());
+    points_ += points.size();
     for (std::size_t pos = 0; pos < piece.size();) {
       const std::size_t end = std::min(piece.find('\n', pos), piece.size());
       feed_line(piece.substr(pos, end - pos));
@@ -63,6 +67,7 @@ class ReadBack {
   }
 
   std::uint64_t points() const { return points_; }
+  const compensate::ReadBackChecks& checks() const { return checks_; }
 
  private:
   void feed_line(std::string_view line) {
@@ -72,14 +77,30 @@ class ReadBack {
 
   void run_block(const ResolvedBlock& b) {
     if (read_ >= points_) throw does_not_read_back();
+    checks_.add(b, sources_[read_ - first_source_]);
     // A block the machine cannot run stops the run there (as run_program does); the rest is
     // still read, to count it.
     runner_.add(b, static_cast<std::uint32_t>(read_++), on_tick_);
   }
 
-  // The program block that motion block i of the text stands for. Ticks come in order, so the
-  // blocks before i are done with.
-  std::uint32_t source_of(std::uint32_t i) {
+  // A tick of the text's run on the reference clock the metric measures against. Timed points
+  // follow it; a rapid the text gives as the source wrote it (a three-axis program) runs on the
+  // control's own, so each block's first tick is put where its move starts on the reference
+  // (its first sample is one tick after), never back before a tick already measured.
+  simulate::Tick on_reference_clock(const simulate::Tick& t, const compensate::PointSource& p) {
+    if (t.block != block_) {
+      block_ = t.block;
+      offset_ = static_cast<std::int64_t>(p.tick + 1) - static_cast<std::int64_t>(t.n);
+    }
+    simulate::Tick m = t;
+    m.n = std::max(last_tick_, static_cast<std::uint64_t>(std::max<std::int64_t>(0, static_cast<std::int64_t>(t.n) + offset_)));
+    last_tick_ = m.n;
+    return m;
+  }
+
+  // The source of motion block i of the text. Ticks come in order, so the blocks before i are
+  // done with.
+  const compensate::PointSource& source_of(std::uint32_t i) {
     while (first_source_ < i && sources_.size() > 1) sources_.pop_front(), ++first_source_;
     return sources_[std::min<std::size_t>(i - first_source_, sources_.size() - 1)];
   }
@@ -94,7 +115,11 @@ class ReadBack {
   simulate::ProgramRunner runner_;
   simulate::RunEvaluation evaluation_;
   simulate::TickFn on_tick_;
-  std::deque<std::uint32_t> sources_;
+  compensate::ReadBackChecks checks_;
+  std::deque<compensate::PointSource> sources_;
+  std::uint32_t block_ = 0;     // the text's motion block whose ticks come now
+  std::int64_t offset_ = 0;     // its ticks on the reference clock less the run's
+  std::uint64_t last_tick_ = 0; // the last tick measured, on the reference clock
   std::uint64_t first_source_ = 0;  // the text's motion block sources_.front() stands for
   std::uint64_t points_ = 0;        // timed points written so far
   std::uint64_t read_ = 0;          // motion blocks read back so far
@@ -155,15 +180,21 @@ class CompensateStage final : public pipeline::Stage {
     bool go = true;
     compensation_ = compensate::compensate_program(
         model_, options_, write_options_, run, progress_,
-        [&](std::string& piece, const std::vector<std::uint32_t>& point_blocks) {
-          if (!back) back.emplace(read_back_options(), machine_, model_, run);
-          back->feed(piece, point_blocks);
+        [&](std::string& piece, const std::vector<compensate::PointSource>& points) {
+          if (!back)
+            back.emplace(read_back_options(), machine_, model_, run,
+                         options_.work_frame && compensate::three_axis_program(run.program));
+          back->feed(piece, points);
+          bytes_ += piece.size();
           go = out.text(piece) && go;
         });
     if (!compensation_.result || !compensation_.result->compensated || !back)
       return fail("no compensated program: " + compensation_.note);
     after_ = back->finish();
     written_nodes_ = back->points();
+    // gcpipe batch keeps no compensated.nc whose read-back fails a check (issue 30 item 5).
+    const std::string refused = back->checks().failures(compensation_.envelope.envelope);
+    if (!refused.empty()) return fail("compensated.nc refused, its read-back fails: " + refused);
     measure_slowed_baseline();
     return go;
   }
@@ -183,11 +214,47 @@ class CompensateStage final : public pipeline::Stage {
     o.skipped = failure_;
     o.not_compensated = not_compensated_;
     compensate::report_simulation(r, o);
+    report_program(r);
     report_error_budget(r);
   }
   std::string failure() const override { return failure_; }
 
  private:
+  /// How compensated.nc states its frames and how far its points lie from the source's path
+  /// (the envelope tests/rs274_compensated_test.cpp holds LinuxCNC's reading of the file to).
+  void report_program(pipeline::ReportContext& r) const {
+    if (!compensation_.result || !compensation_.result->compensated || !r.json->contains("simulation")) return;
+    const compensate::PointEnvelope& e = compensation_.envelope;
+    (*r.json)["simulation"]["compensated_program"] = {
+        {"frames", e.work_frame ? "work: the source's work offsets, tool length, rapids and G28/G30/G53"
+                                : "machine joints behind a guard on the control's work offsets and tool length"},
+        {"start_joints", simulated_->run.start},
+        {"starts_at", model_.start ? "the machine file's start_position" : "the program's first position"},
+        {"envelope_mm", e.envelope},
+        {"points_lifted_to_floor", e.points_clamped},
+        {"bytes", bytes_},
+        {"points_per_second", points_per_second()}};
+    char line[240];
+    std::snprintf(line, sizeof line, "  compensated.nc: %s; every point within %.4f mm of the source's path%s\n",
+                  e.work_frame ? "in the source's work frame" : "machine joints behind a guard", e.envelope,
+                  e.points_clamped ? ", points below a block's floor lifted to it" : "");
+    *r.text += line;
+    std::snprintf(line, sizeof line, "  compensated.nc: %llu bytes, %.0f points a second (the block rate a control must sustain)\n",
+                  static_cast<unsigned long long>(bytes_), points_per_second());
+    *r.text += line;
+    const Axes& s0 = simulated_->run.start;
+    std::snprintf(line, sizeof line, "  starts at X%.3f Y%.3f Z%.3f A%.3f C%.3f (machine joints: %s)\n", s0[0], s0[1], s0[2],
+                  s0[3], s0[4], model_.start ? "the machine file's start_position" : "the program's first position");
+    *r.text += line;
+  }
+
+  /// The motion blocks of compensated.nc a second of its cycle: the block rate a control must
+  /// sustain on average (the timed points are denser where the linearisation halved them).
+  double points_per_second() const {
+    const double cycle = static_cast<double>(compensation_.result->end_tick) * model_.interp.period;
+    return cycle > 0 ? static_cast<double>(written_nodes_) / cycle : 0.0;
+  }
+
   /// With a force stage upstream: its deflection beside the contour error (error_budget.hpp).
   void report_error_budget(pipeline::ReportContext& r) const {
     if (!force_ || !simulated_ || !simulated_->run.before || simulated_->run.program.empty()) return;
@@ -298,6 +365,7 @@ class CompensateStage final : public pipeline::Stage {
   std::optional<compensate::FeedforwardRun> feedforward_;
   compensate::LocalSlowdown slowdown_;
   std::uint64_t written_nodes_ = 0;
+  std::uint64_t bytes_ = 0;  // of compensated.nc
   std::string failure_;
 };
 

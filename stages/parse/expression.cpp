@@ -94,6 +94,12 @@ void ParameterStore::set_numbered(int n, double v) {
 }
 void ParameterStore::set_named(const std::string& name, double v) { named_map(name)[name] = v; }
 
+bool ParameterStore::is_offset_parameter(int n, bool fanuc) {
+  if (n >= 5221 && n <= 5326) return (n - 5221) % 20 <= (fanuc ? 4 : 9);  // G54..G59, per axis
+  if (fanuc) return (n >= 5081 && n <= 5085) || (n >= 5201 && n <= 5205);
+  return n == 5210 || n == 5220 || (n >= 5400 && n <= 5409);
+}
+
 bool ExpressionReader::fail(std::size_t pos, std::string msg) {
   error_ = std::move(msg);
   error_pos_ = pos;
@@ -151,12 +157,14 @@ bool ExpressionReader::parameter(std::string_view s, std::size_t& p, double& out
   const int n = static_cast<int>(idx);
   // Fanuc #1000 and up are system variables (modal state, offsets, clock, ...): reading one as
   // vacant would silently take the wrong branch, so only those gcpipe keeps may be read.
-  if (params_.vacancy() && n >= 1000 && (n < 5001 || n > 5005))
+  if (params_.vacancy() && n >= 1000 && (n < 5001 || n > 5005) && !ParameterStore::is_offset_parameter(n, true))
     return fail(at, "system variable #" + std::to_string(n) +
-                        " is not modelled (gcpipe keeps #5001..#5005, the position): expand it in CAM");
+                        " is not modelled (gcpipe keeps #5001..#5005, the position, the G54..G59 origins #5221.., "
+                        "the external offset #5201.. and the tool length in force #5081..#5085): expand it in CAM");
   // LinuxCNC's #5400..#5413 describe the loaded tool (number, offsets, diameter, angles): gcpipe's
-  // tool table has only length and diameter, so none is read rather than read as 0.
-  if (!params_.vacancy() && n >= 5400 && n <= 5413)
+  // tool table has only length and diameter, so none is read rather than read as 0, but for the
+  // tool number #5400 and its length #5403, which compensated.nc's guard reads.
+  if (!params_.vacancy() && n >= 5400 && n <= 5413 && !ParameterStore::is_offset_parameter(n, false))
     return fail(at, "parameter #" + std::to_string(n) +
                         " (LinuxCNC's data of the loaded tool) is not modelled: use the tool's values in the program");
   params_.get_numbered(n, out);

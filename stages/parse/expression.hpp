@@ -12,7 +12,7 @@
 
 namespace gcpipe {
 
-/// Numbered (#1..#5601) and named (#<name>) parameters. Names are case-insensitive, spaces ignored.
+/// Numbered (#1..#5602, LinuxCNC's range) and named (#<name>) parameters. Names are case-insensitive, spaces ignored.
 ///
 /// Named parameters are scoped as in LinuxCNC: a name with a leading underscore (`#<_depth>`) is
 /// global; any other is local to the subroutine call that set it (the main program is a level of
@@ -24,7 +24,13 @@ namespace gcpipe {
 /// state and #0 reads as vacant; without it (LinuxCNC) a parameter never set reads 0, as rs274's.
 class ParameterStore {
  public:
-  static constexpr int kMaxNumbered = 5601;  // LinuxCNC's last, #5601 (the tool changer's fault reason)
+  static constexpr int kMaxNumbered = 5602;
+  /// The control's offsets a program may read (compensated.nc's guard does): the G54..G59 origins
+  /// (#5221 + 20 k, axes X Y Z A C), LinuxCNC's system in use #5220, G92 flag #5210, tool in the
+  /// spindle #5400 and its length #5403, Fanuc's tool length in force #5081..#5085 and external
+  /// work offset #5201..#5205 (0: gcpipe's machine file has none). Set from the parser's
+  /// state before each expression; a program cannot set them (G10 L2 / G43 H do).
+  static bool is_offset_parameter(int n, bool fanuc);
   bool get_numbered(int n, double& v) const;  //!< false when out of range (#0 is in range with vacancy)
   bool get_named(const std::string& name, double& v) const;  //!< false when never set
   void set_numbered(int n, double v);

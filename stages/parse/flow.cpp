@@ -1062,7 +1062,9 @@ bool Parser::Impl::skip_after_alarm(std::uint64_t n) {
   classified = n;
   frames[0].pc = n + 1;
   return emit_diagnostic(n, 1, Severity::kNote,
-                         "not run: the program stopped at the macro alarm (#3000) of line " + std::to_string(alarm_line));
+                         std::string("not run: the program stopped at the ") +
+                             (opt.dialect == Dialect::kFanuc ? "macro alarm (#3000)" : "(abort, ...)") + " of line " +
+                             std::to_string(alarm_line));
 }
 
 bool Parser::Impl::finish() {

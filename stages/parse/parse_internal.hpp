@@ -413,6 +413,9 @@ struct Parser::Impl {
   bool rigid_tap(ResolvedBlock& b, ModalState& ns, const Axes& target, std::uint8_t mask);
   void restore_modes(const SavedModes& m, ModalState& ns);
   std::optional<SavedModes> saved_modes;  // LinuxCNC M70's state, until M71 invalidates it
+  void refresh_offset_parameters(double unit);
+  static bool is_abort(std::string_view comment);
+  bool linuxcnc_abort(std::string_view message, std::uint32_t col);
   bool fanuc_system_assignment(std::string_view s, std::size_t p, const Assignment& a, std::uint32_t col);
 
   // -- resolve.cpp

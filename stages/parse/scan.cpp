@@ -230,6 +230,8 @@ bool Parser::Impl::scan(std::string_view s, ResolvedBlock& b) {
         ++close;
       }
       if (close >= s.size()) return fail(col, "comment opened with '(' is not closed on this line");
+      if (opt.dialect == Dialect::kLinuxCnc && is_abort(s.substr(p + 1, close - p - 1)))
+        return linuxcnc_abort(s.substr(p + 7, close - p - 7), col);
       add_comment(b.comment, s.substr(p + 1, close - p - 1));
       p = close + 1;
     } else if (c == ';') {
@@ -269,6 +271,9 @@ bool Parser::Impl::scan_assignment(std::string_view s, std::size_t& p, std::uint
   if (!std::isfinite(v)) return fail(col, "parameter value is not a finite number");
   a.value = v;
   a.vacant = er.vacant();
+  if (!a.named && ParameterStore::is_offset_parameter(a.number, opt.dialect == Dialect::kFanuc))
+    return fail(col, "#" + std::to_string(a.number) + " is an offset the control holds (work system origin or tool "
+                     "length): gcpipe reads it but a program sets it with G10 L2 P / G43 H, not by assignment");
   if (opt.dialect == Dialect::kFanuc && !a.named && !fanuc_system_assignment(s, p, a, col)) return false;
   ++sc.nassign;
   return true;
@@ -290,6 +295,23 @@ bool Parser::Impl::fanuc_system_assignment(std::string_view s, std::size_t p, co
   alarm_line = block.line;
   return fail(col, "macro alarm " + std::to_string(3000 + static_cast<int>(a.value)) +
                        (message.empty() ? std::string() : ": " + message) + " (#3000): the program stops here");
+}
+
+// LinuxCNC's `(abort, message)`: the interpreter stops the program there with the message, as a
+// Fanuc #3000 alarm does (compensated.nc's guard relies on it).
+bool Parser::Impl::is_abort(std::string_view comment) {
+  static constexpr std::string_view kWord = "abort,";
+  if (comment.size() < kWord.size()) return false;
+  for (std::size_t i = 0; i < kWord.size(); ++i)
+    if (static_cast<char>(std::tolower(static_cast<unsigned char>(comment[i]))) != kWord[i]) return false;
+  return true;
+}
+
+bool Parser::Impl::linuxcnc_abort(std::string_view message, std::uint32_t col) {
+  alarm_line = block.line;
+  std::size_t b = 0;
+  while (b < message.size() && message[b] == ' ') ++b;
+  return fail(col, "abort: " + std::string(message.substr(b)) + " ((abort, ...)): the program stops here");
 }
 
 // Fanuc: O1234 is the program number. LinuxCNC o-word statements (o100 sub, o<name> call ...)
@@ -392,9 +414,10 @@ bool Parser::Impl::scan_polar(std::string_view s, std::size_t& p, std::uint32_t 
 void Parser::Impl::refresh_system_parameters() {
   static const char* const names[kNumAxes] = {"_x", "_y", "_z", "_a", "_c"};
   static const int linuxcnc_numbers[kNumAxes] = {5420, 5421, 5422, 5423, 5425};
+  const double unit = st.units == Units::kInch ? kInch : 1.0;
   for (int a = 0; a < kNumAxes; ++a) {
     double v = st.position[a] - st.origin[a];
-    if (a < kA && st.units == Units::kInch) v /= kInch;
+    if (a < kA) v /= unit;
     params.set_named(names[a], v);
     if (opt.dialect == Dialect::kFanuc) params.set_numbered(5001 + a, v);  // Macro B #5001..#5005
     else params.set_numbered(linuxcnc_numbers[a], v);
@@ -406,6 +429,37 @@ void Parser::Impl::refresh_system_parameters() {
     params.set_numbered(5601, 0);
     refresh_linuxcnc_modes();
   }
+  refresh_offset_parameters(unit);
+}
+
+// The offsets the control holds, as the program has them (G10 L2 / L20 and G43 H in force), at
+// the numbers LinuxCNC's interpreter and the Fanuc 0i give them, so that a program reading them
+// (compensated.nc's guard) takes the branch the control takes with the machine file's offsets.
+// LinuxCNC, in the machine's unit (mm: gcpipe's machine file is metric) whatever G20 / G21 says:
+// #5221 + 20 k + {0 X, 1 Y, 2 Z, 3 A, 5 C} (B U V W and the rotation R stay 0), #5220 the system
+// in use (1 = G54), #5210 whether a G92 shift is applied, #5400 the tool in the spindle and #5403
+// its length in the tool table. Fanuc, in the program's unit: #5221 + 20 k + {0..4} in the axis
+// order X Y Z A C, #5083 the tool length in force, #5201..#5205 the external work offset (none).
+void Parser::Impl::refresh_offset_parameters(double unit) {
+  const bool fanuc = opt.dialect == Dialect::kFanuc;
+  if (!fanuc) unit = 1.0;
+  static constexpr int kLinuxCncAxis[kNumAxes] = {0, 1, 2, 3, 5};
+  for (std::size_t k = 0; k < offsets.size(); ++k)
+    for (int a = 0; a < kNumAxes; ++a)
+      params.set_numbered(5221 + 20 * static_cast<int>(k) + (fanuc ? a : kLinuxCncAxis[a]),
+                          a < kA ? offsets[k][a] / unit : offsets[k][a]);
+  if (fanuc) {
+    params.set_numbered(5083, st.tlo_active ? st.tool_length / unit : 0.0);
+    for (int a = 0; a < kNumAxes; ++a) params.set_numbered(5201 + a, 0.0);
+    return;
+  }
+  params.set_numbered(5220, st.work_offset - 53);
+  bool shifted = false;
+  for (int a = 0; a < kNumAxes; ++a) shifted = shifted || st.shift[a] != 0;
+  params.set_numbered(5210, shifted && !st.shift_suspended ? 1 : 0);
+  params.set_numbered(5400, st.tool_in_spindle);
+  const auto tool = machine.tools.find(st.tool_in_spindle);
+  params.set_numbered(5403, tool == machine.tools.end() ? 0.0 : tool->second.length);
 }
 
 namespace {

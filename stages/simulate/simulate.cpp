@@ -131,6 +131,7 @@ Model load_model(const PipelineConfig& pc) {
     throw servo_section.error("drives", "missing: the drives file, e.g. drives/seed002.yaml");
   Model m;
   m.kin = pc.machine.kinematics;
+  m.start = pc.machine.start_position;
   m.drives = servo::load_drives(Config::load_file(servo_section.file_path("drives", "the drives file, e.g. drives/seed002.yaml")));
   m.interp = interpolate::load_interpolate_options(pc.root.section("interpolate"));
   m.interp.max_velocity = m.kin.max_velocity;
@@ -753,7 +754,9 @@ void simulate_into(SimulationRun& run, const Model& model, const BlockStore& p, 
     run.note = "the program moves nothing";
     return;
   }
-  run.start = machine_start(model.kin, p[first], tool_length_of(model, p[first]));
+  // Where the machine stands when the program starts (the machine file's home), else where the
+  // program's first move starts.
+  run.start = model.start ? *model.start : machine_start(model.kin, p[first], tool_length_of(model, p[first]));
   if (progress) progress("simulating the program (interpolator + feed drives)", 0, 1);
   Nominal& nom = run.nominal.emplace();
   nom.period = model.interp.period;

@@ -47,6 +47,7 @@ struct Model {
   MachineKinematics kin;
   interpolate::InterpolateOptions interp;  //!< period, smoothing, limits, Ts per axis
   servo::DriveSet drives;
+  std::optional<Axes> start;  //!< the machine file's start_position (home, Z up): runs start there
 };
 
 /// The model of a pipeline config: machine kinematics and limits, the `interpolate` section, the

@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
 
 #include "gcpipe/block.hpp"
@@ -27,6 +28,9 @@ struct MachineConfig {
   std::array<Axes, 6> work_offsets{};  //!< G54..G59 origin in machine coordinates [mm, deg]
   std::map<int, ToolEntry> tools;   //!< tool table by number
   Axes initial_position{};          //!< work-coordinate position assumed before the first move
+  /// Machine joints [mm, deg] where the machine stands when a program starts (home, Z up): the
+  /// simulation and compensated.nc start there. Absent: at the program's first position.
+  std::optional<Axes> start_position;
   /// G28 and G30 reference positions in machine coordinates (LinuxCNC #5161.., #5181..; zero,
   /// i.e. machine zero, when the machine file does not say).
   std::array<Axes, 2> reference_positions{};
@@ -36,7 +40,7 @@ struct MachineConfig {
   MachineKinematics kinematics;     //!< chain, offsets, travel and drive limits
 };
 
-/// Reads a machine file's root mapping (keys: name, work_offsets, tools, initial_position,
+/// Reads a machine file's root mapping (keys: name, work_offsets, tools, initial_position, start_position,
 /// kinematics, limits; any other key is rejected); throws ConfigError naming key, value, reason.
 MachineConfig load_machine(const Config& machine_section);
 

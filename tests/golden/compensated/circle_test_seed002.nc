@@ -21,6 +21,17 @@ G17 G21 G40 G49 G54 G80 G90 G94
 (axes; with G94 a combined linear+rotary feed would depend on the control's feed rule.)
 
 (source: G0 X13. Y0 Z0 A0 C0 [start: tool centre at R_C + R_W on X, C at 0])
+(gcpipe guard: the points below are machine joints computed for the work offsets and tool lengths checked here; the program stops when the control's differ)
+IF [ABS[#5221 - 0.0000] GT 0.0010] THEN #3000 = 1 (G54 X IS NOT 0.0000)
+IF [ABS[#5222 - 0.0000] GT 0.0010] THEN #3000 = 1 (G54 Y IS NOT 0.0000)
+IF [ABS[#5223 - 0.0000] GT 0.0010] THEN #3000 = 1 (G54 Z IS NOT 0.0000)
+IF [ABS[#5224 - 0.0000] GT 0.0010] THEN #3000 = 1 (G54 A IS NOT 0.0000)
+IF [ABS[#5225 - 0.0000] GT 0.0010] THEN #3000 = 1 (G54 C IS NOT 0.0000)
+IF [ABS[#5201 - 0.0000] GT 0.0010] THEN #3000 = 9 (EXT OFFSET X IS NOT 0)
+IF [ABS[#5202 - 0.0000] GT 0.0010] THEN #3000 = 9 (EXT OFFSET Y IS NOT 0)
+IF [ABS[#5203 - 0.0000] GT 0.0010] THEN #3000 = 9 (EXT OFFSET Z IS NOT 0)
+IF [ABS[#5204 - 0.0000] GT 0.0010] THEN #3000 = 9 (EXT OFFSET A IS NOT 0)
+IF [ABS[#5205 - 0.0000] GT 0.0010] THEN #3000 = 9 (EXT OFFSET C IS NOT 0)
 N22 G93 G1 X0.002 Y0. Z0. A0. C0. F15000.
 N22 X-0.0004 Y0. Z0. A0. C0. F15000.
 N22 X0.0021 Y0. Z0. A0. C0. F15000.
