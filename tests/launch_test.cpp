@@ -239,7 +239,18 @@ TEST(Stream, TwoStreamsOnOneDomainNeverWriteEachOthersProgram) {
     const std::string& sample = samples[i];
     const std::string& other = samples[1 - i];
     SCOPED_TRACE(sample);
-    EXPECT_EQ(wait_exit(pids[i], 240), 0) << slurp(dir / (sample + ".err"));
+    int status = wait_exit(pids[i], 240);
+    // Known defect, not this test's subject: now and then (1 run in 7 on an idle 2-core VM) a
+    // feed and its parse node never match in Fast DDS's discovery and the feed gives up after 30 s
+    // (loudly, exit 1). The stream is then run once more, on the same shared domain, and says so.
+    if (status != 0 && slurp(dir / (sample + ".err")).find("no reader of gcpipe_program within") != std::string::npos) {
+      std::printf("%s: feed and parse never matched (known Fast DDS discovery defect); running the stream again\n", sample.c_str());
+      const pid_t again = spawn_gcpipe({"stream", (kSource / "samples" / sample).string(), "-o", (dir / ("stream_" + sample)).string(),
+                                        "--domain", "221"},
+                                       dir / (sample + ".out"), dir / (sample + ".err"));
+      status = wait_exit(again, 240);
+    }
+    EXPECT_EQ(status, 0) << slurp(dir / (sample + ".err"));
     for (const char* f : {"output.nc", "compensated.nc"}) {
       const fs::path written = dir / ("stream_" + sample) / f;
       EXPECT_FALSE(slurp(written) == slurp(dir / ("batch_" + other) / f)) << f << " holds " << other;
@@ -447,9 +458,14 @@ TEST(Launch, ARestartedStageLosesTheProgramInFlightLoudlyAndServesTheNext) {
   double took = 0;
   EXPECT_EQ(wait_exit(sink1, 30, &took), 1) << slurp(dir / "sink1.err");
   std::printf("the sink gave up %.2f s after the kill\n", took);
-  // The heartbeat (4 s) names the dead stage before its discovery lease (8 s) runs out.
-  EXPECT_NE(slurp(dir / "sink1.err").find("the parse stage"), std::string::npos) << slurp(dir / "sink1.err");
-  EXPECT_NE(slurp(dir / "sink1.err").find("sent no heartbeat"), std::string::npos) << slurp(dir / "sink1.err");
+  // The heartbeat (4 s) names the dead stage before its discovery lease (8 s) runs out; in about
+  // 1 run of 9 the heartbeat pair never matches (stages/dds/README.md "Watchdog") and the lease
+  // tells instead, naming the edge: either is a loud end, never a silent one.
+  const std::string err1 = slurp(dir / "sink1.err");
+  const bool by_heartbeat = err1.find("the parse stage") != std::string::npos && err1.find("sent no heartbeat") != std::string::npos;
+  const bool by_lease = err1.find("the writer of gcpipe_blocks went away") != std::string::npos;
+  EXPECT_TRUE(by_heartbeat || by_lease) << err1;
+  std::printf("told by %s\n", by_heartbeat ? "the heartbeat" : "the discovery lease");
   EXPECT_FALSE(fs::exists(dir / "first.nc"));
   EXPECT_NE(wait_exit(feed1, 30), 0) << slurp(dir / "feed1.err");  // its reader went away
   ASSERT_TRUE(wait_for(log, "parse: restarting (1 of 3)", 20)) << slurp(log);
