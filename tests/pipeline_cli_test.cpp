@@ -489,3 +489,23 @@ TEST(Reports, AThreeAxisProgramGetsNoNeuralIkUnlessAskedAndIdealAxesAreNamed) {
   EXPECT_TRUE(fs::exists(dir / "asked" / "plots" / "ik_divergence.png"));
   EXPECT_FALSE(read_json(dir / "asked" / "report.json").at("ik").at("neural").is_null());
 }
+
+// gcpipe calibrate reports its progress as every long command does (issue 33 item 4): one line a
+// step into a log, percent of the axes done, and the last at 100 %.
+TEST(CalibrateProgress, TheIdentificationReportsItsStepsAsPlainLines) {
+  const fs::path dir = tmpdir("calibrate_progress");
+  const std::string config = std::string(GCPIPE_SOURCE_DIR) + "/pipeline_configs/circle_test.yaml";
+  const Outcome sim = gcpipe({"simulate", std::string(GCPIPE_SOURCE_DIR) + "/samples/circle_test_seed002.nc", "--config", config,
+                              "-o", (dir / "trace.csv").string(), "--no-progress"});
+  ASSERT_EQ(sim.status, 0) << sim.err;
+  const Outcome r = gcpipe({"calibrate", (dir / "trace.csv").string(), "--config", config, "-o", (dir / "cal").string(),
+                            "--progress", "--no-plots"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("identifying each axis's drive and effects:   0 % (0/10)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("identifying each axis's drive and effects: 100 % (10/10)"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find('\r'), std::string::npos) << "no carriage returns into a log";
+  const Outcome quiet = gcpipe({"calibrate", (dir / "trace.csv").string(), "--config", config, "-o", (dir / "cal2").string(),
+                                "--no-progress", "--no-plots"});
+  ASSERT_EQ(quiet.status, 0) << quiet.err;
+  EXPECT_EQ(quiet.err.find("identifying"), std::string::npos) << quiet.err;
+}

@@ -131,7 +131,14 @@ void fit_fallback(Calibration& c, int a, std::vector<double>& corrected) {
 }  // namespace
 
 Calibration calibrate_traces(const std::vector<MeasuredTrace>& traces, const compensate::Model& model,
-                             const IdentifyOptions& options) {
+                             const IdentifyOptions& options,
+                             const std::function<void(std::uint64_t done, std::uint64_t total)>& progress) {
+  constexpr std::uint64_t kSteps = 2 * kNumAxes;
+  std::uint64_t done = 0;
+  auto step = [&] {
+    if (progress) progress(++done, kSteps);
+  };
+  if (progress) progress(0, kSteps);
   Calibration c;
   std::vector<std::size_t> segments;
   join(traces, c, segments);
@@ -158,9 +165,13 @@ Calibration calibrate_traces(const std::vector<MeasuredTrace>& traces, const com
     s.effort_kind = c.effort_kind[a];
     c.axes[a] = identify_axis(s, c.drives.axes[a], options);
     c.drives.axes[a] = c.axes[a].calibrated;
+    step();
   }
   std::array<std::vector<double>, kNumAxes> corrected;
-  for (int a = 0; a < kNumAxes; ++a) fit_fallback(c, a, corrected[a]);
+  for (int a = 0; a < kNumAxes; ++a) {
+    fit_fallback(c, a, corrected[a]);
+    step();
+  }
   auto preds = [&](auto member) {
     std::array<const std::vector<double>*, kNumAxes> p{};
     for (int a = 0; a < kNumAxes; ++a) p[a] = &(c.axes[a].*member);

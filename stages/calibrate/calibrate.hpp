@@ -6,6 +6,7 @@
 // Method and derivations: README.md beside this file.
 #pragma once
 
+#include <functional>
 #include <array>
 #include <span>
 #include <optional>
@@ -147,8 +148,10 @@ struct Calibration {
 };
 
 /// Runs the identification on traces already read (the tests use this with simulated traces).
+/// `progress(done, total)` after each step (an axis identified, an axis's fallback fitted).
 Calibration calibrate_traces(const std::vector<MeasuredTrace>& traces, const compensate::Model& model,
-                             const IdentifyOptions& options = {});
+                             const IdentifyOptions& options = {},
+                             const std::function<void(std::uint64_t done, std::uint64_t total)>& progress = {});
 
 /// Prediction error of the per-axis predictions `pred` against the measured actual positions.
 PredictionError prediction_error(const Calibration& c, const compensate::Model& model,

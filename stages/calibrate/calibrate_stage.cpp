@@ -53,7 +53,12 @@ bool CalibrateStage::finish(bool complete, pipeline::Emitter& out) {
   if (!read_traces(traces)) return true;
   try {
     auto product = std::make_shared<CalibrationProduct>();
-    product->calibration = calibrate_traces(traces, model_);
+    std::function<void(std::uint64_t, std::uint64_t)> progress;
+    if (context_.progress)
+      progress = [this](std::uint64_t done, std::uint64_t total) {
+        context_.progress("identifying each axis's drive and effects", done, total);
+      };
+    product->calibration = calibrate_traces(traces, model_, {}, progress);
     result_ = product;
     out.product(result_);
   } catch (const std::exception& e) {

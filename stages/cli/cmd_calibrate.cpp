@@ -48,12 +48,15 @@ int run_calibrate(const CalibrateArgs& a) {
   context.config = &config;
   context.file = a.traces.front();
   context.log = &log;
+  context.progress = make_progress(show_progress(a.progress, a.no_progress));
   pipeline::Pipeline p(pipeline::chain_to("calibrate"), context);
   auto& stage = dynamic_cast<calibrate::CalibrateStage&>(*p.stage("calibrate"));
   stage.set_read_options(read);
   stage.set_plots(!a.no_plots);
   const bool complete = feed_traces(p, stage, a.traces);
   p.finish(complete);
+  // Ctrl-C or SIGTERM during the identification (its progress polls for them): no outputs.
+  if (pipeline::stop_requested()) return 128 + pipeline::stop_signal();
   nlohmann::ordered_json report;
   std::string text;
   std::vector<std::string> files;

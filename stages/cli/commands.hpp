@@ -93,6 +93,7 @@ struct CalibrateArgs {
   std::vector<std::string> columns;  // halsampler column map / SHDR item map
   double period = 0;                 // halsampler without a time column [s]
   bool skip_bad_rows = false, no_plots = false;
+  bool progress = false, no_progress = false;
 };
 int run_calibrate(const CalibrateArgs& args);
 

@@ -187,6 +187,8 @@ void add_calibrate(CLI::App& app, CalibrateArgs& a) {
   add_trace_format_options(s, a.format, a.columns, a.period);
   s->add_flag("--skip-bad-rows", a.skip_bad_rows, "use the usable rest of a trace with bad rows, and count what was dropped");
   s->add_flag("--no-plots", a.no_plots, "write no figures");
+  s->add_flag("--progress", a.progress, "progress on stderr even when it is not a terminal");
+  s->add_flag("--no-progress", a.no_progress, "no progress on stderr, even on a terminal");
   s->footer("Replays the traces' commands through the model, refits the declared drive parameters, names\n"
             "catalogued effects (backlash, coulomb_friction, feedback_delay, measurement_delay, lead_error,\n"
             "scale_error, torque_limit) by BIC with a held-out check, and fits seed 003's NNOE to what no\n"

@@ -38,10 +38,7 @@ std::vector<std::string> chains(const std::vector<std::string>& last_stages) {
 
 namespace {
 
-bool show_progress(const ProgramArgs& a) {
-  if (a.no_progress) return false;
-  return a.progress || ::isatty(2);
-}
+bool show_progress(const ProgramArgs& a) { return gcpipe::cli::show_progress(a.progress, a.no_progress); }
 
 /// One line per step: percent, elapsed and remaining time. On a terminal the line is redrawn in
 /// place (at most 5 times a second); otherwise a plain line at every tenth and at the end, so
@@ -110,6 +107,20 @@ class ProgressPrinter {
 
 }  // namespace
 
+bool show_progress(bool progress, bool no_progress) {
+  if (no_progress) return false;
+  return progress || ::isatty(2);
+}
+
+pipeline::Progress make_progress(bool show) {
+  auto printer = show ? std::make_shared<ProgressPrinter>(::isatty(2) != 0) : nullptr;
+  return [printer](const char* what, std::uint64_t done, std::uint64_t total) {
+    if (printer) printer->update(what, done, total);
+    // Long steps poll for Ctrl-C here: no output file gets its final name after a stop.
+    if (pipeline::stop_requested()) throw std::runtime_error("interrupted");
+  };
+}
+
 ProgramRun::ProgramRun(const ProgramArgs& args, const std::vector<std::string>& last_stages,
                        pipeline::DiagnosticLog& log, const pipeline::StageContext& overrides)
     : ProgramRun(args, [&last_stages](const PipelineConfig&) { return last_stages; }, log, overrides) {}
@@ -123,14 +134,7 @@ ProgramRun::ProgramRun(const ProgramArgs& args,
   c.file = input_.name();
   c.log = &log;
   c.strict = args.strict || load_parse_options(config_.root.section("parse")).strict;
-  if (!c.progress) {
-    auto printer = progress_ ? std::make_shared<ProgressPrinter>(::isatty(2) != 0) : nullptr;
-    c.progress = [printer](const char* what, std::uint64_t done, std::uint64_t total) {
-      if (printer) printer->update(what, done, total);
-      // Long steps poll for Ctrl-C here: no output file gets its final name after a stop.
-      if (pipeline::stop_requested()) throw std::runtime_error("interrupted");
-    };
-  }
+  if (!c.progress) c.progress = make_progress(progress_);
   pipeline_ = std::make_unique<pipeline::Pipeline>(chains(last_stages(config_)), c);
 }
 

@@ -17,6 +17,12 @@
 
 namespace gcpipe::cli {
 
+/// Progress on stderr wanted: --progress, or a terminal unless --no-progress.
+bool show_progress(bool progress, bool no_progress);
+/// The progress every command prints (one line per step, percent, elapsed and remaining time;
+/// nothing when `show` is false); it also polls for SIGINT/SIGTERM and throws "interrupted".
+pipeline::Progress make_progress(bool show);
+
 /// Prints diagnostics to stderr (the first `shown_max`; all of them when 0) and keeps them for
 /// diagnostics.txt when asked to.
 class PrintedLog final : public pipeline::DiagnosticLog {
