@@ -18,6 +18,7 @@
 #include "gcpipe/config.hpp"
 #include "gcpipe/pipeline_config.hpp"
 #include "parse.hpp"
+#include "parse_helpers.hpp"
 #include "unseen_machine/unseen_machine.hpp"
 #include "write.hpp"
 
@@ -27,17 +28,10 @@ namespace {
 namespace fs = std::filesystem;
 
 std::vector<ResolvedBlock> parse_text(const std::string& text, const PipelineConfig& pc) {
-  Parser parser(ParseOptions{}, pc.machine, "test.nc");
-  std::vector<ResolvedBlock> out;
-  std::istringstream in(text);
-  std::string line;
-  LineOutput got;
-  while (std::getline(in, line)) {
-    parser.feed(line, got);
-    out.insert(out.end(), got.blocks.begin(), got.blocks.end());
-    if (got.error() != nullptr) ADD_FAILURE() << format(*got.error());
-  }
-  return out;
+  const test::Parsed parsed = test::parse_text(text, {}, pc.machine, "test.nc");
+  for (const Diagnostic& d : parsed.diags)
+    if (d.severity == Severity::kError) ADD_FAILURE() << format(d);
+  return parsed.blocks;
 }
 
 PipelineConfig default_config() {
