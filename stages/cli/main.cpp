@@ -1,7 +1,9 @@
 // gcpipe: G-code stream processing for five-axis machining. main() declares every subcommand's
 // options with CLI11 (the help text comes from these declarations) and dispatches to run_<name>.
 // This is the only file that includes CLI11: it is a heavy header.
+#include <functional>
 #include <iostream>
+#include <optional>
 
 #include <malloc.h>
 
@@ -396,6 +398,42 @@ void add_dds_commands(CLI::App& app, DdsCommands& d) {
 }
 #endif
 
+/// Parses the command line; an exit status when the run ends here (help, version, usage error).
+std::optional<int> parse_command_line(CLI::App& app, int argc, char** argv) {
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // A mistyped command or option is named, with what was probably meant; CLI11's own message
+    // ("A subcommand is required", "not expected: x.yaml --confg") does not say which word.
+    if (e.get_exit_code() != 0) {
+      const std::string unknown = gcpipe::cli::explain_unknown_words(app, std::vector<std::string>(argv + 1, argv + argc));
+      if (!unknown.empty()) {
+        std::cerr << "gcpipe: " << unknown << "\n";
+        return 2;
+      }
+    }
+    const int code = app.exit(e);
+    return code == 0 ? 0 : 2;
+  }
+  return std::nullopt;
+}
+
+/// Runs the command `name` through `dispatch` (its exit status, or nullopt for no such command)
+/// and turns what it throws into an exit status.
+int run_command(const std::string& name, const std::function<std::optional<int>()>& dispatch) {
+  try {
+    if (const auto status = dispatch()) return *status;
+  } catch (const std::exception& e) {
+    // A long step polls for SIGINT/SIGTERM through its progress callback, which throws.
+    if (gcpipe::pipeline::stop_requested()) return 128 + gcpipe::pipeline::stop_signal();
+    // Configuration and construction errors arrive here; per-line errors never throw.
+    std::cerr << "gcpipe " << name << ": " << e.what() << "\n";
+    return 1;
+  }
+  std::cerr << "gcpipe: no command '" << name << "'\n";
+  return 2;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -439,24 +477,10 @@ int main(int argc, char** argv) {
   DdsCommands dds;
   add_dds_commands(app, dds);
 #endif
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    // A mistyped command or option is named, with what was probably meant; CLI11's own message
-    // ("A subcommand is required", "not expected: x.yaml --confg") does not say which word.
-    if (e.get_exit_code() != 0) {
-      const std::string unknown = gcpipe::cli::explain_unknown_words(app, std::vector<std::string>(argv + 1, argv + argc));
-      if (!unknown.empty()) {
-        std::cerr << "gcpipe: " << unknown << "\n";
-        return 2;
-      }
-    }
-    const int code = app.exit(e);
-    return code == 0 ? 0 : 2;
-  }
+  if (const auto status = parse_command_line(app, argc, argv)) return *status;
   std::string name = app.get_subcommands().front()->get_name();
   if (name == "dds") name += "-" + app.get_subcommands().front()->get_subcommands().front()->get_name();
-  try {
+  return run_command(name, [&]() -> std::optional<int> {
     if (name == "batch") return run_batch(batch);
     if (name == "parse") return run_parse(parse);
     if (name == "trochoid") return run_trochoid(trochoid);
@@ -472,13 +496,6 @@ int main(int argc, char** argv) {
 #ifdef GCPIPE_WITH_DDS
     if (const void* args = dds.args_of(name)) return run_dds_command(name.c_str(), args);
 #endif
-  } catch (const std::exception& e) {
-    // A long step polls for SIGINT/SIGTERM through its progress callback, which throws.
-    if (gcpipe::pipeline::stop_requested()) return 128 + gcpipe::pipeline::stop_signal();
-    // Configuration and construction errors arrive here; per-line errors never throw.
-    std::cerr << "gcpipe " << name << ": " << e.what() << "\n";
-    return 1;
-  }
-  std::cerr << "gcpipe: no command '" << name << "'\n";
-  return 2;
+    return std::nullopt;
+  });
 }
